@@ -1,0 +1,40 @@
+# gonio — two commands do all the set-up on a fresh machine with Python 3.11:
+#   make demo   create .venv, install gonio, run the demo pipeline on sample_data/
+#   make test   create .venv, install gonio, run the whole test suite
+# Others: make bench (error against run time), make clean.
+
+PYTHON ?= $(shell command -v python3.11 || command -v python3)
+VENV   := .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.gonio-installed
+OUT    ?= out
+
+export PATH := $(abspath $(BIN)):$(PATH)
+
+.PHONY: demo test bench clean setup
+.DEFAULT_GOAL := demo
+
+setup: $(STAMP)
+
+# Reinstall when the dependency list changes; the package itself is editable.
+$(STAMP): pyproject.toml
+	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e .
+	@touch $@
+
+include pipelines/rgbink.mk
+
+demo: $(STAMP) rgbink
+	@echo
+	@echo "Demo outputs are in $(OUT)/rgbink/:"
+	@ls -1 $(OUT)/rgbink | sed 's/^/  /'
+
+test: $(STAMP)
+	$(BIN)/python -m pytest -q
+
+bench: $(STAMP)
+	$(BIN)/python benchmarks/bench_fit.py
+
+clean:
+	rm -rf $(OUT)

@@ -1,0 +1,170 @@
+"""Self-describing artifacts: schema, version, provenance, atomic writes (STYLE 13).
+
+Every file a stage writes for another stage to read is a JSON document of the form::
+
+    {
+      "schema": "gonio.measurement", "schema_version": 1,
+      "gonio_version": "0.1.0", "created_utc": "2026-11-23T15:00:00Z",
+      "inputs": [{"path": "red.csv", "sha256": "..."}],
+      "parameters": {...},            # the options that produced it
+      "time_s": 0.012,                # wall time of the stage's core
+      ...payload (units in field names: wavelength_nm, theta_i_deg, brdf_per_sr)...
+    }
+
+Writes go to a temporary file in the destination folder and are moved into place with
+:func:`os.replace`, so a failed or interrupted run leaves the previous file (or none),
+never a half-written one. Readers refuse another schema or an unknown version, naming
+the file.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime as _dt
+import hashlib
+import json
+import os
+import tempfile
+from pathlib import Path
+from typing import Any, Iterable, Iterator, Mapping
+
+import numpy as np
+
+from . import __version__
+from .errors import ArtifactError
+
+#: Keys every artifact carries besides its payload.
+ENVELOPE_KEYS = ("schema", "schema_version", "gonio_version", "created_utc", "inputs",
+                 "parameters", "time_s")
+
+
+def sha256_file(path: str | os.PathLike) -> str:
+    """Hex SHA-256 of a file's bytes (read in 1 MiB blocks)."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def input_records(paths: Iterable[str | os.PathLike]) -> list[dict[str, str]]:
+    """Provenance of input files: ``[{"path": ..., "sha256": ...}, ...]``."""
+    return [{"path": os.fspath(p), "sha256": sha256_file(p)} for p in paths]
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
+    """Yield a temporary path beside ``path``; move it onto ``path`` only on success.
+
+    Any writer (JSON, PNG through OpenImageIO, EXR) writes to the yielded path. If the
+    block raises, the temporary file is removed and ``path`` is untouched.
+    """
+    path = Path(path)
+    folder = path.parent if str(path.parent) else Path(".")
+    folder.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=f".tmp{path.suffix}",
+                               dir=folder)
+    os.close(fd)
+    tmp_path = Path(tmp)
+    try:
+        yield tmp_path
+        os.replace(tmp_path, path)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            tmp_path.unlink()
+        raise
+
+
+def _to_jsonable(obj: Any) -> Any:
+    """numpy arrays and scalars to lists and Python numbers, recursively."""
+    if isinstance(obj, Mapping):
+        return {str(k): _to_jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_to_jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _to_jsonable(obj.tolist())
+    if isinstance(obj, np.bool_):
+        return bool(obj)
+    if isinstance(obj, np.integer):
+        return int(obj)
+    if isinstance(obj, np.floating):
+        return float(obj)
+    if isinstance(obj, Path):
+        return os.fspath(obj)
+    return obj
+
+
+def make_document(schema: str, schema_version: int, payload: Mapping[str, Any], *,
+                  inputs: Iterable[str | os.PathLike] = (),
+                  parameters: Mapping[str, Any] | None = None,
+                  time_s: float = 0.0) -> dict[str, Any]:
+    """The artifact as a dict: envelope (schema, provenance) followed by the payload."""
+    clash = set(payload) & set(ENVELOPE_KEYS)
+    if clash:
+        raise ValueError(f"payload may not use envelope keys {sorted(clash)}")
+    doc: dict[str, Any] = {
+        "schema": schema,
+        "schema_version": int(schema_version),
+        "gonio_version": __version__,
+        "created_utc": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        "inputs": input_records(inputs),
+        "parameters": dict(parameters or {}),
+        "time_s": float(time_s),
+    }
+    doc.update(payload)
+    return _to_jsonable(doc)
+
+
+def write_json(path: str | os.PathLike, doc: Mapping[str, Any]) -> None:
+    """Write a JSON document atomically. NaN and inf are refused (they are bugs here)."""
+    text = json.dumps(_to_jsonable(doc), indent=1, allow_nan=False)
+    with atomic_path(path) as tmp:
+        tmp.write_text(text + "\n", encoding="utf-8")
+
+
+def write_artifact(path: str | os.PathLike, schema: str, schema_version: int,
+                   payload: Mapping[str, Any], **envelope: Any) -> dict[str, Any]:
+    """Build the document (:func:`make_document`) and write it atomically; return it."""
+    doc = make_document(schema, schema_version, payload, **envelope)
+    write_json(path, doc)
+    return doc
+
+
+def read_artifact(path: str | os.PathLike, schema: str,
+                  versions: Iterable[int]) -> dict[str, Any]:
+    """Read an artifact, refusing a missing file, bad JSON, another schema or version."""
+    path = Path(path)
+    versions = tuple(versions)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ArtifactError("no such file", path=path,
+                            fix="check the path or run the stage that makes it") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ArtifactError(f"cannot read it ({exc.__class__.__name__})", path=path) from None
+    try:
+        doc = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ArtifactError(f"not valid JSON ({exc.msg} at line {exc.lineno})", path=path,
+                            fix="regenerate it with gonio") from None
+    if not isinstance(doc, dict) or "schema" not in doc:
+        raise ArtifactError("not a gonio artifact (no 'schema' field)", path=path)
+    if doc["schema"] != schema:
+        raise ArtifactError(f"schema is {doc['schema']!r}, expected {schema!r}", path=path,
+                            fix="pass the file this command reads")
+    if doc.get("schema_version") not in versions:
+        raise ArtifactError(
+            f"{schema} schema_version {doc.get('schema_version')!r} is not supported "
+            f"(this gonio {__version__} reads {', '.join(map(str, versions))})", path=path,
+            fix="regenerate it with this version of gonio")
+    return doc
+
+
+def check_keys(doc: Mapping[str, Any], allowed: Iterable[str], *, path=None,
+               where: str = "") -> None:
+    """Refuse unknown keys (STYLE 7): a typo is an error, never silently ignored."""
+    unknown = sorted(set(doc) - set(allowed))
+    if unknown:
+        raise ArtifactError(f"unknown field{'s' if len(unknown) > 1 else ''} "
+                            f"{', '.join(where + k for k in unknown)}", path=path,
+                            fix=f"allowed: {', '.join(sorted(allowed))}")

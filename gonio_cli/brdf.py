@@ -1,0 +1,220 @@
+"""Every reflectance model of gonio, each equation once (STYLE 2).
+
+All models are BRDFs in sr⁻¹ **without** the cosine of incidence (CONVENTIONS): outgoing
+radiance is L_o = f · E · cos θi. They take :class:`gonio_cli.geometry.Cosines` of shape
+(...,) and spectral parameters of shape (..., n_λ) (wavelength last, STYLE 6), and return
+(..., n_λ): geometry broadcasts against the parameters' leading axes, so a single
+configuration, a batch of configurations or an image of pixels all work.
+
+Seed 000 (Pranovich et al. 2024): eq. 1 (half vector, in :mod:`gonio_cli.geometry`),
+eq. 2 (Torrance–Sparrow), eq. 3 (GGX D), eq. 4 (the goniochromatic term E), eq. 5 (the
+goniochromatic BRDF), eq. 6 (cos((θi+θo)/2), in :mod:`gonio_cli.geometry`), eq. 7 (eq. 5
+at the mirror configuration). Seed 004 (Ďurikovič & Mihálik 2013): eq. 9 (Beckmann D),
+eq. 10 (V-groove G), eq. 11 (Cook–Torrance), eq. 12 (Schlick's Fresnel).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from .geometry import Cosines, cos_half_sum
+
+#: Exponent ceiling for exp(): exp(700) ≈ 1e304 is still finite in float64, so a huge c
+#: or a tiny α gives a huge but finite value instead of inf (and inf·0 = NaN downstream).
+LOG_MAX = 700.0
+
+#: Cosines below this are treated as grazing (1e-7 rad from the horizon). Used only where a
+#: model divides by cos θi cos θo (eq. 2, seed 004 eq. 11); the product stays > 1e-14.
+COS_EPS = 1e-7
+
+
+def _col(x) -> np.ndarray:
+    """Geometry (...,) → (..., 1) so it broadcasts against spectra (..., n_λ)."""
+    return np.asarray(x, dtype=float)[..., None]
+
+
+# --------------------------------------------------------------------------- seed 000 --
+
+def ggx_d(cos_theta_h, alpha) -> np.ndarray:
+    """GGX / Trowbridge–Reitz normal distribution, seed 000 eq. (3), in sr⁻¹.
+
+    D = α² / (π ((α² − 1) cos²θh + 1)²). ``cos_theta_h``: (...,) cosine of the half angle;
+    ``alpha``: scalar or broadcastable roughness in (0, 1] (the GGX α, not squared again).
+    Normalised so that ∫ D cos θh dω = 1 over the hemisphere.
+    """
+    return np.exp(log_ggx_d(cos_theta_h, alpha))
+
+
+def log_ggx_d(cos_theta_h, alpha) -> np.ndarray:
+    """log of seed 000 eq. (3), finite for α down to 1e-150 and at cos θh = 1.
+
+    The denominator (α² − 1) cos²θh + 1 = α² cos²θh + sin²θh is written in that form,
+    which has no cancellation when α is tiny and cos θh → 1.
+    """
+    ch = np.clip(np.asarray(cos_theta_h, dtype=float), 0.0, 1.0)
+    a2 = np.asarray(alpha, dtype=float) ** 2
+    sin2 = np.maximum(1.0 - ch * ch, 0.0)
+    denom = a2 * ch * ch + sin2
+    return np.log(a2) - np.log(np.pi) - 2.0 * np.log(denom)
+
+
+def goniochromatic_exponent_arg(cos_theta_i, cos_theta_o) -> np.ndarray:
+    """1 − cos((θi + θo)/2), the factor c(λ) multiplies in seed 000 eq. (4)."""
+    return 1.0 - cos_half_sum(cos_theta_i, cos_theta_o)
+
+
+def log_goniochromatic(cos: Cosines, alpha, rho, c) -> np.ndarray:
+    """log f of seed 000 eq. (5); −inf where ρ = 0. Shape (..., n_λ)."""
+    x = _col(goniochromatic_exponent_arg(cos.cos_theta_i, cos.cos_theta_o))
+    with np.errstate(divide="ignore"):
+        log_rho = np.log(np.asarray(rho, dtype=float))
+    return (_col(log_ggx_d(cos.cos_theta_h, alpha)) - np.log(4.0) + log_rho
+            + np.asarray(c, dtype=float) * x)
+
+
+def goniochromatic(cos: Cosines, alpha, rho, c) -> np.ndarray:
+    """The goniochromatic microfacet BRDF, seed 000 eq. (5), in sr⁻¹ (no cos θi factor).
+
+    f = α² ρ(λ) exp(c(λ)(1 − cos((θi+θo)/2))) / (4π((α² − 1)cos²θh + 1)²)
+      = D(θh) / 4 · E(θi, θo, λ)   with D of eq. (3) and E of eq. (4),
+
+    and cos((θi+θo)/2) from eq. (6). ``cos``: :class:`Cosines` (...,); ``alpha``: scalar;
+    ``rho``, ``c``: (..., n_λ). Returns (..., n_λ), finite for any finite input.
+    """
+    return np.exp(np.minimum(log_goniochromatic(cos, alpha, rho, c), LOG_MAX))
+
+
+def goniochromatic_mirror(cos_theta_i, alpha, rho, c) -> np.ndarray:
+    """Seed 000 eq. (7): eq. (5) at the mirror configuration ωo = mirror of ωi.
+
+    f = ρ(λ) exp(c(λ)(1 − cos θi)) / (4π α²). ``cos_theta_i``: (...,). Returns (..., n_λ).
+    """
+    x = 1.0 - _col(cos_theta_i)
+    log_f = (np.log(np.asarray(rho, dtype=float)) + np.asarray(c, dtype=float) * x
+             - np.log(4.0 * np.pi * np.asarray(alpha, dtype=float) ** 2))
+    return np.exp(np.minimum(log_f, LOG_MAX))
+
+
+def smith_g1_ggx(cos_theta, alpha) -> np.ndarray:
+    """Smith masking G1 for GGX (Walter et al. 2007, seed 000 ref. 12).
+
+    G1 = 2 cos θ / (cos θ + sqrt(α² + (1 − α²) cos²θ)); 0 at grazing, 1 at normal.
+    """
+    ct = np.clip(np.asarray(cos_theta, dtype=float), 0.0, 1.0)
+    a2 = np.asarray(alpha, dtype=float) ** 2
+    denom = ct + np.sqrt(a2 + (1.0 - a2) * ct * ct)  # ≥ α > 0 unless α = cos θ = 0
+    return 2.0 * ct / np.maximum(denom, COS_EPS)
+
+
+def smith_g_ggx(cos: Cosines, alpha) -> np.ndarray:
+    """Separable Smith shadowing-masking G = G1(ωi) G1(ωo) for GGX."""
+    return smith_g1_ggx(cos.cos_theta_i, alpha) * smith_g1_ggx(cos.cos_theta_o, alpha)
+
+
+def schlick_fresnel(cos_theta, f0) -> np.ndarray:
+    """Schlick's Fresnel, seed 004 eq. (12) (seed 000 ref. 26): F0 + (1 − F0)(1 − cos θ)⁵.
+
+    ``cos_theta``: (...,); ``f0``: (..., n_λ) reflectance at normal incidence in [0, 1].
+    """
+    m = _col((1.0 - np.clip(np.asarray(cos_theta, dtype=float), 0.0, 1.0)) ** 5)
+    f0 = np.asarray(f0, dtype=float)
+    return f0 + (1.0 - f0) * m
+
+
+def torrance_sparrow(cos: Cosines, alpha, f0) -> np.ndarray:
+    """The "standard model" of seed 000: Torrance–Sparrow, eq. (2), with GGX D (eq. 3),
+    separable Smith G and Schlick's F(cos θd), in sr⁻¹.
+
+    f = F(cos θd, λ) G D / (4 cos θi cos θo). Zero where either cosine is below
+    :data:`COS_EPS` (G vanishes there faster than the denominator).
+    """
+    ci, co = cos.cos_theta_i, cos.cos_theta_o
+    valid = (ci > COS_EPS) & (co > COS_EPS)
+    geo = np.where(valid, smith_g_ggx(cos, alpha) * ggx_d(cos.cos_theta_h, alpha)
+                   / (4.0 * np.maximum(ci, COS_EPS) * np.maximum(co, COS_EPS)), 0.0)
+    return schlick_fresnel(cos.cos_theta_d, f0) * _col(geo)
+
+
+# --------------------------------------------------------------------------- seed 004 --
+
+def beckmann_d(cos_theta_h, m) -> np.ndarray:
+    """Beckmann distribution as written in seed 004 eq. (9): exp(−tan²θh/m²)/(m² cos⁴θh).
+
+    ``m``: RMS microfacet slope, scalar or (..., n_λ) (per wavelength in seed 004 §5.2);
+    ``cos_theta_h``: (...,). Returns the broadcast of ``cos_theta_h[..., None]`` and ``m``.
+    The 1/π of the normalised Beckmann D sits in eq. (11)'s denominator instead.
+    """
+    ch = _col(np.clip(np.asarray(cos_theta_h, dtype=float), COS_EPS, 1.0))
+    m2 = np.asarray(m, dtype=float) ** 2
+    tan2 = (1.0 - ch * ch) / (ch * ch)
+    return np.exp(-tan2 / m2) / (m2 * ch ** 4)
+
+
+def vgroove_g(cos: Cosines) -> np.ndarray:
+    """Cook–Torrance V-groove shadowing/masking, seed 004 eq. (10).
+
+    G = min(1, 2 (H·N)(V·N)/(V·H), 2 (H·N)(L·N)/(V·H)); V·H = L·H = cos θd.
+    """
+    vh = np.maximum(cos.cos_theta_d, COS_EPS)
+    g = np.minimum(2.0 * cos.cos_theta_h * cos.cos_theta_o / vh,
+                   2.0 * cos.cos_theta_h * cos.cos_theta_i / vh)
+    return np.clip(g, 0.0, 1.0)
+
+
+def cook_torrance_specular_geometry(cos: Cosines, m) -> np.ndarray:
+    """D G / (π cos θi cos θo) of seed 004 eq. (11), (..., n_λ); zero at grazing."""
+    ci, co = cos.cos_theta_i, cos.cos_theta_o
+    valid = (ci > COS_EPS) & (co > COS_EPS)
+    geo = np.where(valid, vgroove_g(cos) / (np.pi * np.maximum(ci, COS_EPS)
+                                            * np.maximum(co, COS_EPS)), 0.0)
+    return beckmann_d(cos.cos_theta_h, m) * _col(geo)
+
+
+def cook_torrance(cos: Cosines, kd, ks, m, f0) -> np.ndarray:
+    """Cook–Torrance BRDF of seed 004 eq. (11), in sr⁻¹:
+
+    f = kd/π + ks F(θ) D G / (π cos θi cos θo),
+
+    D of eq. (9), G of eq. (10), F of eq. (12) at θ = the angle between L and H (θd).
+    ``kd``, ``ks``, ``m``, ``f0``: (..., n_λ), all per wavelength as in seed 004 §5.2.
+    """
+    kd = np.asarray(kd, dtype=float)
+    spec = np.asarray(ks, dtype=float) * schlick_fresnel(cos.cos_theta_d, f0)
+    return kd / np.pi + spec * cook_torrance_specular_geometry(cos, m)
+
+
+# ----------------------------------------------------------------------------- registry --
+
+@dataclass(frozen=True)
+class Model:
+    """A reflectance model: its name, parameters and evaluation.
+
+    ``scalar_params`` are wavelength independent (e.g. ``alpha``), ``spectral_params`` are
+    (n_λ,) arrays; ``evaluate(cos, **params)`` returns f in sr⁻¹, shape (..., n_λ).
+    """
+
+    name: str
+    scalar_params: tuple[str, ...]
+    spectral_params: tuple[str, ...]
+    evaluate: Callable[..., np.ndarray]
+    citation: str
+
+
+MODELS: dict[str, Model] = {
+    "goniochromatic": Model("goniochromatic", ("alpha",), ("rho", "c"), goniochromatic,
+                            "seed 000 eq. 5"),
+    "torrance-sparrow": Model("torrance-sparrow", ("alpha",), ("f0",), torrance_sparrow,
+                              "seed 000 eq. 2 with GGX D, Smith G, Schlick F"),
+    "cook-torrance": Model("cook-torrance", (), ("kd", "ks", "m", "f0"), cook_torrance,
+                           "seed 004 eqs. 9-12"),
+}
+
+
+def evaluate(model: str, cos: Cosines, params: dict) -> np.ndarray:
+    """Evaluate a registered model by name with a parameter dict (as in a material)."""
+    spec = MODELS[model]
+    kwargs = {k: params[k] for k in spec.scalar_params + spec.spectral_params}
+    return spec.evaluate(cos, **kwargs)

@@ -1,0 +1,104 @@
+"""The ``gonio`` command: one typer app, one subcommand per stage.
+
+The shell is thin (STYLE 1): each subcommand in :mod:`gonio_cli.commands` parses options,
+reads files, calls its stage's numpy core and writes files. Errors are converted once,
+here (STYLE 8): a :class:`~gonio_cli.errors.GonioError` becomes one line
+``gonio: error: …`` on stderr and exit status 2, never a traceback.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from typing import Optional, Sequence
+
+import typer
+
+from . import __version__, log
+from .errors import EXIT_USAGE, GonioError
+
+EPILOG = """\
+Examples (one per stage):
+
+  gonio ingest red_*.csv -o red.measurement.json --summary
+
+  gonio fit red.measurement.json -o red.material.json --plot red.fit.png
+
+Every command writes self-describing artifacts atomically; bad input gets one line on
+stderr naming the file, the row or field and the fix, and exit status 2.
+"""
+
+app = typer.Typer(
+    name="gonio",
+    help="Goniometer spectra to fitted goniochromatic BRDFs and rendered images.",
+    epilog=EPILOG,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+    no_args_is_help=True,
+    rich_markup_mode=None,
+    context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100},
+)
+
+
+def _version(value: bool) -> None:
+    if value:
+        typer.echo(f"gonio {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(
+    version: Optional[bool] = typer.Option(None, "--version", callback=_version,
+                                           is_eager=True, help="Print the version and exit."),
+    quiet: bool = typer.Option(False, "--quiet", "-q",
+                               help="No warnings, progress bars or summaries on stderr."),
+) -> None:
+    log.set_quiet(quiet)
+
+
+def _register() -> None:
+    """Attach every stage's command (imports are cheap: cores load on first use)."""
+    from .commands import fit as _fit
+    from .commands import ingest as _ingest
+
+    for module in (_ingest, _fit):
+        module.register(app)
+
+
+_register()
+
+
+def run(argv: Sequence[str] | None = None) -> int:
+    """Run the CLI and return its exit status instead of exiting (used by tests)."""
+    log.set_quiet(False)
+    try:
+        # standalone mode: typer/click print their own usage errors and raise SystemExit.
+        app(args=list(argv) if argv is not None else None, prog_name="gonio",
+            standalone_mode=True)
+        return 0
+    except SystemExit as exc:
+        code = exc.code
+        return code if isinstance(code, int) else (0 if code is None else 1)
+    except GonioError as exc:
+        print(f"gonio: error: {exc.format()}", file=sys.stderr)
+        return EXIT_USAGE
+    except OSError as exc:
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"gonio: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except Exception as exc:  # a bug: one line, unless the user asks for the traceback
+        if os.environ.get("GONIO_DEBUG"):
+            raise
+        print(f"gonio: internal error: {exc.__class__.__name__}: {exc} "
+              "(a bug; rerun with GONIO_DEBUG=1 for the traceback and report it)",
+              file=sys.stderr)
+        return 1
+
+
+def main() -> None:
+    """Console entry point (``gonio``)."""
+    sys.exit(run())
+
+
+if __name__ == "__main__":
+    main()

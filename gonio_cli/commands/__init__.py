@@ -1,0 +1,1 @@
+"""Thin typer shells, one module per stage; each exposes ``register(app)``."""

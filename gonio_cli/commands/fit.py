@@ -1,0 +1,5 @@
+"""Placeholder: replaced by the fit stage's shell."""
+
+
+def register(app) -> None:
+    pass

@@ -1,0 +1,5 @@
+"""Placeholder: replaced by the ingest stage's shell."""
+
+
+def register(app) -> None:
+    pass

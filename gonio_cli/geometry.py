@@ -1,0 +1,81 @@
+"""Geometry shared by every stage: directions, half vector and the cosines BRDFs use.
+
+Conventions (``CONVENTIONS.md``): the sample normal is +z; the light is at polar angle
+θi on the −x side, ωi = (−sin θi, 0, cos θi); the detector is at a signed in-plane angle
+θo, ωo = (sin θo, 0, cos θo), so θo = θi is the mirror configuration and θo < 0 is the
+light's side. Angles are degrees at the boundary, radians and cosines in here.
+
+Every BRDF in :mod:`gonio_cli.brdf` is written in the four cosines of :class:`Cosines`,
+so the fit (in-plane data) and the renderer (arbitrary 3-D directions) share one code path.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+#: Below this norm ωi + ωo is treated as zero (ωo = −ωi, the retro-grazing limit), where
+#: the half vector is undefined; we then return the normal (cos θh = 1 would be wrong too,
+#: but such pairs have cos θi = cos θo = 0 and every model here is zero or clamped there).
+HALF_VECTOR_EPS = 1e-12
+
+
+class Cosines(NamedTuple):
+    """The cosines a BRDF needs, each of shape (...,), clamped to [0, 1].
+
+    cos_theta_i : n·ωi ; cos_theta_o : n·ωo ; cos_theta_h : n·ωh (seed 000 eq. 1) ;
+    cos_theta_d : ωi·ωh, the angle between light and half vector (Fresnel's angle).
+    """
+
+    cos_theta_i: np.ndarray
+    cos_theta_o: np.ndarray
+    cos_theta_h: np.ndarray
+    cos_theta_d: np.ndarray
+
+
+def in_plane_directions(theta_i_deg, theta_o_deg) -> tuple[np.ndarray, np.ndarray]:
+    """ωi and ωo (..., 3) of in-plane goniometer configurations (CONVENTIONS)."""
+    ti = np.radians(np.asarray(theta_i_deg, dtype=float))
+    to = np.radians(np.asarray(theta_o_deg, dtype=float))
+    ti, to = np.broadcast_arrays(ti, to)
+    zero = np.zeros_like(ti)
+    wi = np.stack([-np.sin(ti), zero, np.cos(ti)], axis=-1)
+    wo = np.stack([np.sin(to), zero, np.cos(to)], axis=-1)
+    return wi, wo
+
+
+def half_vector(wi: np.ndarray, wo: np.ndarray) -> np.ndarray:
+    """ωh = (ωi + ωo) / ‖ωi + ωo‖, seed 000 eq. (1); (..., 3) unit vectors in and out."""
+    s = np.asarray(wi, dtype=float) + np.asarray(wo, dtype=float)
+    norm = np.linalg.norm(s, axis=-1, keepdims=True)
+    safe = norm > HALF_VECTOR_EPS
+    n = np.zeros_like(s)
+    n[..., 2] = 1.0
+    return np.where(safe, s / np.where(safe, norm, 1.0), n)
+
+
+def cosines(wi: np.ndarray, wo: np.ndarray, normal=(0.0, 0.0, 1.0)) -> Cosines:
+    """The :class:`Cosines` of direction pairs (..., 3) about ``normal`` (..., 3)."""
+    wi = np.asarray(wi, dtype=float)
+    wo = np.asarray(wo, dtype=float)
+    n = np.asarray(normal, dtype=float)
+    wh = half_vector(wi, wo)
+    dot = lambda a, b: np.clip(np.sum(a * b, axis=-1), 0.0, 1.0)  # noqa: E731
+    return Cosines(dot(n, wi), dot(n, wo), dot(n, wh), dot(wi, wh))
+
+
+def in_plane_cosines(theta_i_deg, theta_o_deg) -> Cosines:
+    """:class:`Cosines` of in-plane configurations given in degrees (CONVENTIONS)."""
+    return cosines(*in_plane_directions(theta_i_deg, theta_o_deg))
+
+
+def cos_half_sum(cos_theta_i, cos_theta_o) -> np.ndarray:
+    """cos((θi + θo)/2) from the two cosines, seed 000 eq. (6).
+
+    θi and θo are polar angles in [0, π/2] (the first quadrant, as the paper notes), so
+    an in-plane detector at signed θo enters as |θo|. Shape: broadcast of the inputs.
+    """
+    ci = np.clip(np.asarray(cos_theta_i, dtype=float), 0.0, 1.0)
+    co = np.clip(np.asarray(cos_theta_o, dtype=float), 0.0, 1.0)
+    return 0.5 * (np.sqrt((1.0 + ci) * (1.0 + co)) - np.sqrt((1.0 - ci) * (1.0 - co)))

@@ -1,0 +1,83 @@
+"""Warnings and progress for the CLI, silent with ``--quiet``.
+
+Cores never print (STYLE 1): they call :func:`warn` (collected and shown by the shell on
+stderr) and wrap long loops in :func:`progress`, which draws a bar on stderr only when
+the step is long enough to need one and the user did not ask for quiet.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import sys
+import time
+from typing import Iterable, Iterator, TypeVar
+
+T = TypeVar("T")
+
+_state = {"quiet": False}
+
+#: A progress bar appears only for loops expected to run longer than this (s).
+PROGRESS_MIN_S = 2.0
+
+
+def set_quiet(quiet: bool) -> None:
+    """Silence warnings and progress bars (``gonio --quiet``)."""
+    _state["quiet"] = bool(quiet)
+
+
+def is_quiet() -> bool:
+    return _state["quiet"]
+
+
+def warn(message: str) -> None:
+    """One-line warning on stderr: ``gonio: warning: …`` (unless quiet)."""
+    if not _state["quiet"]:
+        print(f"gonio: warning: {' '.join(message.split())}", file=sys.stderr)
+
+
+def info(message: str) -> None:
+    """One-line information on stderr (unless quiet); stdout is kept for data."""
+    if not _state["quiet"]:
+        print(message, file=sys.stderr)
+
+
+def progress(items: Iterable[T], description: str, total: int | None = None,
+             expected_s: float | None = None) -> Iterator[T]:
+    """Iterate ``items`` with a rich progress bar on stderr when worth showing.
+
+    The bar is drawn if not quiet, stderr is a terminal and either ``expected_s`` exceeds
+    :data:`PROGRESS_MIN_S` or (when unknown) the loop is still running after that time.
+    """
+    if _state["quiet"] or not sys.stderr.isatty() or (
+            expected_s is not None and expected_s < PROGRESS_MIN_S):
+        yield from items
+        return
+    from rich.progress import Progress
+
+    if total is None:
+        try:
+            total = len(items)  # type: ignore[arg-type]
+        except TypeError:
+            total = None
+    start = time.perf_counter()
+    with Progress(transient=True, disable=False, redirect_stdout=False,
+                  redirect_stderr=False) as bar:
+        task = None
+        for done, item in enumerate(items):
+            if task is None and (expected_s is not None
+                                 or time.perf_counter() - start > PROGRESS_MIN_S):
+                task = bar.add_task(description, total=total, completed=done)
+            yield item
+            if task is not None:
+                bar.advance(task)
+
+
+@contextlib.contextmanager
+def timer() -> Iterator[dict]:
+    """``with timer() as t: ...`` then ``t["time_s"]`` is the wall time in seconds."""
+    t = {"time_s": 0.0}
+    start = time.perf_counter()
+    try:
+        yield t
+    finally:
+        t["time_s"] = time.perf_counter() - start

@@ -1,0 +1,128 @@
+"""Artifact schemas: what each stage writes and the next reads, in one place.
+
+Each schema is a dataclass with ``to_payload()`` (fields written after the envelope of
+:mod:`gonio_cli.artifact`) and ``from_document(doc, path)`` that validates shapes, finiteness
+and field names (unknown fields are errors, STYLE 7) and names the file in every error.
+
+- ``gonio.measurement`` v1, :class:`Measurement` (``gonio ingest``)
+- ``gonio.material`` v1, :class:`Material` (``gonio fit``)
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .artifact import ENVELOPE_KEYS, check_keys, read_artifact, write_artifact
+from .errors import ArtifactError
+
+
+def _array(doc, key, path, ndim, dtype=float) -> np.ndarray:
+    try:
+        a = np.asarray(doc[key], dtype=dtype)
+    except KeyError:
+        raise ArtifactError(f"missing field {key!r}", path=path) from None
+    except (TypeError, ValueError):
+        raise ArtifactError(f"field {key!r} is not a numeric array", path=path) from None
+    if a.ndim != ndim:
+        raise ArtifactError(f"field {key!r} has {a.ndim} dimensions, expected {ndim}",
+                            path=path)
+    if np.issubdtype(a.dtype, np.floating) and not np.all(np.isfinite(a)):
+        raise ArtifactError(f"field {key!r} holds NaN or inf", path=path)
+    return a
+
+
+# -------------------------------------------------------------------------- measurement --
+
+@dataclass
+class Measurement:
+    """In-plane goniometer measurement on one spectral grid (``gonio.measurement`` v1).
+
+    Attributes
+    ----------
+    wavelength_nm : (n_λ,) float, increasing.
+    theta_i_deg : (n_cfg,) float in [0, 90); theta_o_deg : (n_cfg,) float in (−90, 90),
+        signed as in CONVENTIONS (θo = θi is the mirror configuration).
+    brdf : (n_cfg, n_λ) float, sr⁻¹, the mean of the repeats (no cosine factor).
+    brdf_std : (n_cfg, n_λ) float or None, sample standard deviation of the repeats
+        (0 where a configuration was read once); None if no configuration repeated.
+    n_repeats : (n_cfg,) int ≥ 1, how many rows were averaged per configuration.
+    quantity : what the instrument reported before conversion to BRDF.
+    summary : what ingest read, dropped, clipped and resampled (for ``--summary``).
+    """
+
+    wavelength_nm: np.ndarray
+    theta_i_deg: np.ndarray
+    theta_o_deg: np.ndarray
+    brdf: np.ndarray
+    brdf_std: np.ndarray | None = None
+    n_repeats: np.ndarray | None = None
+    quantity: str = "brdf"
+    summary: dict[str, Any] = field(default_factory=dict)
+
+    SCHEMA = "gonio.measurement"
+    VERSION = 1
+    FIELDS = ("wavelength_nm", "theta_i_deg", "theta_o_deg", "brdf", "brdf_std",
+              "n_repeats", "quantity", "summary")
+
+    def __post_init__(self):
+        self.wavelength_nm = np.asarray(self.wavelength_nm, dtype=float)
+        self.theta_i_deg = np.asarray(self.theta_i_deg, dtype=float)
+        self.theta_o_deg = np.asarray(self.theta_o_deg, dtype=float)
+        self.brdf = np.asarray(self.brdf, dtype=float)
+        if self.brdf_std is not None:
+            self.brdf_std = np.asarray(self.brdf_std, dtype=float)
+        if self.n_repeats is None:
+            self.n_repeats = np.ones(self.theta_i_deg.shape, dtype=int)
+        self.n_repeats = np.asarray(self.n_repeats, dtype=int)
+
+    @property
+    def n_configurations(self) -> int:
+        return int(self.theta_i_deg.size)
+
+    def to_payload(self) -> dict[str, Any]:
+        return {
+            "wavelength_nm": self.wavelength_nm,
+            "theta_i_deg": self.theta_i_deg,
+            "theta_o_deg": self.theta_o_deg,
+            "brdf": self.brdf,
+            "brdf_std": self.brdf_std,
+            "n_repeats": self.n_repeats,
+            "quantity": self.quantity,
+            "summary": self.summary,
+        }
+
+    @classmethod
+    def from_document(cls, doc: dict[str, Any], path=None) -> "Measurement":
+        check_keys(doc, ENVELOPE_KEYS + cls.FIELDS, path=path)
+        wl = _array(doc, "wavelength_nm", path, 1)
+        ti = _array(doc, "theta_i_deg", path, 1)
+        to = _array(doc, "theta_o_deg", path, 1)
+        brdf = _array(doc, "brdf", path, 2)
+        std = _array(doc, "brdf_std", path, 2) if doc.get("brdf_std") is not None else None
+        reps = _array(doc, "n_repeats", path, 1, dtype=int) if "n_repeats" in doc else None
+        n, nl = ti.size, wl.size
+        if to.size != n or brdf.shape != (n, nl) or (std is not None and std.shape != (n, nl)) \
+                or (reps is not None and reps.size != n):
+            raise ArtifactError(f"inconsistent shapes: {n} theta_i_deg, {to.size} theta_o_deg, "
+                                f"brdf {brdf.shape}, {nl} wavelengths", path=path,
+                                fix="regenerate it with gonio ingest")
+        if n == 0:
+            raise ArtifactError("holds no configurations", path=path)
+        return cls(wl, ti, to, brdf, std, reps, str(doc.get("quantity", "brdf")),
+                   dict(doc.get("summary") or {}))
+
+
+def read_measurement(path: str | os.PathLike) -> Measurement:
+    """Read and validate a ``gonio.measurement`` artifact."""
+    doc = read_artifact(path, Measurement.SCHEMA, (Measurement.VERSION,))
+    return Measurement.from_document(doc, path=path)
+
+
+def write_measurement(path: str | os.PathLike, m: Measurement, **envelope) -> dict:
+    """Write a measurement atomically with provenance (inputs, parameters, time_s)."""
+    return write_artifact(path, Measurement.SCHEMA, Measurement.VERSION, m.to_payload(),
+                          **envelope)

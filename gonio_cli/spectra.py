@@ -1,0 +1,145 @@
+"""The working spectral grid, resampling onto it, and colour helpers (colour-science).
+
+Wavelengths are nanometres (``wavelength_nm``) and always the last array axis. The default
+grid is 380–780 nm in 10 nm steps (41 samples, seed 000). Colour follows CONVENTIONS:
+XYZ = Σλ L(λ) cmf(λ) / Σλ ȳ(λ) with the CIE 1931 2° observer sampled on the working grid,
+light spectra scaled so that Σ S ȳ / Σ ȳ = 1, linear sRGB by the IEC 61966-2-1 matrix.
+
+colour-science takes ~1.5 s to import, so it is imported on first use only: a stage that
+needs no colour (ingest, fit) never pays for it.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+
+from .errors import InputError
+
+DEFAULT_GRID_NM = "380:780:10"
+
+#: Two wavelengths closer than this (nm) are the same sample (float noise in CSV headers).
+WAVELENGTH_TOL_NM = 1e-6
+
+
+def parse_grid(spec: str = DEFAULT_GRID_NM) -> np.ndarray:
+    """``"START:STOP:STEP"`` in nm (inclusive) → (n_λ,) float array.
+
+    >>> parse_grid("380:400:10")
+    array([380., 390., 400.])
+    """
+    parts = str(spec).split(":")
+    try:
+        start, stop, step = (float(p) for p in parts)
+    except ValueError:
+        raise InputError(f"--grid-nm {spec!r} is not START:STOP:STEP in nm",
+                         fix="e.g. --grid-nm 380:780:10") from None
+    if not (step > 0 and stop > start and start > 0):
+        raise InputError(f"--grid-nm {spec!r} needs 0 < START < STOP and STEP > 0",
+                         fix="e.g. --grid-nm 380:780:10")
+    n = (stop - start) / step
+    if abs(n - round(n)) > 1e-6:
+        raise InputError(f"--grid-nm {spec!r}: STOP - START is not a multiple of STEP",
+                         fix="e.g. --grid-nm 380:780:10")
+    return start + step * np.arange(int(round(n)) + 1)
+
+
+def covers(wavelength_nm_in, grid_nm) -> bool:
+    """True if the input wavelengths span the whole grid (no extrapolation needed)."""
+    w = np.asarray(wavelength_nm_in, dtype=float)
+    g = np.asarray(grid_nm, dtype=float)
+    return bool(w.min() <= g.min() + WAVELENGTH_TOL_NM and w.max() >= g.max() - WAVELENGTH_TOL_NM)
+
+
+def same_grid(a, b) -> bool:
+    """True if two wavelength lists are the same samples."""
+    a = np.asarray(a, dtype=float)
+    b = np.asarray(b, dtype=float)
+    return a.shape == b.shape and bool(np.all(np.abs(a - b) <= WAVELENGTH_TOL_NM))
+
+
+def resample(wavelength_nm_in, values, grid_nm) -> np.ndarray:
+    """Resample spectra (..., n_in) given at ``wavelength_nm_in`` onto ``grid_nm``.
+
+    Where the input is finer than the grid step, each grid sample is the average of the
+    input under a triangle (hat) of the grid's step width, the projection onto the grid's
+    linear-interpolation basis, so instrument noise at 1 nm is averaged rather than
+    point-sampled (aliased). Where the input is as coarse or coarser, linear interpolation.
+    Both are shape preserving: non-negative in, non-negative out (no overshoot).
+    The input must cover the grid (:func:`covers`); extrapolation is refused by callers.
+    """
+    w = np.asarray(wavelength_nm_in, dtype=float)
+    g = np.asarray(grid_nm, dtype=float)
+    v = np.asarray(values, dtype=float)
+    if same_grid(w, g):
+        return v.copy()
+    step_in = np.min(np.diff(w)) if w.size > 1 else np.inf
+    step_out = np.min(np.diff(g)) if g.size > 1 else np.inf
+    interp = np.apply_along_axis(lambda row: np.interp(g, w, row), -1, v)
+    if step_in >= step_out:
+        return interp
+    # Hat weights (n_grid, n_in); rows normalised to 1 (half hats at the grid's ends).
+    weights = np.maximum(0.0, 1.0 - np.abs(w[None, :] - g[:, None]) / step_out)
+    total = weights.sum(axis=1, keepdims=True)
+    ok = total[:, 0] > 0
+    weights = np.where(ok[:, None], weights / np.where(total > 0, total, 1.0), 0.0)
+    hat = v @ weights.T
+    # A grid sample with no input under its hat (cannot happen for finer input) keeps interp.
+    return np.where(ok, hat, interp)
+
+
+# ----------------------------------------------------------------------------- colour --
+
+@functools.lru_cache(maxsize=8)
+def _cmfs_cached(grid_key: tuple[float, ...]) -> np.ndarray:
+    import colour  # first use only (slow import)
+
+    cmfs = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"]
+    return np.stack([np.interp(grid_key, cmfs.wavelengths, cmfs.values[:, k])
+                     for k in range(3)], axis=-1)
+
+
+def cmfs(grid_nm) -> np.ndarray:
+    """CIE 1931 2° colour-matching functions on the grid, (n_λ, 3)."""
+    return _cmfs_cached(tuple(float(x) for x in np.asarray(grid_nm))).copy()
+
+
+def spectrum_to_xyz(radiance, grid_nm) -> np.ndarray:
+    """XYZ of spectra (..., n_λ): Σλ L cmf / Σλ ȳ (CONVENTIONS). Returns (..., 3)."""
+    cm = cmfs(grid_nm)
+    return np.asarray(radiance, dtype=float) @ cm / cm[:, 1].sum()
+
+
+@functools.lru_cache(maxsize=1)
+def xyz_to_linear_srgb_matrix() -> np.ndarray:
+    """IEC 61966-2-1 XYZ → linear sRGB matrix (D65 white), from colour-science. (3, 3)."""
+    import colour
+
+    return np.array(colour.RGB_COLOURSPACES["sRGB"].matrix_XYZ_to_RGB, dtype=float)
+
+
+def xyz_to_linear_srgb(xyz) -> np.ndarray:
+    """XYZ (..., 3) → linear sRGB (..., 3), no chromatic adaptation (CONVENTIONS)."""
+    return np.asarray(xyz, dtype=float) @ xyz_to_linear_srgb_matrix().T
+
+
+def srgb_encode(linear) -> np.ndarray:
+    """IEC 61966-2-1 transfer function, linear [0, 1] → encoded [0, 1] (clipped)."""
+    x = np.clip(np.asarray(linear, dtype=float), 0.0, 1.0)
+    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+
+
+def illuminant(name: str, grid_nm) -> np.ndarray:
+    """A CIE illuminant by name (``D65``, ``A``, ``F2`` …) on the grid, scaled so that
+    Σ S ȳ / Σ ȳ = 1 (CONVENTIONS). (n_λ,)."""
+    import colour
+
+    sds = colour.SDS_ILLUMINANTS
+    if name not in sds:
+        raise InputError(f"unknown illuminant {name!r}",
+                         fix=f"use one of {', '.join(sorted(sds)[:12])}, ... or a CSV")
+    sd = sds[name]
+    s = np.interp(np.asarray(grid_nm, dtype=float), sd.wavelengths, sd.values)
+    ybar = cmfs(grid_nm)[:, 1]
+    return s * ybar.sum() / (s @ ybar)
