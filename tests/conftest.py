@@ -1,0 +1,37 @@
+"""Shared test fixtures. Randomness is seeded per test (STYLE 12)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+
+from gonio_cli import cli, log
+
+
+@dataclass
+class CliResult:
+    exit_code: int
+    stdout: str
+    stderr: str
+
+
+@pytest.fixture
+def run_gonio(capsys):
+    """Run ``gonio ARGS…`` in-process; returns :class:`CliResult` (exit code, stdout, stderr)."""
+
+    def _run(*args) -> CliResult:
+        capsys.readouterr()  # drop anything printed before
+        code = cli.run([str(a) for a in args])
+        out, err = capsys.readouterr()
+        log.set_quiet(False)
+        return CliResult(code, out, err)
+
+    return _run
+
+
+@pytest.fixture
+def rng():
+    """A seeded generator; tests needing other seeds make their own."""
+    return np.random.default_rng(12345)
