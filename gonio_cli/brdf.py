@@ -61,6 +61,17 @@ def log_ggx_d(cos_theta_h, alpha) -> np.ndarray:
     return np.log(a2) - np.log(np.pi) - 2.0 * np.log(denom)
 
 
+def dlog_ggx_d_dlog_alpha(cos_theta_h, alpha) -> np.ndarray:
+    """∂ log D / ∂ log α of seed 000 eq. (3): 2 − 4 α² cos²θh / (α² cos²θh + sin²θh).
+
+    +2 far from the peak (D ∝ α² in the tails), −2 at cos θh = 1 (D ∝ 1/α² on the peak).
+    Used for the analytic Jacobians of the fits.
+    """
+    ch = np.clip(np.asarray(cos_theta_h, dtype=float), 0.0, 1.0)
+    a2c2 = np.asarray(alpha, dtype=float) ** 2 * ch * ch
+    return 2.0 - 4.0 * a2c2 / (a2c2 + np.maximum(1.0 - ch * ch, 0.0))
+
+
 def goniochromatic_exponent_arg(cos_theta_i, cos_theta_o) -> np.ndarray:
     """1 − cos((θi + θo)/2), the factor c(λ) multiplies in seed 000 eq. (4)."""
     return 1.0 - cos_half_sum(cos_theta_i, cos_theta_o)

@@ -126,3 +126,80 @@ def write_measurement(path: str | os.PathLike, m: Measurement, **envelope) -> di
     """Write a measurement atomically with provenance (inputs, parameters, time_s)."""
     return write_artifact(path, Measurement.SCHEMA, Measurement.VERSION, m.to_payload(),
                           **envelope)
+
+
+# ----------------------------------------------------------------------------- material --
+
+@dataclass
+class Material:
+    """A fitted reflectance model (``gonio.material`` v1), read by lobes and render.
+
+    Attributes
+    ----------
+    model : a key of :data:`gonio_cli.brdf.MODELS` (``goniochromatic`` …).
+    wavelength_nm : (n_λ,) the grid of the spectral parameters.
+    params : the model's parameters by name: scalars (``alpha``) as float, spectra
+        (``rho``, ``c``, ``f0``, ``kd`` …) as (n_λ,) arrays. Written at the top level of
+        the artifact, so a material reads like the paper: ``alpha``, ``rho``, ``c``.
+    status : "success" or "failed" (a failed fit is written only on request).
+    fit : how it was obtained: ``final`` (the method whose parameters these are) and
+        ``methods`` (per method: parameters, errors, optimiser, evaluations, time_s).
+    """
+
+    model: str
+    wavelength_nm: np.ndarray
+    params: dict[str, Any]
+    status: str = "success"
+    fit: dict[str, Any] = field(default_factory=dict)
+
+    SCHEMA = "gonio.material"
+    VERSION = 1
+    FIELDS = ("model", "wavelength_nm", "status", "fit")
+
+    def to_payload(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"model": self.model, "status": self.status,
+                               "wavelength_nm": self.wavelength_nm}
+        out.update(self.params)
+        out["fit"] = self.fit
+        return out
+
+    def evaluate(self, cos) -> np.ndarray:
+        """f in sr⁻¹ at :class:`~gonio_cli.geometry.Cosines` (...,) → (..., n_λ)."""
+        from .brdf import evaluate
+
+        return evaluate(self.model, cos, self.params)
+
+    @classmethod
+    def from_document(cls, doc: dict[str, Any], path=None) -> "Material":
+        from .brdf import MODELS
+
+        model = doc.get("model")
+        if model not in MODELS:
+            raise ArtifactError(f"model {model!r} is unknown", path=path,
+                                fix=f"one of {', '.join(MODELS)}")
+        spec = MODELS[model]
+        check_keys(doc, ENVELOPE_KEYS + cls.FIELDS + spec.scalar_params
+                   + spec.spectral_params, path=path)
+        wl = _array(doc, "wavelength_nm", path, 1)
+        params: dict[str, Any] = {}
+        for name in spec.scalar_params:
+            params[name] = float(_array(doc, name, path, 0))
+        for name in spec.spectral_params:
+            params[name] = _array(doc, name, path, 1)
+            if params[name].shape != wl.shape:
+                raise ArtifactError(f"field {name!r} has {params[name].size} values for "
+                                    f"{wl.size} wavelengths", path=path)
+        return cls(model, wl, params, str(doc.get("status", "success")),
+                   dict(doc.get("fit") or {}))
+
+
+def read_material(path: str | os.PathLike) -> Material:
+    """Read and validate a ``gonio.material`` artifact."""
+    doc = read_artifact(path, Material.SCHEMA, (Material.VERSION,))
+    return Material.from_document(doc, path=path)
+
+
+def write_material(path: str | os.PathLike, m: Material, **envelope) -> dict:
+    """Write a material atomically with provenance."""
+    return write_artifact(path, Material.SCHEMA, Material.VERSION, m.to_payload(),
+                          **envelope)

@@ -1,0 +1,510 @@
+"""Machinery shared by every model fit: data preparation, weights, the α search,
+vectorised small solvers, error figures and the result objects (STYLE 9).
+
+Every fit in gonio has the same structure: one wavelength-independent roughness (α, or
+none) and a few parameters per wavelength that, for a fixed α, are cheap to find (closed
+form or a vectorised 1-D search over all wavelengths at once). The joint problem then
+becomes a one-dimensional search over log α of the *profile* cost (the cost with the
+per-wavelength parameters optimal for that α). :func:`minimize_log_alpha` does that search:
+a coarse scan over the whole admissible range (so a stiff, near-mirror lobe or a rough one
+is bracketed, never missed by a local method started far away), then a local refinement
+with the chosen optimiser (:data:`OPTIMIZERS`).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+
+from ..errors import InputError
+from ..geometry import Cosines, in_plane_cosines
+from ..schemas import Measurement
+
+#: Admissible GGX α. Below 1e-3 the lobe is ~0.06° wide, narrower than any goniometer's
+#: aperture, so the data cannot tell it from a mirror; above 1 GGX turns retro-peaked and
+#: seed 000 eq. 3 defines α in (0, 1].
+ALPHA_MIN = 1e-3
+ALPHA_MAX = 1.0
+
+#: Points of the coarse scan over log α (every 15 % in α across [ALPHA_MIN, ALPHA_MAX]);
+#: the profile cost is smooth, so the minimum is bracketed between two neighbours.
+ALPHA_SCAN_POINTS = 49
+
+#: Local refinement stops when log α changes by less than this (α to 1e-8 relative).
+LOG_ALPHA_XTOL = 1e-8
+
+#: A configuration is "mirror" (ωo the mirror image of ωi) when |θo − θi| is below this (°);
+#: goniometers report angles to 0.1° or so.
+MIRROR_TOL_DEG = 0.5
+
+#: Floor of the relative standard deviation used for weights (0.5 %): a std estimated from
+#: a few repeats can be near zero by chance and would otherwise dominate the fit.
+REL_SIGMA_FLOOR = 0.005
+
+#: Step of the central difference used by gradient optimisers on the profile cost, in
+#: log α (relative 1e-5 in α: truncation error ~1e-10, far below the cost's noise).
+FD_STEP_LOG_ALPHA = 1e-5
+
+
+# -------------------------------------------------------------------------------- data --
+
+@dataclass
+class FitData:
+    """A measurement prepared for fitting: geometry, values, weights and masks.
+
+    Attributes
+    ----------
+    wavelength_nm : (L,) ; theta_i_deg, theta_o_deg : (N,) ; cos : :class:`Cosines` (N,)
+    y : (N, L) BRDF in sr⁻¹ ; w : (N, L) weights ≥ 0 (0 = not used) for the chosen
+        residuals ; positive : (N, L) bool, y > 0 (log residuals need it)
+    residuals : "log" or "linear"
+    """
+
+    wavelength_nm: np.ndarray
+    theta_i_deg: np.ndarray
+    theta_o_deg: np.ndarray
+    cos: Cosines
+    y: np.ndarray
+    w: np.ndarray
+    positive: np.ndarray
+    residuals: str
+    excluded: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def n_configurations(self) -> int:
+        return int(self.theta_i_deg.size)
+
+    def subset(self, rows: np.ndarray) -> "FitData":
+        """The same data restricted to a boolean or index selection of configurations."""
+        return FitData(self.wavelength_nm, self.theta_i_deg[rows], self.theta_o_deg[rows],
+                       Cosines(*(c[rows] for c in self.cos)), self.y[rows], self.w[rows],
+                       self.positive[rows], self.residuals, self.excluded)
+
+    def mirror_rows(self) -> np.ndarray:
+        """Boolean (N,): the mirror configurations θo ≈ θi (seed 000 eq. 7)."""
+        return np.abs(self.theta_o_deg - self.theta_i_deg) <= MIRROR_TOL_DEG
+
+    def theta_i_groups(self) -> list[tuple[float, np.ndarray]]:
+        """[(θi in degrees, boolean rows)] per distinct angle of incidence, ascending."""
+        values = np.unique(np.round(self.theta_i_deg, 6))
+        return [(float(t), np.abs(self.theta_i_deg - t) < 1e-6) for t in values]
+
+
+RESIDUALS = ("log", "linear")
+
+
+def prepare(measurement: Measurement, *, residuals: str = "log",
+            exclude_theta_i_deg=(), use_std: bool = True, path=None) -> FitData:
+    """Build :class:`FitData` from a measurement.
+
+    Weights: if ``brdf_std`` is present, w = 1/σ² of the mean of the repeats
+    (σ = std/√n; in log residuals the relative σ/y), with :data:`REL_SIGMA_FLOOR`;
+    configurations read once take the median σ of the repeated ones. Otherwise w = 1
+    (log) or 1/ȳ² per wavelength (linear, so each wavelength counts alike). Values ≤ 0
+    get weight 0 in log residuals (log undefined) and are counted in ``excluded``.
+    """
+    if residuals not in RESIDUALS:
+        raise InputError(f"--residuals {residuals!r} is not one of {', '.join(RESIDUALS)}")
+    ti = measurement.theta_i_deg
+    keep = np.ones(ti.shape, dtype=bool)
+    dropped_ti = []
+    for t in exclude_theta_i_deg:
+        hit = np.abs(ti - float(t)) < 1e-6
+        if not hit.any():
+            raise InputError(f"--exclude-theta-i {t:g}: no configuration has theta_i_deg={t:g}",
+                             path=path, fix=f"measured: {', '.join(f'{v:g}' for v in np.unique(ti))}")
+        dropped_ti.append(float(t))
+        keep &= ~hit
+    if not keep.any():
+        raise InputError("every configuration is excluded", path=path,
+                         fix="exclude fewer angles of incidence")
+    y = measurement.brdf[keep]
+    positive = y > 0
+    if measurement.brdf_std is not None and use_std:
+        n = np.maximum(measurement.n_repeats[keep], 1)[:, None]
+        sigma = measurement.brdf_std[keep] / np.sqrt(n)
+        rel = np.where(positive, sigma / np.where(positive, y, 1.0), np.nan)
+        repeated = (measurement.n_repeats[keep] > 1)[:, None] & positive
+        fill = np.nanmedian(np.where(repeated, rel, np.nan), axis=0) if repeated.any() \
+            else np.full(y.shape[1], REL_SIGMA_FLOOR)
+        fill = np.where(np.isfinite(fill), fill, REL_SIGMA_FLOOR)
+        rel = np.where(repeated, rel, fill[None, :])
+        rel = np.sqrt(rel ** 2 + REL_SIGMA_FLOOR ** 2)
+        w = 1.0 / rel ** 2 if residuals == "log" else \
+            1.0 / (rel * np.maximum(np.abs(y), _scale(y))) ** 2
+    else:
+        w = np.ones_like(y) if residuals == "log" else np.broadcast_to(
+            1.0 / _scale(y) ** 2, y.shape).copy()
+    if residuals == "log":
+        w = np.where(positive, w, 0.0)
+    w = w / np.mean(w[w > 0]) if np.any(w > 0) else w  # scale-free weights, mean 1
+    return FitData(measurement.wavelength_nm, ti[keep], measurement.theta_o_deg[keep],
+                   in_plane_cosines(ti[keep], measurement.theta_o_deg[keep]), y, w, positive,
+                   residuals, {"theta_i_deg": dropped_ti,
+                               "non_positive_values": int((~positive).sum())})
+
+
+def _scale(y: np.ndarray) -> np.ndarray:
+    """Per-wavelength typical magnitude (L,), for scale-free linear weights; never 0."""
+    s = np.sqrt(np.mean(y * y, axis=0))
+    return np.where(s > 0, s, 1.0)
+
+
+# --------------------------------------------------------------------- small solvers --
+
+def weighted_linear_lsq(X: np.ndarray, Y: np.ndarray, W: np.ndarray):
+    """Per-column weighted least squares, all columns at once (closed form).
+
+    Solves min_β Σ_n W[n, l] (Y[n, l] − Σ_k X[n, k] β[k, l])² for each column l.
+
+    Parameters
+    ----------
+    X : (N, K) design shared by the columns ; Y, W : (N, L)
+
+    Returns
+    -------
+    beta : (K, L) ; cost : (L,) weighted sum of squared residuals ;
+    ok : (L,) bool, False where the weighted normal matrix is singular (too few
+    distinct weighted rows); β is 0 there.
+    """
+    A = np.einsum("nk,nl,nj->lkj", X, W, X)            # (L, K, K)
+    b = np.einsum("nk,nl,nl->lk", X, W, Y)             # (L, K)
+    K = X.shape[1]
+    # Condition test relative to the diagonal scale: below this the columns are dependent.
+    diag = np.einsum("lkk->lk", A)
+    scale = np.where(diag > 0, diag, 1.0)
+    An = A / np.sqrt(scale[:, :, None] * scale[:, None, :])
+    det = np.linalg.det(An) if K > 1 else An[:, 0, 0]
+    ok = np.all(diag > 0, axis=1) & (np.abs(det) > SINGULAR_TOL)
+    eye = np.eye(K)[None]
+    beta = np.linalg.solve(np.where(ok[:, None, None], A, eye),
+                           np.where(ok[:, None], b, 0.0)[..., None])[..., 0]
+    beta = np.where(ok[:, None], beta, 0.0).T          # (K, L)
+    r = Y - X @ beta
+    return beta, np.sum(W * r * r, axis=0), ok
+
+
+class LinearProfile:
+    """Weighted linear least squares per column with a shifting target, precomputed.
+
+    For targets Y − o[:, None] (Y: (N, L) fixed, o: (N,) an offset that depends on the
+    nonlinear parameter, e.g. log D(θh; α)), the design X (N, K) and the weights W (N, L)
+    do not change, so the normal matrices and their inverses are computed once. A trial
+    offset then costs two matrix–vector products: the profile cost of a whole scan of α
+    values is one matrix product. This is what makes step 2 "closed form" in practice.
+
+    The design must contain a constant column (the intercept, log ρ here): each column
+    of Y is centred first, which leaves β (but its intercept) and the cost unchanged and
+    keeps the expanded cost free of cancellation.
+    """
+
+    def __init__(self, X: np.ndarray, Y: np.ndarray, W: np.ndarray):
+        self.X = np.asarray(X, dtype=float)
+        self.W = np.asarray(W, dtype=float)
+        Y = np.asarray(Y, dtype=float)
+        sw = self.W.sum(axis=0)
+        self.mean = np.where(sw > 0, np.sum(self.W * Y, axis=0) / np.where(sw > 0, sw, 1), 0)
+        self.Yc = Y - self.mean                                  # (N, L)
+        _, _, self.ok = weighted_linear_lsq(self.X, self.Yc, self.W)
+        A = np.einsum("nk,nl,nj->lkj", self.X, self.W, self.X)   # (L, K, K)
+        K = self.X.shape[1]
+        self.A_inv = np.linalg.inv(np.where(self.ok[:, None, None], A, np.eye(K)))
+        self.WX = np.einsum("nl,nk->lkn", self.W, self.X)        # (L, K, N)
+        self.b0 = np.einsum("lkn,nl->lk", self.WX, self.Yc)      # (L, K)
+        self.S0 = np.sum(self.W * self.Yc ** 2, axis=0)          # (L,)
+        self.u = self.W * self.Yc                                # (N, L)
+        self.intercept = int(np.argmax(np.all(self.X == 1.0, axis=0)))
+
+    def costs(self, offsets: np.ndarray) -> np.ndarray:
+        """Total cost (over the ok columns) for each offset row; offsets (G, N) → (G,)."""
+        O = np.atleast_2d(np.asarray(offsets, dtype=float))      # (G, N)
+        b = self.b0[None] - np.einsum("lkn,gn->glk", self.WX, O)  # (G, L, K)
+        quad = np.einsum("glk,lkj,glj->gl", b, self.A_inv, b)
+        yy = self.S0[None] - 2.0 * O @ self.u + (O * O) @ self.W  # (G, L)
+        cost = np.maximum(yy - quad, 0.0)
+        return np.sum(np.where(self.ok[None], cost, 0.0), axis=1)
+
+    def cost(self, offset: np.ndarray) -> float:
+        return float(self.costs(offset[None])[0])
+
+    def solve(self, offset: np.ndarray):
+        """β (K, L), exact per-column cost (L,) and ok (L,) for one offset (N,)."""
+        b = self.b0 - np.einsum("lkn,n->lk", self.WX, offset)
+        beta = np.einsum("lkj,lj->kl", self.A_inv, b)
+        beta[self.intercept] += self.mean
+        r = self.Yc + self.mean - offset[:, None] - self.X @ beta
+        beta = np.where(self.ok[None], beta, 0.0)
+        return beta, np.sum(self.W * r * r, axis=0), self.ok
+
+
+#: Determinant of the unit-diagonal normal matrix below which the design is singular
+#: (two columns with correlation above 1 − 1e-10 cannot be separated in float64).
+SINGULAR_TOL = 1e-10
+
+#: Golden-section iterations: the bracket shrinks by 0.618 per step, so 80 steps take a
+#: bracket of width 100 below 1e-14 (float64 resolution of the argument).
+GOLDEN_ITERATIONS = 80
+_INV_PHI = (np.sqrt(5.0) - 1.0) / 2.0
+
+
+def golden_section(fun: Callable[[np.ndarray], np.ndarray], lo, hi,
+                   iterations: int = GOLDEN_ITERATIONS) -> tuple[np.ndarray, np.ndarray]:
+    """Minimise L independent 1-D functions at once by golden-section search.
+
+    ``fun(x)`` takes (L,) arguments and returns (L,) values (one function per column);
+    ``lo``, ``hi``: (L,) brackets (or scalars broadcast with each other). Exact for
+    unimodal functions; otherwise a local minimum inside the bracket. Returns (x, f(x)).
+    """
+    a, b = np.broadcast_arrays(np.asarray(lo, dtype=float), np.asarray(hi, dtype=float))
+    a, b = a.copy(), b.copy()
+    c = b - _INV_PHI * (b - a)
+    d = a + _INV_PHI * (b - a)
+    fc, fd = fun(c), fun(d)
+    for _ in range(iterations):
+        left = fc < fd                                  # the minimum lies in [a, d]
+        a, b = np.where(left, a, c), np.where(left, d, b)
+        keep_x, keep_f = np.where(left, c, d), np.where(left, fc, fd)
+        new_x = np.where(left, b - _INV_PHI * (b - a), a + _INV_PHI * (b - a))
+        new_f = fun(new_x)
+        c, fc = np.where(left, new_x, keep_x), np.where(left, new_f, keep_f)
+        d, fd = np.where(left, keep_x, new_x), np.where(left, keep_f, new_f)
+    x = np.where(fc < fd, c, d)
+    return x, np.minimum(fc, fd)
+
+
+# ------------------------------------------------------------------------ the α search --
+
+#: Optimisers for the nonlinear step. The nlopt ones refine the 1-D profile cost in log α
+#: after the coarse scan; ``scipy-least-squares`` instead solves the joint problem (α and
+#: every per-wavelength parameter) as one nonlinear least-squares problem, started from the
+#: scan's best point. Justification in docs/fit.md.
+OPTIMIZERS = {
+    "nlopt-bobyqa": "nlopt LN_BOBYQA on the profile cost (derivative-free, bounded)",
+    "nlopt-lbfgs": "nlopt LD_LBFGS on the profile cost (gradient by central differences)",
+    "scipy-least-squares": "scipy.optimize.least_squares (trf) on all parameters jointly",
+}
+DEFAULT_OPTIMIZER = "nlopt-bobyqa"
+
+#: A cost the optimisers can hold when a trial α gives a non-finite profile (never kept).
+_BAD_COST = 1e300
+
+
+def check_optimizer(name: str) -> str:
+    if name not in OPTIMIZERS:
+        raise InputError(f"--optimizer {name!r} is unknown",
+                         fix=f"use one of {', '.join(OPTIMIZERS)}")
+    return name
+
+
+@dataclass
+class AlphaSearch:
+    """Outcome of :func:`minimize_log_alpha` (like scipy's ``OptimizeResult``)."""
+
+    alpha: float
+    cost: float
+    evaluations: int
+    optimizer: str
+    success: bool
+    message: str
+    at_bound: bool
+
+
+def scan_log_alpha(cost: Callable[[float], float], lo: float = np.log(ALPHA_MIN),
+                   hi: float = np.log(ALPHA_MAX), points: int = ALPHA_SCAN_POINTS,
+                   costs: Callable[[np.ndarray], np.ndarray] | None = None):
+    """Evaluate the profile cost on a log-α grid (all at once with ``costs`` if given).
+
+    Returns (grid, costs, index of the best point).
+    """
+    grid = np.linspace(lo, hi, points)
+    values = costs(grid) if costs is not None else np.array([cost(g) for g in grid])
+    values = np.where(np.isfinite(values), values, _BAD_COST)
+    return grid, values, int(np.argmin(values))
+
+
+def _finite_cost(cost: Callable[[float], float], log_alpha: float) -> float:
+    value = float(cost(float(log_alpha)))
+    return value if np.isfinite(value) else _BAD_COST
+
+
+def minimize_log_alpha(cost: Callable[[float], float], optimizer: str = DEFAULT_OPTIMIZER,
+                       lo: float = np.log(ALPHA_MIN), hi: float = np.log(ALPHA_MAX),
+                       points: int = ALPHA_SCAN_POINTS,
+                       costs: Callable[[np.ndarray], np.ndarray] | None = None) -> AlphaSearch:
+    """Minimise a profile cost over log α in [lo, hi]: coarse scan, then local refinement.
+
+    ``cost(log_alpha)`` returns the (weighted) sum of squared residuals with every other
+    parameter optimal for that α. The scan brackets the global minimum among its points;
+    the refinement runs inside the two neighbouring scan cells with an nlopt optimiser
+    (``scipy-least-squares`` falls back to BOBYQA here: the joint problem is the fitter's).
+    ``costs(log_alphas)``, if given, evaluates the scan in one vectorised call.
+    """
+    grid, values, i = scan_log_alpha(cost, lo, hi, points, costs)
+    evaluations = len(grid)
+    a, b = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
+    import nlopt
+
+    algorithm = nlopt.LD_LBFGS if optimizer == "nlopt-lbfgs" else nlopt.LN_BOBYQA
+    counter = {"n": 0}
+
+    def objective(x, grad):
+        counter["n"] += 1
+        f = _finite_cost(cost, x[0])
+        if grad.size:
+            h = FD_STEP_LOG_ALPHA
+            counter["n"] += 2
+            grad[0] = (_finite_cost(cost, x[0] + h) - _finite_cost(cost, x[0] - h)) / (2 * h)
+        return f
+
+    opt = nlopt.opt(algorithm, 1)
+    opt.set_min_objective(objective)
+    opt.set_lower_bounds([a])
+    opt.set_upper_bounds([b])
+    opt.set_xtol_abs(LOG_ALPHA_XTOL)
+    opt.set_maxeval(200)
+    x0 = float(np.clip(grid[i], a, b))
+    success, message = True, "converged"
+    try:
+        x = opt.optimize([x0])[0]
+        best = opt.last_optimum_value()
+        code = opt.last_optimize_result()
+        message = _NLOPT_MESSAGES.get(code, f"nlopt result {code}")
+        success = code > 0
+    except Exception as exc:  # nlopt raises on roundoff-limited stops; keep the scan point
+        x, best = grid[i], values[i]
+        message = f"nlopt stopped ({exc.__class__.__name__}: {exc}); kept the scan's best α"
+        success = True
+    if best > values[i]:  # never worse than the scan
+        x, best = grid[i], values[i]
+    evaluations += counter["n"]
+    at_bound = bool(np.isclose(x, lo, atol=1e-6) or np.isclose(x, hi, atol=1e-6))
+    if best >= _BAD_COST:
+        success, message = False, "no α in the admissible range gives a finite cost"
+    return AlphaSearch(float(np.exp(x)), float(best), evaluations, optimizer, success,
+                       message, at_bound)
+
+
+_NLOPT_MESSAGES = {1: "converged", 2: "stopped at stopval", 3: "converged (ftol)",
+                   4: "converged (xtol)", 5: "stopped at maxeval", 6: "stopped at maxtime"}
+
+
+# ---------------------------------------------------------------------- error figures --
+
+def error_figures(data: FitData, f_model: np.ndarray) -> dict[str, Any]:
+    """Goodness of fit over the configurations and wavelengths used (unweighted).
+
+    - ``rmse_per_sr``: √mean (y − f)²
+    - ``relative_rmse_percent``: seed 004 eq. (14), √mean (100 (y − f)/y)² over y > 0
+    - ``log_rmse``: √mean (log y − log f)² over y > 0 (≈ relative error for small errors)
+    - ``worst_configuration``: the configuration with the largest RMS log residual
+    """
+    y = data.y
+    f = np.asarray(f_model, dtype=float)
+    pos = data.positive & (f > 0)
+    rmse = float(np.sqrt(np.mean((y - f) ** 2)))
+    rel = 100.0 * (y - f) / np.where(data.positive, y, 1.0)
+    rel_rmse = float(np.sqrt(np.mean(rel[data.positive] ** 2))) if data.positive.any() else 0.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        logr = np.where(pos, np.log(np.where(pos, y, 1.0)) - np.log(np.where(pos, f, 1.0)), 0.0)
+    log_rmse = float(np.sqrt(np.sum(logr ** 2) / max(int(pos.sum()), 1)))
+    per_cfg = np.sqrt(np.sum(logr ** 2, axis=1) / np.maximum(pos.sum(axis=1), 1))
+    k = int(np.argmax(per_cfg))
+    return {
+        "rmse_per_sr": rmse,
+        "relative_rmse_percent": rel_rmse,
+        "log_rmse": log_rmse,
+        "worst_configuration": {"theta_i_deg": float(data.theta_i_deg[k]),
+                                "theta_o_deg": float(data.theta_o_deg[k]),
+                                "log_rmse": float(per_cfg[k])},
+    }
+
+
+# ------------------------------------------------------------------------ the results --
+
+@dataclass
+class FitOptions:
+    """Options shared by the model fits (the flags of ``gonio fit``).
+
+    refine : fit α and the spectra jointly after the paper's two steps (goniochromatic)
+    step2 : "mirror" (seed 000 eq. 7) or "all" configurations in the paper's step 2
+    optimizer : a key of :data:`OPTIMIZERS`
+    alpha : fix the roughness instead of fitting it (models with an α)
+    """
+
+    refine: bool = True
+    step2: str = "mirror"
+    optimizer: str = "nlopt-bobyqa"
+    alpha: float | None = None
+
+
+@dataclass
+class FitReport:
+    """One fit of one model by one method: parameters, status and what it cost.
+
+    ``params`` holds the model's parameters by the names of :data:`gonio_cli.brdf.MODELS`
+    (scalars as floats, spectra as (L,) arrays). ``status`` is "success" or "failed";
+    a failed wavelength is named in ``failed_wavelength_nm``, never hidden as NaN.
+    """
+
+    method: str
+    status: str
+    message: str
+    params: dict[str, Any]
+    errors: dict[str, Any]
+    optimizer: str
+    evaluations: int
+    time_s: float
+    failed_wavelength_nm: list[float] = field(default_factory=list)
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def success(self) -> bool:
+        return self.status == "success"
+
+    def to_dict(self) -> dict[str, Any]:
+        out = {"method": self.method, "status": self.status, "message": self.message,
+               "optimizer": self.optimizer, "evaluations": int(self.evaluations),
+               "time_s": float(self.time_s),
+               "failed_wavelength_nm": [float(x) for x in self.failed_wavelength_nm]}
+        out.update({k: v for k, v in self.params.items()})
+        out.update(self.errors)
+        out.update(self.extra)
+        return out
+
+
+@dataclass
+class ModelFit:
+    """Everything ``gonio fit`` learnt: the final parameters and every fit that led there.
+
+    ``reports`` maps a method name (``paper_two_step``, ``refined`` …) to its
+    :class:`FitReport`; ``final`` names the one whose parameters the material carries.
+    """
+
+    model: str
+    wavelength_nm: np.ndarray
+    reports: dict[str, FitReport]
+    final: str
+    excluded: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def result(self) -> FitReport:
+        return self.reports[self.final]
+
+    @property
+    def params(self) -> dict[str, Any]:
+        return self.result.params
+
+
+class Stopwatch:
+    """``sw = Stopwatch(); ...; sw.lap()`` → seconds since the last lap (perf_counter)."""
+
+    def __init__(self):
+        self._t = time.perf_counter()
+
+    def lap(self) -> float:
+        now = time.perf_counter()
+        dt, self._t = now - self._t, now
+        return dt

@@ -1,0 +1,334 @@
+"""Fit of the goniochromatic microfacet BRDF, seed 000 eq. (5): α, then ρ(λ) and c(λ).
+
+The model (in :func:`gonio_cli.brdf.goniochromatic`) is, in logs,
+
+    log f(θi, θo, λ) = log D(θh; α) − log 4 + log ρ(λ) + c(λ) x,   x = 1 − cos((θi+θo)/2),
+
+so for a fixed α it is *linear* in (log ρ(λ), c(λ)) for every wavelength: with log
+residuals, step 2 is a weighted linear least-squares problem per wavelength with a closed
+form (all 41 wavelengths in one batched 2 × 2 solve, :func:`solve_spectra`). That turns
+each nonlinear problem into a 1-D search in log α (:func:`~.common.minimize_log_alpha`).
+
+Methods (reported side by side in the material, so a user sees what refinement bought):
+
+- ``paper_two_step`` (seed 000 "Fitting procedure"): step 1 averages the spectrum per
+  configuration and fits an arbitrarily scaled GGX (eq. 3) per angle of incidence; α is
+  the mean of those. Step 2 fixes α and fits ρ and c per wavelength to the mirror
+  configurations (eq. 7), or, with ``step2="all"``, to every configuration.
+- ``refined`` (default final): α, ρ and c jointly, i.e. the profile cost over log α
+  with the closed-form step 2 over all configurations inside. This removes the bias of
+  step 1, which ignores that the exponential term changes along each θo sweep.
+
+With linear residuals, step 2 is no longer linear in c: ρ keeps its closed form for a
+given c, and c is found by a vectorised golden-section search over all wavelengths.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ..brdf import (dlog_ggx_d_dlog_alpha, goniochromatic, goniochromatic_exponent_arg,
+                    log_ggx_d)
+from ..errors import FitError
+from .common import (ALPHA_MAX, ALPHA_MIN, FitData, FitOptions, FitReport,
+                     LinearProfile, ModelFit, Stopwatch, error_figures, golden_section,
+                     minimize_log_alpha, scan_log_alpha)
+
+#: Bracket of the golden-section search for c(λ) with linear residuals. |c| = 60 makes
+#: exp(c x) vary by e^27 between normal and 70° incidence, far past any measured material
+#: (seed 000's inks have |c| < 10); a c at this bound is reported as failed.
+C_LIMIT = 60.0
+
+#: Step 1 fits α per angle of incidence only from groups with at least this many
+#: configurations (2 parameters, scale and α, plus one degree of freedom).
+STEP1_MIN_CONFIGURATIONS = 3
+
+LOG4 = np.log(4.0)
+
+STEP2_MODES = ("mirror", "all")
+
+
+# ------------------------------------------------------------------------ step 2 core --
+
+def _offset(data: FitData, alpha: float) -> np.ndarray:
+    """log D(θh; α) − log 4 per configuration (N,): the α-dependent part of log f."""
+    return log_ggx_d(data.cos.cos_theta_h, alpha) - LOG4
+
+
+def _x(data: FitData) -> np.ndarray:
+    """x = 1 − cos((θi+θo)/2) per configuration (N,), eq. (4) and (6)."""
+    return goniochromatic_exponent_arg(data.cos.cos_theta_i, data.cos.cos_theta_o)
+
+
+class Step2:
+    """Step 2 for any fixed α on one data set: ρ(λ), c(λ) minimising the residuals.
+
+    With log residuals the normal matrices do not depend on α (only the target shifts by
+    log D(θh; α)), so they are factored once (:class:`~.common.LinearProfile`) and a trial
+    α costs two matrix–vector products; a scan of 49 α values is one matrix product.
+    """
+
+    def __init__(self, data: FitData):
+        self.data = data
+        self.x = _x(data)
+        self.X = np.stack([np.ones_like(self.x), self.x], axis=1)
+        log_y = np.log(np.where(data.positive, data.y, 1.0))
+        # log-space weights; with linear residuals the log solution only starts the search
+        w_log = data.w if data.residuals == "log" else data.positive.astype(float)
+        self.linear = LinearProfile(self.X, log_y, w_log)
+
+    def offsets(self, log_alphas) -> np.ndarray:
+        """log D − log 4 for each trial α: (G, N)."""
+        a = np.exp(np.asarray(log_alphas, dtype=float))[:, None]
+        return log_ggx_d(self.data.cos.cos_theta_h[None, :], a) - LOG4
+
+    def costs(self, log_alphas) -> np.ndarray:
+        """Profile cost for each log α (G,)."""
+        if self.data.residuals == "log":
+            return self.linear.costs(self.offsets(log_alphas))
+        return np.array([self.solve(float(np.exp(g)))[2] for g in np.atleast_1d(log_alphas)])
+
+    def cost(self, log_alpha: float) -> float:
+        return float(self.costs([log_alpha])[0])
+
+    def solve(self, alpha: float):
+        """Returns ``(rho, c, cost, ok)``: (L,), (L,), the total weighted cost over the
+        wavelengths that could be fitted, and (L,) bool; ρ = c = 0 where not ok."""
+        off = _offset(self.data, alpha)
+        beta, cost, ok = self.linear.solve(off)
+        if self.data.residuals == "log":
+            rho = np.where(ok, np.exp(np.minimum(beta[0], 700.0)), 0.0)
+            return rho, np.where(ok, beta[1], 0.0), float(cost[ok].sum()), ok
+        return _solve_spectra_linear(self.data, off, self.x)
+
+
+def solve_spectra(data: FitData, alpha: float):
+    """Step 2 for one α on ``data`` (see :class:`Step2`)."""
+    return Step2(data).solve(alpha)
+
+
+def _solve_spectra_linear(data: FitData, off, x):
+    """Linear residuals: ρ closed form given c; c by golden section per wavelength."""
+    y, w = data.y, data.w
+    base = np.exp(off)[:, None]                      # D/4 per configuration (N, 1)
+
+    def rho_of(c):
+        g = base * np.exp(np.minimum(np.outer(x, c), 700.0))
+        num = np.sum(w * y * g, axis=0)
+        den = np.sum(w * g * g, axis=0)
+        return np.where(den > 0, np.maximum(num, 0.0) / np.where(den > 0, den, 1.0), 0.0), g
+
+    def cost_of(c):
+        rho, g = rho_of(c)
+        return np.sum(w * (y - rho * g) ** 2, axis=0)
+
+    signal = np.any((w > 0) & (y > 0), axis=0)
+    L = y.shape[1]
+    c, cost = golden_section(cost_of, np.full(L, -C_LIMIT), np.full(L, C_LIMIT))
+    rho, _ = rho_of(c)
+    ok = signal & (np.abs(c) < C_LIMIT * (1 - 1e-6)) & np.isfinite(cost)
+    return (np.where(ok, rho, 0.0), np.where(ok, c, 0.0), float(cost[ok].sum()), ok)
+
+
+# --------------------------------------------------------------------- joint (scipy) --
+
+def joint_least_squares(data: FitData, log_alpha0: float, beta0: np.ndarray,
+                        design: np.ndarray):
+    """All parameters at once with scipy.optimize.least_squares (trf, analytic Jacobian).
+
+    Model η = log D(α) − log 4 + X β (per wavelength column); residuals √w (log y − η)
+    or √w (y − e^η). Parameters: log α and β (K, L). Returns (alpha, beta, nfev, message).
+    """
+    from scipy.optimize import least_squares
+
+    K, L = beta0.shape
+    N = data.n_configurations
+    sw = np.sqrt(data.w)
+    used = sw > 0
+    log_y = np.log(np.where(data.positive, data.y, 1.0))
+
+    def eta(theta):
+        a = np.exp(theta[0])
+        return _offset(data, a)[:, None] + design @ theta[1:].reshape(K, L), a
+
+    def fun(theta):
+        e, _ = eta(theta)
+        r = (log_y - e) if data.residuals == "log" else (data.y - np.exp(np.minimum(e, 700)))
+        return (sw * r)[used]
+
+    def jac(theta):
+        e, a = eta(theta)
+        dm = np.ones_like(e) if data.residuals == "log" else np.exp(np.minimum(e, 700))
+        J = np.zeros((N, L, 1 + K * L))
+        J[:, :, 0] = -(sw * dm) * dlog_ggx_d_dlog_alpha(data.cos.cos_theta_h, a)[:, None]
+        for k in range(K):
+            cols = 1 + k * L + np.arange(L)
+            J[:, np.arange(L), cols] = -(sw * dm) * design[:, k][:, None]
+        return J[used]
+
+    lo = np.full(1 + K * L, -np.inf)
+    hi = np.full(1 + K * L, np.inf)
+    lo[0], hi[0] = np.log(ALPHA_MIN), np.log(ALPHA_MAX)
+    theta0 = np.concatenate([[np.clip(log_alpha0, lo[0], hi[0])], beta0.ravel()])
+    res = least_squares(fun, theta0, jac=jac, bounds=(lo, hi), method="trf",
+                        x_scale="jac", xtol=1e-10, ftol=1e-10, gtol=1e-10, max_nfev=500)
+    return float(np.exp(res.x[0])), res.x[1:].reshape(K, L), int(res.nfev), res.message
+
+
+# ------------------------------------------------------------------------------ steps --
+
+def step1_alpha_per_theta_i(data: FitData, optimizer: str) -> dict[str, Any]:
+    """Seed 000 step 1: spectrum-averaged data, an arbitrarily scaled GGX (eq. 3) per θi.
+
+    For each angle of incidence, log ȳ = log s + log D(θh; α): the scale has a closed form
+    for any α (a 1-column :class:`~.common.LinearProfile`), so each θi is a 1-D search.
+    With linear residuals the scale is Σ w ȳ D / Σ w D². Returns per-θi α, their mean and
+    standard deviation in % of the mean (seed 000 reports < 3 %), and evaluations.
+    """
+    y_avg = np.mean(data.y, axis=1, keepdims=True)
+    positive = y_avg > 0
+    w = positive.astype(float) if data.residuals == "log" else np.ones_like(y_avg)
+    per, evaluations = [], 0
+    for theta_i, rows in data.theta_i_groups():
+        ch = data.cos.cos_theta_h[rows]
+        usable = int(np.count_nonzero(w[rows, 0] > 0))
+        if usable < STEP1_MIN_CONFIGURATIONS or np.ptp(ch) == 0:
+            continue
+
+        def offsets(log_alphas, ch=ch):
+            return log_ggx_d(ch[None, :], np.exp(np.asarray(log_alphas))[:, None])
+
+        if data.residuals == "log":
+            lp = LinearProfile(np.ones((ch.size, 1)),
+                               np.log(np.where(positive[rows], y_avg[rows], 1.0)), w[rows])
+            costs = lambda g, lp=lp, offsets=offsets: lp.costs(offsets(g))  # noqa: E731
+        else:
+            def costs(g, yy=y_avg[rows, 0], offsets=offsets):
+                D = np.exp(offsets(g))                                 # (G, n)
+                s = np.maximum(D @ yy / np.sum(D * D, axis=1), 0.0)
+                return np.sum((yy[None] - s[:, None] * D) ** 2, axis=1)
+        search = minimize_log_alpha(lambda g, costs=costs: float(costs([g])[0]), optimizer,
+                                    costs=costs)
+        evaluations += search.evaluations
+        per.append({"theta_i_deg": theta_i, "alpha": search.alpha,
+                    "configurations": int(ch.size), "at_bound": search.at_bound})
+    alphas = np.array([p["alpha"] for p in per])
+    mean = float(alphas.mean()) if alphas.size else float("nan")
+    spread = float(100.0 * alphas.std(ddof=1) / mean) if alphas.size > 1 else 0.0
+    return {"alpha_per_theta_i": per, "alpha_mean": mean,
+            "alpha_std_percent_of_mean": spread, "evaluations": evaluations}
+
+
+def _report(method, data, alpha, rho, c, ok, *, optimizer, evaluations, time_s, message,
+            extra=None, success=True) -> FitReport:
+    f = goniochromatic(data.cos, alpha, rho, c)
+    failed = [float(w) for w in data.wavelength_nm[~ok]]
+    status = "success" if success and not failed and np.isfinite(alpha) else "failed"
+    if failed and success:
+        message = (f"no usable signal at {len(failed)} wavelength(s) "
+                   f"({_nm_list(failed)}); rho = c = 0 there. " + message)
+    return FitReport(method, status, message.strip(),
+                     {"alpha": float(alpha), "rho": rho, "c": c},
+                     error_figures(data, f), optimizer, evaluations, time_s, failed,
+                     extra or {})
+
+
+def _nm_list(nm: list[float]) -> str:
+    shown = ", ".join(f"{w:g}" for w in nm[:6])
+    return shown + (f", … ({len(nm)} in all)" if len(nm) > 6 else "") + " nm"
+
+
+def check_identifiable(data: FitData) -> None:
+    """α needs configurations off the mirror direction: on it, D ∝ 1/α² is just a scale."""
+    if np.all(data.mirror_rows()):
+        raise FitError("every configuration is a mirror one (theta_o_deg = theta_i_deg), so "
+                       "alpha only scales rho and cannot be fitted",
+                       fix="add off-specular configurations or fix it with --alpha")
+
+
+def fit(data: FitData, options: FitOptions) -> ModelFit:
+    """Fit seed 000 eq. (5) to prepared data; returns every method's report.
+
+    Raises :class:`FitError` only when no method can produce parameters at all; a fit
+    that runs but cannot be trusted comes back with ``status`` "failed" and a message.
+    """
+    if options.step2 not in STEP2_MODES:
+        raise FitError(f"--step2 {options.step2!r} is unknown", fix="use mirror or all")
+    if options.alpha is not None and not (ALPHA_MIN <= options.alpha <= ALPHA_MAX):
+        raise FitError(f"--alpha {options.alpha:g} is outside [{ALPHA_MIN:g}, {ALPHA_MAX:g}]",
+                       fix="GGX alpha of seed 000 eq. 3 lies in (0, 1]")
+    if options.alpha is None:
+        check_identifiable(data)
+    reports: dict[str, FitReport] = {}
+    sw = Stopwatch()
+
+    # ---- seed 000's two steps
+    if options.alpha is None:
+        s1 = step1_alpha_per_theta_i(data, options.optimizer)
+        alpha1, evals1 = s1["alpha_mean"], s1["evaluations"]
+        extra = {k: s1[k] for k in ("alpha_per_theta_i", "alpha_mean",
+                                    "alpha_std_percent_of_mean")}
+    else:
+        alpha1, evals1, extra = options.alpha, 0, {"alpha_fixed": True}
+    extra["step2"] = options.step2
+    if not np.isfinite(alpha1):
+        reports["paper_two_step"] = FitReport(
+            "paper_two_step", "failed",
+            f"step 1 needs at least {STEP1_MIN_CONFIGURATIONS} configurations at some angle "
+            "of incidence", {}, {}, options.optimizer, evals1, sw.lap(), [], extra)
+    else:
+        sub = data.subset(data.mirror_rows()) if options.step2 == "mirror" else data
+        n_ti = np.unique(np.round(sub.theta_i_deg, 6)).size
+        if options.step2 == "mirror" and n_ti < 2:
+            reports["paper_two_step"] = FitReport(
+                "paper_two_step", "failed",
+                f"step 2 on mirror configurations needs them at 2 or more angles of "
+                f"incidence to separate rho and c; found {n_ti}", {"alpha": alpha1}, {},
+                options.optimizer, evals1, sw.lap(), [], extra)
+        else:
+            rho, c, _, ok = solve_spectra(sub, alpha1)
+            reports["paper_two_step"] = _report(
+                "paper_two_step", data, alpha1, rho, c, ok, optimizer=options.optimizer,
+                evaluations=evals1 + 1, time_s=sw.lap(),
+                message="seed 000 two steps: alpha from spectrum-averaged GGX per "
+                        f"theta_i, then rho and c on {options.step2} configurations",
+                extra=extra)
+
+    # ---- joint refinement (profile over log α, closed-form step 2 inside)
+    if options.refine and options.alpha is None:
+        reports["refined"] = refine(data, options.optimizer, sw)
+    final = "refined" if "refined" in reports else "paper_two_step"
+    if not reports[final].params:
+        raise FitError(reports[final].message)
+    return ModelFit("goniochromatic", data.wavelength_nm, reports, final, data.excluded)
+
+
+def refine(data: FitData, optimizer: str, sw: Stopwatch | None = None) -> FitReport:
+    """α, ρ(λ), c(λ) jointly over all configurations (the default final fit)."""
+    sw = sw or Stopwatch()
+    step2 = Step2(data)
+    if optimizer == "scipy-least-squares":
+        grid, costs, i = scan_log_alpha(step2.cost, costs=step2.costs)
+        rho, c, _, ok = step2.solve(float(np.exp(grid[i])))
+        beta0 = np.stack([np.log(np.where(ok, rho, 1.0)), c])
+        sub = data.subset(slice(None))
+        sub.w = data.w * ok[None, :]                    # fitted wavelengths only
+        alpha, beta, nfev, message = joint_least_squares(sub, grid[i], beta0, step2.X)
+        # (log ρ, c) at the optimum α are the closed form again (same minimiser);
+        # recomputing them keeps one definition of step 2 for every optimiser.
+        rho, c, _, ok = step2.solve(alpha)
+        evaluations, success = len(grid) + nfev, True
+        at_bound = bool(np.isclose(alpha, ALPHA_MIN) or np.isclose(alpha, ALPHA_MAX))
+    else:
+        search = minimize_log_alpha(step2.cost, optimizer, costs=step2.costs)
+        alpha, evaluations, success, message = (search.alpha, search.evaluations,
+                                                search.success, search.message)
+        at_bound = search.at_bound
+        rho, c, _, ok = step2.solve(alpha)
+    if at_bound:
+        message += f"; alpha={alpha:.4g} is at the bound of [{ALPHA_MIN:g}, {ALPHA_MAX:g}]"
+    return _report("refined", data, alpha, rho, c, ok, optimizer=optimizer,
+                   evaluations=evaluations, time_s=sw.lap(), message=message,
+                   success=success, extra={"alpha_at_bound": at_bound})
