@@ -8,6 +8,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.gonio-installed
 OUT    ?= out
+GONIO  := $(BIN)/gonio
 
 export PATH := $(abspath $(BIN)):$(PATH)
 

@@ -20,6 +20,7 @@ from typing import Callable
 
 import numpy as np
 
+from .errors import InputError
 from .geometry import Cosines, cos_half_sum
 
 #: Exponent ceiling for exp(): exp(700) ≈ 1e304 is still finite in float64, so a huge c
@@ -56,7 +57,7 @@ def log_ggx_d(cos_theta_h, alpha) -> np.ndarray:
     """
     ch = np.clip(np.asarray(cos_theta_h, dtype=float), 0.0, 1.0)
     a2 = np.asarray(alpha, dtype=float) ** 2
-    sin2 = np.maximum(1.0 - ch * ch, 0.0)
+    sin2 = (1.0 - ch) * (1.0 + ch)  # exact near cos θh = 1, unlike 1 − cos²
     denom = a2 * ch * ch + sin2
     return np.log(a2) - np.log(np.pi) - 2.0 * np.log(denom)
 
@@ -104,7 +105,9 @@ def goniochromatic_mirror(cos_theta_i, alpha, rho, c) -> np.ndarray:
     f = ρ(λ) exp(c(λ)(1 − cos θi)) / (4π α²). ``cos_theta_i``: (...,). Returns (..., n_λ).
     """
     x = 1.0 - _col(cos_theta_i)
-    log_f = (np.log(np.asarray(rho, dtype=float)) + np.asarray(c, dtype=float) * x
+    with np.errstate(divide="ignore"):
+        log_rho = np.log(np.asarray(rho, dtype=float))
+    log_f = (log_rho + np.asarray(c, dtype=float) * x
              - np.log(4.0 * np.pi * np.asarray(alpha, dtype=float) ** 2))
     return np.exp(np.minimum(log_f, LOG_MAX))
 
@@ -143,7 +146,7 @@ def torrance_sparrow(cos: Cosines, alpha, f0) -> np.ndarray:
     :data:`COS_EPS` (G vanishes there faster than the denominator).
     """
     ci, co = cos.cos_theta_i, cos.cos_theta_o
-    valid = (ci > COS_EPS) & (co > COS_EPS)
+    valid = ~((ci <= COS_EPS) | (co <= COS_EPS))  # NaN cosines stay NaN, not 0
     geo = np.where(valid, smith_g_ggx(cos, alpha) * ggx_d(cos.cos_theta_h, alpha)
                    / (4.0 * np.maximum(ci, COS_EPS) * np.maximum(co, COS_EPS)), 0.0)
     return schlick_fresnel(cos.cos_theta_d, f0) * _col(geo)
@@ -178,7 +181,7 @@ def vgroove_g(cos: Cosines) -> np.ndarray:
 def cook_torrance_specular_geometry(cos: Cosines, m) -> np.ndarray:
     """D G / (π cos θi cos θo) of seed 004 eq. (11), (..., n_λ); zero at grazing."""
     ci, co = cos.cos_theta_i, cos.cos_theta_o
-    valid = (ci > COS_EPS) & (co > COS_EPS)
+    valid = ~((ci <= COS_EPS) | (co <= COS_EPS))  # NaN cosines stay NaN, not 0
     geo = np.where(valid, vgroove_g(cos) / (np.pi * np.maximum(ci, COS_EPS)
                                             * np.maximum(co, COS_EPS)), 0.0)
     return beckmann_d(cos.cos_theta_h, m) * _col(geo)
@@ -226,6 +229,8 @@ MODELS: dict[str, Model] = {
 
 def evaluate(model: str, cos: Cosines, params: dict) -> np.ndarray:
     """Evaluate a registered model by name with a parameter dict (as in a material)."""
+    if model not in MODELS:
+        raise InputError(f"unknown model {model!r}", fix=f"use one of {', '.join(MODELS)}")
     spec = MODELS[model]
     kwargs = {k: params[k] for k in spec.scalar_params + spec.spectral_params}
     return spec.evaluate(cos, **kwargs)

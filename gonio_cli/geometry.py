@@ -49,7 +49,7 @@ def half_vector(wi: np.ndarray, wo: np.ndarray) -> np.ndarray:
     """ωh = (ωi + ωo) / ‖ωi + ωo‖, seed 000 eq. (1); (..., 3) unit vectors in and out."""
     s = np.asarray(wi, dtype=float) + np.asarray(wo, dtype=float)
     norm = np.linalg.norm(s, axis=-1, keepdims=True)
-    safe = norm > HALF_VECTOR_EPS
+    safe = ~(norm <= HALF_VECTOR_EPS)  # NaN stays NaN (propagates), never becomes +z
     n = np.zeros_like(s)
     n[..., 2] = 1.0
     return np.where(safe, s / np.where(safe, norm, 1.0), n)

@@ -112,8 +112,18 @@ class Measurement:
                                 fix="regenerate it with gonio ingest")
         if n == 0:
             raise ArtifactError("holds no configurations", path=path)
-        return cls(wl, ti, to, brdf, std, reps, str(doc.get("quantity", "brdf")),
-                   dict(doc.get("summary") or {}))
+        if wl.size > 1 and not np.all(np.diff(wl) > 0):
+            raise ArtifactError("wavelength_nm is not increasing", path=path)
+        if np.any((ti < 0) | (ti >= 90)) or np.any(np.abs(to) >= 90):
+            raise ArtifactError("theta_i_deg outside [0, 90) or theta_o_deg outside (-90, 90)",
+                                path=path)
+        if reps is not None and np.any(reps < 1):
+            raise ArtifactError("n_repeats below 1", path=path)
+        summary = doc.get("summary") or {}
+        if not isinstance(summary, dict) or not isinstance(doc.get("quantity", "brdf"), str):
+            raise ArtifactError("field 'summary' is not an object or 'quantity' not a string",
+                                path=path)
+        return cls(wl, ti, to, brdf, std, reps, doc.get("quantity", "brdf"), dict(summary))
 
 
 def read_measurement(path: str | os.PathLike) -> Measurement:

@@ -35,7 +35,7 @@ def parse_grid(spec: str = DEFAULT_GRID_NM) -> np.ndarray:
     except ValueError:
         raise InputError(f"--grid-nm {spec!r} is not START:STOP:STEP in nm",
                          fix="e.g. --grid-nm 380:780:10") from None
-    if not (step > 0 and stop > start and start > 0):
+    if not (np.isfinite([start, stop, step]).all() and step > 0 and stop > start and start > 0):
         raise InputError(f"--grid-nm {spec!r} needs 0 < START < STOP and STEP > 0",
                          fix="e.g. --grid-nm 380:780:10")
     n = (stop - start) / step
@@ -79,13 +79,16 @@ def resample(wavelength_nm_in, values, grid_nm) -> np.ndarray:
     interp = np.apply_along_axis(lambda row: np.interp(g, w, row), -1, v)
     if step_in >= step_out:
         return interp
-    # Hat weights (n_grid, n_in); rows normalised to 1 (half hats at the grid's ends).
+    # Hat weights (n_grid, n_in), rows normalised to 1.
     weights = np.maximum(0.0, 1.0 - np.abs(w[None, :] - g[:, None]) / step_out)
     total = weights.sum(axis=1, keepdims=True)
-    ok = total[:, 0] > 0
+    # Every input sample with non-zero weight under a hat must exist: a half hat at a
+    # just-covered end is a one-sided mean, biased by about slope × step / 3, so those
+    # samples keep linear interpolation.
+    reach = step_out - step_in - WAVELENGTH_TOL_NM
+    ok = (total[:, 0] > 0) & (g - reach >= w.min()) & (g + reach <= w.max())
     weights = np.where(ok[:, None], weights / np.where(total > 0, total, 1.0), 0.0)
     hat = v @ weights.T
-    # A grid sample with no input under its hat (cannot happen for finer input) keeps interp.
     return np.where(ok, hat, interp)
 
 
@@ -131,7 +134,7 @@ def srgb_encode(linear) -> np.ndarray:
 
 
 def illuminant(name: str, grid_nm) -> np.ndarray:
-    """A CIE illuminant by name (``D65``, ``A``, ``F2`` …) on the grid, scaled so that
+    """A CIE illuminant by name (``D65``, ``A``, ``FL2`` …) on the grid, scaled so that
     Σ S ȳ / Σ ȳ = 1 (CONVENTIONS). (n_λ,)."""
     import colour
 

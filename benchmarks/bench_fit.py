@@ -1,0 +1,26 @@
+"""make bench: error against run time of every fit method and optimiser.
+
+Prints a Markdown table: parameter errors against the synthetic truth, the data's log-RMSE
+and the median time of the whole fit (one ink: ~130 configurations × 41 wavelengths).
+Targets (issue 3): refined fit < 50 ms, the paper's two steps < 10 ms.
+"""
+
+import sys
+import time
+
+from gonio_cli.fit.sweep import format_rows, goniochromatic_sweep
+
+
+def main() -> None:
+    quick = "--quick" in sys.argv
+    t = time.perf_counter()
+    rows = goniochromatic_sweep(alphas=(0.19,) if quick else (0.03, 0.19, 0.5),
+                                inks=("red",) if quick else ("red", "green", "blue"),
+                                repeats=3 if quick else 7)
+    print("## gonio fit: goniochromatic (seed 000 eq. 5), synthetic data, 2 % noise\n")
+    print(format_rows(rows))
+    print(f"\n({time.perf_counter() - t:.1f} s for the sweep)")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,89 @@
+"""Error against run time for the fit settings a user chooses between.
+
+Runs each method (seed 000's two steps with step 2 on mirror or on all configurations,
+the joint refinement) with each optimiser on synthetic measurements of known parameters
+and returns one row per combination: parameter errors against the truth, data error and
+the median wall time. ``make bench`` prints these rows; ``gonio report`` will plot them.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Iterable
+
+import numpy as np
+
+from ..synthetic import ink_spectra, paper_geometry, synthetic_measurement
+from . import fit
+from .common import OPTIMIZERS, FitOptions, prepare
+
+#: (label, options, report key) for each method of the goniochromatic fit.
+METHODS = (
+    ("paper two-step (step 2 on mirror)", dict(refine=False, step2="mirror"), "paper_two_step"),
+    ("two-step, step 2 on all configs", dict(refine=False, step2="all"), "paper_two_step"),
+    ("joint refinement (default)", dict(refine=True, step2="mirror"), "refined"),
+)
+
+
+@dataclass
+class SweepRow:
+    case: str
+    method: str
+    optimizer: str
+    alpha_error_percent: float
+    rho_rel_rmse_percent: float
+    c_rmse: float
+    log_rmse: float
+    time_ms: float
+
+
+def _timed(fun, repeats: int):
+    times, out = [], None
+    for _ in range(repeats):
+        t = time.perf_counter()
+        out = fun()
+        times.append(time.perf_counter() - t)
+    return out, float(np.median(times))
+
+
+def goniochromatic_sweep(alphas: Iterable[float] = (0.03, 0.19, 0.5),
+                         inks: Iterable[str] = ("red", "green", "blue"),
+                         noise: float = 0.02, repeats: int = 5,
+                         optimizers: Iterable[str] = tuple(OPTIMIZERS)) -> list[SweepRow]:
+    """One row per (case, method, optimiser); time is the median of ``repeats`` runs of
+    the whole fit (preparation included), after one warm-up run."""
+    rows = []
+    ti, to = paper_geometry(5.0, theta_i_deg=(20.0, 30.0, 40.0, 50.0, 60.0, 65.0))
+    for ink in inks:
+        rho, c = ink_spectra(ink)
+        for alpha in alphas:
+            m = synthetic_measurement("goniochromatic", {"alpha": alpha, "rho": rho, "c": c},
+                                      ti, to, noise=noise, seed=hash((ink, alpha)) % 2 ** 31)
+            case = f"{ink} α={alpha:g} ({m.n_configurations}×{m.wavelength_nm.size})"
+            for label, kw, key in METHODS:
+                for optimizer in optimizers:
+                    run = lambda: fit(prepare(m), "goniochromatic",  # noqa: E731
+                                      FitOptions(optimizer=optimizer, **kw))
+                    run()
+                    result, t = _timed(run, repeats)
+                    p = result.reports[key].params
+                    rows.append(SweepRow(
+                        case, label, optimizer,
+                        100 * abs(p["alpha"] / alpha - 1),
+                        100 * float(np.sqrt(np.mean((p["rho"] / rho - 1) ** 2))),
+                        float(np.sqrt(np.mean((p["c"] - c) ** 2))),
+                        result.reports[key].errors["log_rmse"], 1e3 * t))
+    return rows
+
+
+def format_rows(rows: list[SweepRow]) -> str:
+    """A Markdown table (error and time side by side)."""
+    head = ("| case | method | optimizer | α err % | ρ rel-RMSE % | c RMSE | data log-RMSE "
+            "| time ms |\n|---|---|---|---:|---:|---:|---:|---:|")
+    lines = [head]
+    for r in rows:
+        lines.append(f"| {r.case} | {r.method} | {r.optimizer} | {r.alpha_error_percent:.3f} "
+                     f"| {r.rho_rel_rmse_percent:.2f} | {r.c_rmse:.3f} | {r.log_rmse:.4f} "
+                     f"| {r.time_ms:.1f} |")
+    return "\n".join(lines)

@@ -1,0 +1,37 @@
+# rgbink: structural-colour reflective inks (seed 000), sample measurements → materials.
+#
+#   ingest each ink's CSVs → fit the goniochromatic model (seed 000 eq. 5) and the
+#   standard Torrance–Sparrow model → Figure-4 plots.
+#
+# Each artifact is a file with its inputs as prerequisites, so make rebuilds only what
+# changed (try `make -n demo` after touching one CSV). Included by the top Makefile,
+# which defines GONIO, OUT and STAMP.
+
+RGBINK     := $(OUT)/rgbink
+INKS       := red green blue
+# Seed 000 leaves out the unreliable 70° row.
+RGBINK_FIT := --exclude-theta-i 70
+
+RGBINK_TARGETS := \
+  $(foreach i,$(INKS),$(RGBINK)/$(i).measurement.json $(RGBINK)/$(i).material.json \
+                      $(RGBINK)/$(i).fit.png $(RGBINK)/$(i).torrance-sparrow.material.json)
+
+.PHONY: rgbink
+rgbink: $(RGBINK_TARGETS)
+
+# The three inks come in the three layouts ingest reads (see docs/ingest.md).
+$(RGBINK)/red.measurement.json: sample_data/ink_red.csv | $(STAMP)
+	$(GONIO) ingest $^ -o $@ --summary
+
+$(RGBINK)/green.measurement.json: sample_data/ink_green.csv | $(STAMP)
+	$(GONIO) ingest $^ -o $@ --quantity ratio-to-white --white-reflectance 0.99 --summary
+
+$(RGBINK)/blue.measurement.json: sample_data/ink_blue_a.csv sample_data/ink_blue_b.csv | $(STAMP)
+	$(GONIO) ingest $^ -o $@ --summary
+
+# Grouped pattern targets: one run writes the material and its plot.
+$(RGBINK)/%.material.json $(RGBINK)/%.fit.png: $(RGBINK)/%.measurement.json
+	$(GONIO) fit $< -o $(RGBINK)/$*.material.json --plot $(RGBINK)/$*.fit.png $(RGBINK_FIT)
+
+$(RGBINK)/%.torrance-sparrow.material.json: $(RGBINK)/%.measurement.json
+	$(GONIO) fit $< -o $@ --model torrance-sparrow $(RGBINK_FIT)
