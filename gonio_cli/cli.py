@@ -18,11 +18,10 @@ from . import __version__, log
 from .errors import EXIT_USAGE, GonioError
 
 EPILOG = """\
+\b
 Examples (one per stage):
-
-  gonio ingest red_*.csv -o red.measurement.json --summary
-
-  gonio fit red.measurement.json -o red.material.json --plot red.fit.png
+  gonio ingest ink_red.csv -o red.measurement.json --summary
+  gonio fit red.measurement.json -o red.material.json --exclude-theta-i 70 --plot red.png
 
 Every command writes self-describing artifacts atomically; bad input gets one line on
 stderr naming the file, the row or field and the fix, and exit status 2.

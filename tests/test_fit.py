@@ -317,3 +317,26 @@ def test_material_round_trip_keeps_parameters(tmp_path):
     back = read_material(tmp_path / "m.json")
     assert back.params["alpha"] == result.params["alpha"]
     np.testing.assert_array_equal(back.params["rho"], result.params["rho"])
+
+
+# ------------------------------------------------------------- the shipped sample data --
+
+@pytest.mark.parametrize("ink, files, options", [
+    ("red", ["ink_red.csv"], {}),
+    ("green", ["ink_green.csv"], {"quantity": "ratio-to-white", "white_reflectance": 0.99}),
+    ("blue", ["ink_blue_a.csv", "ink_blue_b.csv"], {}),
+])
+def test_sample_inks_fit_back_to_their_truth(ink, files, options):
+    # The demo's inputs: 2 % noise with θi = 70° excluded (8 % noise and a +10 % bias
+    # there), as seed 000 does; the tolerances hold.
+    from pathlib import Path
+
+    from gonio_cli.ingest import ingest
+
+    sample = Path(__file__).resolve().parent.parent / "sample_data"
+    truth = json.loads((sample / "truth.json").read_text())["inks"][ink]
+    m = ingest([sample / f for f in files], **options)
+    result = fit(prepare(m, exclude_theta_i_deg=[70]), "goniochromatic", FitOptions())
+    ea, er, ec = errors(result.params, truth["alpha"], np.array(truth["rho"]),
+                        np.array(truth["c"]))
+    assert result.result.success and ea < 0.01 and er < 0.02 and ec < 0.05

@@ -1,5 +1,98 @@
-"""Placeholder: replaced by the ingest stage's shell."""
+"""``gonio ingest``: the thin typer shell over :mod:`gonio_cli.ingest` (STYLE 1).
+
+It parses options, calls the core (imported on first use, so ``gonio --help`` stays fast),
+writes the measurement artifact atomically with its provenance and, with ``--summary``,
+prints what was read to stdout. Any error is raised before anything is written.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import List, Optional
+
+import typer
+
+HELP = """Read goniometer spectra (CSV) and write one measurement artifact (JSON).
+
+Layouts, detected from the header: long (theta_i_deg,theta_o_deg,wavelength_nm,value),
+wide (theta_i_deg,theta_o_deg,<wavelength>,...) and multi-angle (geometry,<wavelength>,...
+with ASTM E2194 labels such as 45as15). Comma, semicolon (decimal comma allowed) or tab
+delimited; '#' starts a comment line. Several files merge into one artifact; repeated rows
+of a configuration are averaged and their standard deviation kept. Values are converted to
+BRDF (sr^-1) and resampled onto the working grid (with a warning if it differs).
+
+\b
+Example:
+  gonio ingest ink_blue_a.csv ink_blue_b.csv -o blue.measurement.json --summary
+  gonio ingest ink_green.csv --quantity ratio-to-white --white-reflectance 0.99 \\
+      -o green.measurement.json
+"""
 
 
-def register(app) -> None:
-    pass
+def _optional(flag: str, metavar: str, help: str):
+    """An option without a default value (the core fills it in and says so in ``help``)."""
+    return typer.Option(None, flag, metavar=metavar, show_default=False, help=help)
+
+
+def ingest(
+    inputs: List[Path] = typer.Argument(
+        ..., metavar="INPUT.csv", show_default=False,
+        help="Goniometer CSV files; several merge into one artifact (same wavelengths)."),
+    output: Path = typer.Option(
+        ..., "--output", "-o", metavar="MEASUREMENT.json", show_default=False,
+        help="The measurement artifact to write (gonio.measurement v1)."),
+    quantity: str = typer.Option(
+        "brdf", "--quantity", metavar="NAME",
+        help="What the files hold: brdf (sr^-1), ratio-to-white (over a white standard), "
+             "reflectance-factor (pi x BRDF) or flux-ratio (reflected over incident flux)."),
+    white_reflectance: Optional[str] = _optional(
+        "--white-reflectance", "R|FILE.csv",
+        "ratio-to-white only: the white standard's reflectance, a number in (0, 1] or a "
+        "CSV wavelength_nm,value [default: 0.99]."),
+    aperture_mm: Optional[float] = _optional(
+        "--aperture-mm", "MM", "flux-ratio only: diameter of the receptor aperture, in mm."),
+    distance_mm: Optional[float] = _optional(
+        "--distance-mm", "MM",
+        "flux-ratio only: distance from the sample to the receptor aperture, in mm."),
+    dark: Optional[Path] = _optional(
+        "--dark", "FILE.csv",
+        "Dark/background spectrum (CSV wavelength_nm,value, in the units of the value "
+        "columns) subtracted from every row before the conversion."),
+    grid_nm: Optional[str] = _optional(
+        "--grid-nm", "START:STOP:STEP", "Working spectral grid in nm [default: 380:780:10]."),
+    summary: bool = typer.Option(
+        False, "--summary", help="Print what was read (angles, grid, repeats, values, "
+                                 "anything dropped or clipped) to stdout."),
+) -> None:
+    from .. import ingest as core
+    from .. import log
+    from ..errors import InputError
+    from ..schemas import write_measurement
+
+    _refuse_overwriting_an_input(output, inputs, InputError)
+    params = core.resolve_parameters(inputs, quantity=quantity,
+                                     white_reflectance=white_reflectance,
+                                     aperture_mm=aperture_mm, distance_mm=distance_mm,
+                                     dark=dark, grid_nm=grid_nm)
+    with log.timer() as t:
+        measurement = core.ingest(inputs, **params)
+    extra = [p for p in (params["dark"], params["white_reflectance"]) if isinstance(p, str)]
+    write_measurement(output, measurement, inputs=[*inputs, *extra], parameters=params,
+                      time_s=t["time_s"])
+    if summary:
+        typer.echo(core.format_summary(measurement.summary))
+        typer.echo(f"wrote {output} in {t['time_s']:.3f} s")
+
+
+def _refuse_overwriting_an_input(output: Path, inputs: List[Path], error) -> None:
+    """``-o`` naming one of the inputs would destroy the measurement: refuse it."""
+    out = os.path.realpath(output)
+    if any(os.path.realpath(p) == out for p in inputs):
+        raise error("is both an input and the output", path=output,
+                    fix="write the artifact to another file, e.g. -o measurement.json")
+
+
+def register(app: typer.Typer) -> None:
+    """Attach ``gonio ingest`` to the app."""
+    app.command("ingest", help=HELP, no_args_is_help=True)(ingest)

@@ -1,0 +1,393 @@
+"""gonio ingest on bad input (issue 2, "Bad input"): every case gets exit status 2, ONE
+line on stderr naming the file and the row or column and saying what to do, no
+traceback, and no output file (not even a temporary one)."""
+
+from __future__ import annotations
+
+import pytest
+
+from gonio_cli.spectra import parse_grid
+
+GRID = parse_grid()
+HEADER_WIDE = "theta_i_deg,theta_o_deg," + ",".join(f"{w:g}" for w in GRID)
+
+
+def row(theta_i, theta_o, value=0.2, n=GRID.size):
+    return f"{theta_i},{theta_o}," + ",".join([str(value)] * n)
+
+
+def wide(*rows, header=HEADER_WIDE):
+    return "\n".join([header, *rows]) + "\n"
+
+
+GOOD = wide(row(20, 10), row(20, 30), row(45, -20))
+
+
+@pytest.fixture
+def refuse(tmp_path, run_gonio):
+    """``refuse(files, *options, expect=[...])``: write ``files`` ({name: text}), run
+    ingest on them and assert the one-line refusal containing every ``expect`` text."""
+
+    def _refuse(files: dict, *options, expect=(), inputs=None):
+        paths = []
+        for name, text in files.items():
+            p = tmp_path / name
+            p.write_bytes(text if isinstance(text, bytes) else text.encode("utf-8"))
+            paths.append(p)
+        inputs = paths if inputs is None else [tmp_path / n for n in inputs]
+        out = tmp_path / "out" / "m.json"
+        options = [tmp_path / o if o in files else o for o in options]
+        res = run_gonio("ingest", *inputs, "-o", out, *options)
+        lines = res.stderr.strip().splitlines()
+        assert res.exit_code == 2, res.stderr
+        assert len(lines) == 1, res.stderr
+        line = lines[0].replace(str(tmp_path) + "/", "")
+        assert line.startswith("gonio: error: "), line
+        assert "Traceback" not in res.stderr
+        for text in expect:
+            assert text in line, line
+        assert "; " in line, f"no fix in: {line}"
+        assert not out.exists()
+        assert not (out.parent.exists() and any(out.parent.iterdir()))
+        return line
+
+    return _refuse
+
+
+# ------------------------------------------------------------------ the file --
+
+def test_empty_file(refuse):
+    refuse({"e.csv": ""}, expect=["e.csv: empty file"])
+
+
+def test_only_comments_and_blank_lines(refuse):
+    refuse({"e.csv": "# nothing\n\n   \n# still nothing\n"}, expect=["e.csv: empty file"])
+
+
+def test_header_without_rows(refuse):
+    refuse({"h.csv": "# c\n" + HEADER_WIDE + "\n"}, expect=["h.csv:2: ", "no data rows"])
+
+
+def test_missing_file(refuse):
+    refuse({}, inputs=["nope.csv"], expect=["nope.csv: no such file"])
+
+
+def test_not_utf8(refuse):
+    refuse({"b.csv": HEADER_WIDE.encode() + b"\n20,10,\xff\xfe\n"},
+           expect=["b.csv:2: ", "not UTF-8"])
+
+
+def test_no_delimiter(refuse):
+    refuse({"d.csv": "theta_i_deg theta_o_deg\n1 2\n"}, expect=["d.csv:1: ", "delimiter"])
+
+
+def test_row_with_too_few_cells(refuse):
+    refuse({"r.csv": wide(row(20, 10), row(20, 30, n=GRID.size - 1))},
+           expect=["r.csv:3: ", "has 42 cells, the header has 43"])
+
+
+def test_decimal_comma_with_comma_delimiter(refuse):
+    line = refuse({"r.csv": wide("20,10," + ",".join(["0,2"] * GRID.size))},
+                  expect=["r.csv:2: ", "cells"])
+    assert "separate columns with ';'" in line
+
+
+# ---------------------------------------------------------------- the header --
+
+@pytest.mark.parametrize("header, missing", [
+    ("theta_i_deg,theta_o_deg,wavelength_nm", "value"),
+    ("theta_i_deg,wavelength_nm,value", "theta_o_deg"),
+    ("theta_o_deg,380,390", "theta_i_deg"),
+])
+def test_missing_column(refuse, header, missing):
+    refuse({"m.csv": header + "\n1,2,3\n"}, expect=["m.csv:1: ", f"missing column '{missing}'"])
+
+
+@pytest.mark.parametrize("header, unknown", [
+    ("theta_i,theta_o_deg,wavelength_nm,value,theta_i_deg", "theta_i"),
+    ("theta_i_deg,theta_o_deg,wavelength_nm,value,temperature", "temperature"),
+    ("theta_i_deg,theta_o_deg,sample,380,390", "sample"),
+    ("geometry,theta_i_deg,380,390", "theta_i_deg"),
+    ("theta_i_deg,theta_o_deg,380nm,390nm,400", "380nm"),
+])
+def test_unknown_column(refuse, header, unknown):
+    n = header.count(",") + 1
+    refuse({"u.csv": header + "\n" + ",".join(["1"] * n) + "\n"},
+           expect=["u.csv:1: ", f"column {unknown}: unknown column"])
+
+
+def test_duplicated_angle_column(refuse):
+    refuse({"u.csv": "theta_i_deg,theta_o_deg,theta_o_deg,380\n1,2,3,4\n"},
+           expect=["u.csv:1: ", "'theta_o_deg' appears twice"])
+
+
+def test_decreasing_wavelength_columns(refuse):
+    header = "theta_i_deg,theta_o_deg,380,400,390,410"
+    refuse({"d.csv": wide("20,10,1,1,1,1", header=header)},
+           expect=["d.csv:1: column 390: ", "decreases"])
+
+
+def test_duplicated_wavelength_columns(refuse):
+    header = "theta_i_deg,theta_o_deg,380,390,390.0,400"
+    refuse({"d.csv": wide("20,10,1,1,1,1", header=header)},
+           expect=["d.csv:1: column 390.0: ", "repeats"])
+
+
+# ------------------------------------------------------------------- the cells --
+
+@pytest.mark.parametrize("cell, what", [("abc", "cell 'abc' is not a number"),
+                                        ("", "cell is empty"),
+                                        ("0.2.1", "cell '0.2.1' is not a number")])
+def test_non_numeric_cell(refuse, cell, what):
+    bad = "20,30," + ",".join(["0.2"] * 5 + [cell] + ["0.2"] * (GRID.size - 6))
+    refuse({"n.csv": wide(row(20, 10), bad)}, expect=["n.csv:3: column 430: ", what])
+
+
+def test_non_numeric_angle(refuse):
+    refuse({"n.csv": wide(row(20, 10), row("twenty", 10))},
+           expect=["n.csv:3: column theta_i_deg: ", "not a number"])
+
+
+@pytest.mark.parametrize("cell", ["nan", "NaN", "inf", "-inf", "Infinity"])
+def test_nan_or_inf(refuse, cell):
+    bad = "20,30," + ",".join([cell] + ["0.2"] * (GRID.size - 1))
+    refuse({"n.csv": wide(row(20, 10), bad)},
+           expect=["n.csv:3: column 380: ", f"value {cell} is not finite"])
+
+
+def test_nan_in_long_layout(refuse):
+    text = "theta_i_deg,theta_o_deg,wavelength_nm,value\n" + "".join(
+        f"20,10,{w:g},{'nan' if w == 500 else 0.2}\n" for w in GRID)
+    refuse({"l.csv": text}, expect=["l.csv:14: column value: ", "NaN or inf"])
+
+
+# ------------------------------------------------------------------- the angles --
+
+@pytest.mark.parametrize("theta_i, theta_o, column, value", [
+    (90, 10, "theta_i_deg", "theta_i_deg=90, outside [0, 90)"),
+    (-5, 10, "theta_i_deg", "theta_i_deg=-5, outside [0, 90)"),
+    (20, 90, "theta_o_deg", "theta_o_deg=90, outside (-90, 90)"),
+    (20, -95, "theta_o_deg", "theta_o_deg=-95, outside (-90, 90)"),
+])
+def test_angles_out_of_range(refuse, theta_i, theta_o, column, value):
+    refuse({"a.csv": wide(row(20, 10), row(theta_i, theta_o))},
+           expect=[f"a.csv:3: column {column}: ", value])
+
+
+def test_angle_out_of_range_in_long_layout(refuse):
+    text = "theta_i_deg,theta_o_deg,wavelength_nm,value\n20,10,380,0.1\n95,10,380,0.1\n"
+    refuse({"l.csv": text}, expect=["l.csv:3: column theta_i_deg: ", "theta_i_deg=95"])
+
+
+def test_angles_that_look_like_radians(refuse):
+    refuse({"r.csv": wide(row(0.349, 0.175), row(0.349, 0.524), row(0.785, -0.35))},
+           expect=["r.csv: column theta_i_deg, theta_o_deg: ", "look like radians",
+                   "degrees"])
+
+
+def test_multiangle_label_out_of_range(refuse):
+    header = "geometry," + ",".join(f"{w:g}" for w in GRID)
+    refuse({"m.csv": wide("45as15," + ",".join(["0.2"] * 41),
+                          "45as150," + ",".join(["0.2"] * 41), header=header)},
+           expect=["m.csv:3: column geometry: ", "45as150 gives theta_o_deg=-105"])
+
+
+def test_multiangle_bad_label(refuse):
+    header = "geometry," + ",".join(f"{w:g}" for w in GRID)
+    refuse({"m.csv": wide("45/15," + ",".join(["0.2"] * 41), header=header)},
+           expect=["m.csv:2: column geometry: ", "'45/15' is not an aspecular label",
+                   "45as15"])
+
+
+# --------------------------------------------------------------- wavelengths --
+
+def test_grid_not_covering_the_working_grid(refuse):
+    header = "theta_i_deg,theta_o_deg," + ",".join(str(w) for w in range(400, 701, 10))
+    line = refuse({"g.csv": wide(row(20, 10, n=31), header=header)},
+                  expect=["g.csv:1: column 400: ", "400-700 nm do not cover the working grid "
+                          "380-780 nm"])
+    assert "--grid-nm 400:700:10" in line
+
+
+def test_grid_not_covering_in_long_layout(refuse):
+    text = "theta_i_deg,theta_o_deg,wavelength_nm,value\n" + "".join(
+        f"20,10,{w},0.1\n" for w in range(380, 701, 10))
+    refuse({"l.csv": text}, expect=["l.csv: column wavelength_nm: ", "380-700 nm do not cover"])
+
+
+def test_grid_covered_only_by_another_grid_option_is_fine(tmp_path, run_gonio):
+    header = "theta_i_deg,theta_o_deg," + ",".join(str(w) for w in range(400, 701, 10))
+    src = tmp_path / "g.csv"
+    src.write_text(wide(row(20, 10, n=31), header=header))
+    res = run_gonio("ingest", src, "-o", tmp_path / "m.json", "--grid-nm", "400:700:10")
+    assert res.exit_code == 0 and res.stderr == ""
+
+
+def test_long_layout_missing_a_wavelength(refuse):
+    rows = [f"20,10,{w:g},0.1" for w in GRID] + [f"30,10,{w:g},0.1" for w in GRID
+                                                   if w != 500]
+    refuse({"l.csv": "theta_i_deg,theta_o_deg,wavelength_nm,value\n" + "\n".join(rows)},
+           expect=["l.csv:43: column wavelength_nm: ", "theta_i_deg=30, theta_o_deg=10",
+                   "no value at 500 nm"])
+
+
+def test_long_layout_uneven_repeat(refuse):
+    rows = [f"20,10,{w:g},0.1" for w in GRID] + ["20,10,450,0.1"]
+    refuse({"l.csv": "theta_i_deg,theta_o_deg,wavelength_nm,value\n" + "\n".join(rows)},
+           expect=["l.csv:", "(repeat 2) has no value at 380 nm"])
+
+
+def test_files_disagreeing_on_their_grid(refuse):
+    header5 = "theta_i_deg,theta_o_deg," + ",".join(str(w) for w in range(380, 781, 5))
+    refuse({"a.csv": GOOD, "b.csv": wide(row(50, 10, n=81), header=header5)},
+           expect=["b.csv:1: column 380: ", "differ from those of", "a.csv",
+                   "from 385 nm on"])
+
+
+def test_files_disagreeing_on_one_wavelength(refuse):
+    other = HEADER_WIDE.replace(",550,", ",551,")
+    refuse({"a.csv": GOOD, "b.csv": wide(row(50, 10), header=other)},
+           expect=["b.csv:1: ", "from 551 nm on"])
+
+
+def test_bad_grid_option(refuse):
+    refuse({"a.csv": GOOD}, "--grid-nm", "380-780", expect=["--grid-nm '380-780'"])
+
+
+# ------------------------------------------------------------------ negatives --
+
+def test_negative_beyond_noise(refuse):
+    bad = "20,30," + ",".join(["0.2"] * 10 + ["-0.05"] + ["0.2"] * (GRID.size - 11))
+    refuse({"n.csv": wide(row(20, 10, 1.0), bad)},
+           expect=["n.csv:3: column 480: ", "value -0.05 at 480 nm is negative beyond noise",
+                   "peak 1"])
+
+
+def test_negative_beyond_noise_after_dark_subtraction(refuse):
+    dark = "wavelength_nm,value\n380,0.5\n780,0.5\n"
+    refuse({"a.csv": wide(row(20, 10, 1.0), row(20, 30, 0.2)), "dark.csv": dark},
+           "--dark", "dark.csv", inputs=["a.csv"],
+           expect=["a.csv:3: column 380: ", "-0.3", "negative beyond noise"])
+
+
+def test_all_values_negative(refuse):
+    refuse({"n.csv": wide(row(20, 10, -0.001))}, expect=["n.csv:2: ", "negative beyond noise"])
+
+
+# ---------------------------------------------------------------- quantities --
+
+def test_unknown_quantity(refuse):
+    line = refuse({"a.csv": GOOD}, "--quantity", "radiance",
+                  expect=["a.csv: --quantity 'radiance' is not known"])
+    assert "brdf, ratio-to-white, reflectance-factor, flux-ratio" in line
+
+
+@pytest.mark.parametrize("white, what", [
+    ("1.5", "--white-reflectance 1.5 is outside (0, 1]"),
+    ("0", "--white-reflectance 0 is outside (0, 1]"),
+    ("-0.9", "--white-reflectance -0.9 is outside (0, 1]"),
+    ("0,99", "--white-reflectance '0,99' is neither a number nor a file"),
+    ("nowhere.csv", "'nowhere.csv' is neither a number nor a file"),
+])
+def test_unusable_white_reflectance(refuse, white, what):
+    refuse({"a.csv": GOOD}, "--quantity", "ratio-to-white", "--white-reflectance", white,
+           expect=["a.csv: ", what])
+
+
+@pytest.mark.parametrize("white, expect", [
+    ("wavelength_nm,value\n400,0.99\n700,0.99\n",     # not covering the input
+     ["w.csv: column 400: ", "do not cover those of a.csv",
+      "white standard spectrum over at least 380-780 nm"]),
+    ("wavelength_nm,value\n380,99\n780,99\n",         # in percent
+     ["w.csv:2: column value: ", "99 at 380 nm is outside (0, 1]", "0.99, not 99 %"]),
+    ("wavelength_nm,value\n380,0.99\n780,0\n",        # a white that does not reflect
+     ["w.csv:3: column value: ", "0 at 780 nm is outside (0, 1]"]),
+    ("wl,R\n380,0.99\n780,0.99\n",                    # wrong columns
+     ["w.csv:1: ", "wavelength_nm,value"]),
+])
+def test_unusable_white_spectrum(refuse, white, expect):
+    refuse({"a.csv": GOOD, "w.csv": white}, "--quantity", "ratio-to-white",
+           "--white-reflectance", "w.csv", inputs=["a.csv"], expect=expect)
+
+
+def test_white_reflectance_with_another_quantity(refuse):
+    refuse({"a.csv": GOOD}, "--white-reflectance", "0.98",
+           expect=["a.csv: ", "--white-reflectance is only used with --quantity "
+                   "ratio-to-white, not brdf"])
+
+
+@pytest.mark.parametrize("options, missing", [
+    ((), "--aperture-mm and --distance-mm"),
+    (("--aperture-mm", "4"), "needs --distance-mm"),
+    (("--distance-mm", "400"), "needs --aperture-mm"),
+])
+def test_flux_ratio_without_aperture_or_distance(refuse, options, missing):
+    refuse({"a.csv": GOOD}, "--quantity", "flux-ratio", *options,
+           expect=["a.csv: ", missing, "seed 004 eq. 7"])
+
+
+@pytest.mark.parametrize("aperture, distance", [("0", "400"), ("500", "400"),
+                                                ("4", "-400"), ("nan", "400")])
+def test_flux_ratio_with_unusable_geometry(refuse, aperture, distance):
+    refuse({"a.csv": GOOD}, "--quantity", "flux-ratio", "--aperture-mm", aperture,
+           "--distance-mm", distance, expect=["a.csv: ", "0 < aperture < distance"])
+
+
+def test_aperture_with_another_quantity(refuse):
+    refuse({"a.csv": GOOD}, "--aperture-mm", "4", expect=["a.csv: ", "--aperture-mm is only "
+                                                          "used with --quantity flux-ratio"])
+
+
+# ---------------------------------------------------------------------- dark --
+
+def test_dark_not_covering(refuse):
+    refuse({"a.csv": GOOD, "dark.csv": "wavelength_nm,value\n390,0\n780,0\n"},
+           "--dark", "dark.csv", inputs=["a.csv"],
+           expect=["dark.csv: column 390: ", "do not cover those of a.csv"])
+
+
+def test_dark_missing(refuse):
+    refuse({"a.csv": GOOD}, "--dark", "dark.csv", expect=["dark.csv: no such file"])
+
+
+def test_dark_with_nan(refuse):
+    refuse({"a.csv": GOOD, "dark.csv": "wavelength_nm,value\n380,0\n780,nan\n"},
+           "--dark", "dark.csv", inputs=["a.csv"],
+           expect=["dark.csv:3: column value: ", "NaN or inf"])
+
+
+# -------------------------------------------------------------------- output --
+
+def test_output_is_an_input(tmp_path, run_gonio):
+    src = tmp_path / "a.csv"
+    src.write_text(GOOD)
+    res = run_gonio("ingest", src, "-o", src)
+    assert res.exit_code == 2
+    assert len(res.stderr.strip().splitlines()) == 1
+    assert "a.csv: is both an input and the output" in res.stderr
+    assert src.read_text() == GOOD
+
+
+def test_same_file_twice(refuse):
+    refuse({"a.csv": GOOD}, inputs=["a.csv", "a.csv"], expect=["a.csv: is given twice"])
+
+
+def test_error_after_a_warning_prints_only_the_error(refuse):
+    """A file needing resampling, then a bad one: the warning of the first is never shown,
+    so a failing run prints exactly one line."""
+    header5 = "theta_i_deg,theta_o_deg," + ",".join(str(w) for w in range(380, 781, 5))
+    refuse({"a.csv": wide(row(20, 10, n=81), header=header5),
+            "b.csv": wide(row(30, 10, n=81), row(95, 10, n=81), header=header5)},
+           expect=["b.csv:3: column theta_i_deg: "])
+
+
+def test_failed_run_keeps_the_previous_artifact(tmp_path, run_gonio):
+    good, bad = tmp_path / "good.csv", tmp_path / "bad.csv"
+    good.write_text(GOOD)
+    bad.write_text(wide(row(20, 10), row(20, "x")))
+    out = tmp_path / "m.json"
+    assert run_gonio("ingest", good, "-o", out).exit_code == 0
+    before = out.read_bytes()
+    assert run_gonio("ingest", bad, "-o", out).exit_code == 2
+    assert out.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.csv", "good.csv", "m.json"]
