@@ -130,6 +130,11 @@ def write_artifact(path: str | os.PathLike, schema: str, schema_version: int,
     return doc
 
 
+#: What makes each artifact, for the fix of a wrong or broken input file.
+_MAKERS = {"gonio.measurement": "pass a measurement made by gonio ingest (which reads the CSVs)",
+           "gonio.material": "pass a material made by gonio fit"}
+
+
 def read_artifact(path: str | os.PathLike, schema: str,
                   versions: Iterable[int]) -> dict[str, Any]:
     """Read an artifact, refusing a missing file, bad JSON, another schema or version."""
@@ -145,8 +150,9 @@ def read_artifact(path: str | os.PathLike, schema: str,
     try:
         doc = json.loads(text)
     except json.JSONDecodeError as exc:
-        raise ArtifactError(f"not valid JSON ({exc.msg} at line {exc.lineno})", path=path,
-                            fix="regenerate it with gonio") from None
+        raise ArtifactError(f"not valid JSON ({exc.msg} at line {exc.lineno}), so not a "
+                            f"{schema} artifact", path=path,
+                            fix=_MAKERS.get(schema, "pass the file the command reads")) from None
     if not isinstance(doc, dict) or "schema" not in doc:
         raise ArtifactError("not a gonio artifact (no 'schema' field)", path=path)
     if doc["schema"] != schema:

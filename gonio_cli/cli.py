@@ -70,28 +70,51 @@ _register()
 def run(argv: Sequence[str] | None = None) -> int:
     """Run the CLI and return its exit status instead of exiting (used by tests)."""
     log.set_quiet(False)
+    args = list(argv) if argv is not None else sys.argv[1:]
     try:
-        # standalone mode: typer/click print their own usage errors and raise SystemExit.
-        app(args=list(argv) if argv is not None else None, prog_name="gonio",
-            standalone_mode=True)
-        return 0
-    except SystemExit as exc:
-        code = exc.code
-        return code if isinstance(code, int) else (0 if code is None else 1)
+        code = app(args=args, prog_name="gonio", standalone_mode=False)
+        return code if isinstance(code, int) else 0
     except GonioError as exc:
         print(f"gonio: error: {exc.format()}", file=sys.stderr)
         return EXIT_USAGE
+    except SystemExit as exc:
+        code = exc.code
+        return code if isinstance(code, int) else (0 if code is None else 1)
+    except KeyboardInterrupt:
+        print("gonio: interrupted; nothing was written", file=sys.stderr)
+        return 130
     except OSError as exc:
         where = f"{exc.filename}: " if exc.filename else ""
         print(f"gonio: error: {where}{exc.strerror or exc}", file=sys.stderr)
         return EXIT_USAGE
-    except Exception as exc:  # a bug: one line, unless the user asks for the traceback
+    except Exception as exc:
+        if _is_usage_error(exc):  # typer/click: bad option, missing argument, unknown command
+            print(f"gonio: error: {exc.format_message()} (see 'gonio "
+                  f"{_command(args)}--help')", file=sys.stderr)
+            return int(exc.exit_code)
+        if type(exc).__name__ == "Abort":
+            print("gonio: aborted; nothing was written", file=sys.stderr)
+            return 130
+        # a bug: one line, unless the user asks for the traceback
         if os.environ.get("GONIO_DEBUG"):
             raise
         print(f"gonio: internal error: {exc.__class__.__name__}: {exc} "
               "(a bug; rerun with GONIO_DEBUG=1 for the traceback and report it)",
               file=sys.stderr)
         return 1
+
+
+def _is_usage_error(exc: Exception) -> bool:
+    """typer's (vendored) click usage errors, recognised by their interface so that the
+    check does not depend on where a typer version keeps its click."""
+    return callable(getattr(exc, "format_message", None)) and isinstance(
+        getattr(exc, "exit_code", None), int)
+
+
+def _command(args: Sequence[str]) -> str:
+    """The subcommand named in ``args`` followed by a space, or ''."""
+    names = set(typer.main.get_command(app).commands)  # type: ignore[attr-defined]
+    return next((f"{a} " for a in args if a in names), "")
 
 
 def main() -> None:

@@ -117,3 +117,16 @@ def test_quiet_does_not_leak_into_the_next_run(add_command, capsys):
     assert cli.run(["--quiet", "warn"]) == 0
     assert cli.run(["warn"]) == 0
     assert capsys.readouterr().err == "gonio: warning: careful\n"
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["fit"], "Missing argument"),
+    (["fit", "m.json"], "Missing option '--output'"),
+    (["fit", "m.json", "-o", "x.json", "--alpha", "abc"], "Invalid value for '--alpha'"),
+    (["nosuch"], "No such command 'nosuch'"),
+])
+def test_usage_errors_are_one_line_with_exit_2(run_gonio, args, needle):
+    r = run_gonio(*args)
+    assert r.exit_code == 2
+    assert r.stderr.count("\n") == 1 and r.stderr.startswith("gonio: error:")
+    assert needle in r.stderr and "--help" in r.stderr

@@ -12,32 +12,37 @@ OPTIMIZER_NAMES = ("nlopt-bobyqa", "nlopt-lbfgs", "scipy-least-squares")
 
 
 def fit(
-    measurement: Path = typer.Argument(..., help="A gonio.measurement file (gonio ingest)."),
-    output: Path = typer.Option(..., "--output", "-o", help="The gonio.material file to write."),
-    model: str = typer.Option("goniochromatic", "--model", "-m",
+    measurement: Path = typer.Argument(..., metavar="MEASUREMENT.json", show_default=False,
+                                      help="A gonio.measurement file (gonio ingest)."),
+    output: Path = typer.Option(..., "--output", "-o", metavar="MATERIAL.json",
+                                help="The gonio.material file to write."),
+    model: str = typer.Option("goniochromatic", "--model", "-m", metavar="NAME",
                               help=f"One of: {', '.join(MODELS)}."),
     refine: bool = typer.Option(True, "--refine/--no-refine",
                                 help="Fit alpha, rho, c jointly after seed 000's two steps."),
-    step2: str = typer.Option("mirror", "--step2",
+    step2: str = typer.Option("mirror", "--step2", metavar="mirror|all",
                               help="Configurations of the paper's step 2: mirror (eq. 7) or all."),
     exclude_theta_i: List[float] = typer.Option(
-        [], "--exclude-theta-i", help="Leave out an angle of incidence (deg); repeatable."),
-    residuals: str = typer.Option("log", "--residuals", help="log (multiplicative noise) or linear."),
+        [], "--exclude-theta-i", metavar="DEG", help="Leave out an angle of incidence (deg); repeatable."),
+    residuals: str = typer.Option("log", "--residuals", metavar="log|linear", help="log (multiplicative noise) or linear."),
     std_weights: bool = typer.Option(True, "--std-weights/--no-std-weights",
                                      help="Weight by brdf_std of the repeats when present."),
-    optimizer: str = typer.Option("nlopt-bobyqa", "--optimizer",
+    optimizer: str = typer.Option("nlopt-bobyqa", "--optimizer", metavar="NAME",
                                   help=f"One of: {', '.join(OPTIMIZER_NAMES)}."),
-    alpha: Optional[float] = typer.Option(None, "--alpha",
+    alpha: Optional[float] = typer.Option(None, "--alpha", metavar="ALPHA",
                                           help="Fix the roughness instead of fitting it."),
-    plot: Optional[Path] = typer.Option(None, "--plot",
+    plot: Optional[Path] = typer.Option(None, "--plot", metavar="FIT.png",
                                         help="Also draw seed 000 Figure 4 for this fit (PNG)."),
     on_failure: str = typer.Option(
-        "error", "--on-failure",
+        "error", "--on-failure", metavar="error|write",
         help="error: exit 2 and write nothing; write: write the material with status failed."),
 ) -> None:
     """Fit a reflectance model to a measurement (seed 000 eqs. 1-7; seed 004 eqs. 9-14).
 
-    Example: gonio fit red.measurement.json -o red.material.json --exclude-theta-i 70 --plot red.png
+    \b
+    Example:
+      gonio fit red.measurement.json -o red.material.json --exclude-theta-i 70 --plot red.png
+      gonio fit red.measurement.json -o red.ts.json --model torrance-sparrow
     """
     from .. import log
     from ..errors import FitError, InputError
