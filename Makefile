@@ -25,11 +25,12 @@ $(STAMP): pyproject.toml
 	@touch $@
 
 include pipelines/rgbink.mk
+include pipelines/carpaint.mk
 
-demo: $(STAMP) rgbink
+demo: $(STAMP) rgbink carpaint
 	@echo
-	@echo "Demo outputs are in $(OUT)/rgbink/:"
-	@ls -1 $(OUT)/rgbink | sed 's/^/  /'
+	@echo "Demo outputs (materials, their Figure-4 plots, the measurements):"
+	@for d in rgbink carpaint; do echo "  $(OUT)/$$d/"; ls -1 $(OUT)/$$d | sed 's/^/    /'; done
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q

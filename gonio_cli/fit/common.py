@@ -349,10 +349,13 @@ def minimize_log_alpha(cost: Callable[[float], float], optimizer: str = DEFAULT_
 
     algorithm = nlopt.LD_LBFGS if optimizer == "nlopt-lbfgs" else nlopt.LN_BOBYQA
     counter = {"n": 0}
+    seen = {"x": float(grid[i]), "f": float(values[i])}   # best point nlopt evaluated
 
     def objective(x, grad):
         counter["n"] += 1
         f = _finite_cost(cost, x[0])
+        if f < seen["f"]:
+            seen["x"], seen["f"] = float(x[0]), f
         if grad.size:
             h = FD_STEP_LOG_ALPHA
             counter["n"] += 2
@@ -373,12 +376,13 @@ def minimize_log_alpha(cost: Callable[[float], float], optimizer: str = DEFAULT_
         code = opt.last_optimize_result()
         message = _NLOPT_MESSAGES.get(code, f"nlopt result {code}")
         success = code > 0
-    except Exception as exc:  # nlopt raises on roundoff-limited stops; keep the scan point
-        x, best = grid[i], values[i]
-        message = f"nlopt stopped ({exc.__class__.__name__}: {exc}); kept the scan's best α"
+    except Exception as exc:  # nlopt raises on round-off-limited stops (e.g. LBFGS near a
+        # zero cost); what it reached is still the best point it evaluated
+        x, best = seen["x"], seen["f"]
+        message = f"nlopt stopped ({exc.__class__.__name__}); kept the best alpha it evaluated"
         success = True
-    if best > values[i]:  # never worse than the scan
-        x, best = grid[i], values[i]
+    if best > seen["f"]:  # never worse than any point evaluated (the scan's best included)
+        x, best = seen["x"], seen["f"]
     evaluations += counter["n"]
     at_bound = bool(np.isclose(x, lo, atol=1e-6) or np.isclose(x, hi, atol=1e-6))
     if best >= _BAD_COST:
@@ -420,6 +424,12 @@ def error_figures(data: FitData, f_model: np.ndarray) -> dict[str, Any]:
                                 "theta_o_deg": float(data.theta_o_deg[k]),
                                 "log_rmse": float(per_cfg[k])},
     }
+
+
+def nm_list(nm: list[float]) -> str:
+    """"380, 390 nm": wavelengths for a message, the first six and a count."""
+    shown = ", ".join(f"{w:g}" for w in nm[:6])
+    return shown + (f", … ({len(nm)} in all)" if len(nm) > 6 else "") + " nm"
 
 
 # ------------------------------------------------------------------------ the results --

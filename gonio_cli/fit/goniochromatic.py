@@ -34,7 +34,7 @@ from ..brdf import (dlog_ggx_d_dlog_alpha, goniochromatic, goniochromatic_expone
 from ..errors import FitError
 from .common import (ALPHA_MAX, ALPHA_MIN, FitData, FitOptions, FitReport,
                      LinearProfile, ModelFit, Stopwatch, error_figures, golden_section,
-                     minimize_log_alpha, scan_log_alpha)
+                     minimize_log_alpha, nm_list, scan_log_alpha)
 
 #: Bracket of the golden-section search for c(λ) with linear residuals. |c| = 60 makes
 #: exp(c x) vary by e^27 between normal and 70° incidence, far past any measured material
@@ -228,16 +228,11 @@ def _report(method, data, alpha, rho, c, ok, *, optimizer, evaluations, time_s, 
     status = "success" if success and not failed and np.isfinite(alpha) else "failed"
     if failed and success:
         message = (f"no usable signal at {len(failed)} wavelength(s) "
-                   f"({_nm_list(failed)}); rho = c = 0 there. " + message)
+                   f"({nm_list(failed)}); rho = c = 0 there. " + message)
     return FitReport(method, status, message.strip(),
                      {"alpha": float(alpha), "rho": rho, "c": c},
                      error_figures(data, f), optimizer, evaluations, time_s, failed,
                      extra or {})
-
-
-def _nm_list(nm: list[float]) -> str:
-    shown = ", ".join(f"{w:g}" for w in nm[:6])
-    return shown + (f", … ({len(nm)} in all)" if len(nm) > 6 else "") + " nm"
 
 
 def check_identifiable(data: FitData) -> None:

@@ -87,3 +87,48 @@ def format_rows(rows: list[SweepRow]) -> str:
                      f"| {r.rho_rel_rmse_percent:.2f} | {r.c_rmse:.3f} | {r.log_rmse:.4f} "
                      f"| {r.time_ms:.1f} |")
     return "\n".join(lines)
+
+
+#: Comparison models on their own synthetic data: (model, truth builder).
+def _comparison_truths(wl: np.ndarray) -> dict[str, dict]:
+    x = (wl - wl[0]) / (wl[-1] - wl[0])
+    return {
+        "torrance-sparrow": {"alpha": 0.19,
+                             "f0": 0.04 + 0.5 / (1.0 + np.exp(-(wl - 550.0) / 30.0))},
+        "cook-torrance": {"kd": 0.02 + 0.15 * np.exp(-0.5 * ((wl - 470.0) / 50.0) ** 2),
+                          "ks": 0.3 + 0.1 * x, "m": 0.25 + 0.05 * x, "f0": 0.6 + 0.3 * x},
+    }
+
+
+def comparison_sweep(noise: float = 0.02, repeats: int = 5,
+                     optimizers: Iterable[str] = tuple(OPTIMIZERS)) -> list[dict]:
+    """Each comparison model on data made from itself: relative RMSE of each parameter
+    against the truth (%), the data's relative RMSE (seed 004 eq. 14) and median time."""
+    from ..spectra import parse_grid
+
+    wl = parse_grid()
+    ti, to = paper_geometry(5.0, theta_i_deg=(20.0, 30.0, 40.0, 50.0, 60.0, 70.0))
+    rows = []
+    for model, truth in _comparison_truths(wl).items():
+        m = synthetic_measurement(model, truth, ti, to, noise=noise, seed=1)
+        for optimizer in optimizers:
+            run = lambda: fit(prepare(m), model, FitOptions(optimizer=optimizer))  # noqa: E731
+            run()
+            result, t = _timed(run, repeats)
+            errs = {k: 100 * float(np.sqrt(np.mean((np.asarray(result.params[k]) / v - 1) ** 2)))
+                    for k, v in truth.items()}
+            rows.append({"model": model, "optimizer": optimizer, "method": result.final,
+                         "parameter_error_percent": errs,
+                         "relative_rmse_percent": result.result.errors["relative_rmse_percent"],
+                         "time_ms": 1e3 * t})
+    return rows
+
+
+def format_comparison(rows: list[dict]) -> str:
+    lines = ["| model | optimizer | final method | parameter rel-RMSE % vs truth "
+             "| data rel-RMSE % (eq. 14) | time ms |", "|---|---|---|---|---:|---:|"]
+    for r in rows:
+        errs = ", ".join(f"{k} {v:.2f}" for k, v in r["parameter_error_percent"].items())
+        lines.append(f"| {r['model']} | {r['optimizer']} | {r['method']} | {errs} "
+                     f"| {r['relative_rmse_percent']:.2f} | {r['time_ms']:.1f} |")
+    return "\n".join(lines)
