@@ -17,15 +17,25 @@ import typer
 from . import __version__, log
 from .errors import EXIT_USAGE, GonioError
 
-EPILOG = """\
-\b
-Examples (one per stage):
-  gonio ingest ink_red.csv -o red.measurement.json --summary
-  gonio fit red.measurement.json -o red.material.json --exclude-theta-i 70 --plot red.png
+#: Stage shells in pipeline order; each module has ``register(app)`` and ``EXAMPLE``.
+COMMAND_MODULES = ("ingest", "fit", "lobes", "halftone", "prefilter")
 
-Every command writes self-describing artifacts atomically; bad input gets one line on
-stderr naming the file, the row or field and the fix, and exit status 2.
-"""
+
+def _modules():
+    import importlib
+
+    return [importlib.import_module(f"{__package__}.commands.{name}")
+            for name in COMMAND_MODULES]
+
+
+def _epilog() -> str:
+    examples = [f"  {m.EXAMPLE}" for m in _modules() if getattr(m, "EXAMPLE", "")]
+    return ("\b\nExamples (one per stage):\n" + "\n".join(examples) + "\n\n"
+            "Every command writes self-describing artifacts atomically; bad input gets one "
+            "line on stderr naming the file, the row or field and the fix, and exit status 2.")
+
+
+EPILOG = _epilog()
 
 app = typer.Typer(
     name="gonio",
@@ -57,10 +67,7 @@ def _root(
 
 def _register() -> None:
     """Attach every stage's command (imports are cheap: cores load on first use)."""
-    from .commands import fit as _fit
-    from .commands import ingest as _ingest
-
-    for module in (_ingest, _fit):
+    for module in _modules():
         module.register(app)
 
 

@@ -100,5 +100,9 @@ def summary_line(output: Path, result) -> str:
     return f"{output}: " + "; ".join(parts)
 
 
+EXAMPLE = ("gonio fit red.measurement.json -o red.material.json --exclude-theta-i 70 "
+           "--plot red.png")
+
+
 def register(app: typer.Typer) -> None:
     app.command("fit")(fit)

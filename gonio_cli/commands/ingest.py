@@ -93,6 +93,9 @@ def _refuse_overwriting_an_input(output: Path, inputs: List[Path], error) -> Non
                     fix="write the artifact to another file, e.g. -o measurement.json")
 
 
+EXAMPLE = "gonio ingest ink_red.csv -o red.measurement.json --summary"
+
+
 def register(app: typer.Typer) -> None:
     """Attach ``gonio ingest`` to the app."""
     app.command("ingest", help=HELP, no_args_is_help=True)(ingest)
