@@ -124,17 +124,11 @@ def prepare(measurement: Measurement, *, residuals: str = "log",
     y = measurement.brdf[keep]
     positive = y > 0
     if measurement.brdf_std is not None and use_std:
-        n = np.maximum(measurement.n_repeats[keep], 1)[:, None]
-        sigma = measurement.brdf_std[keep] / np.sqrt(n)
-        rel = np.where(positive, sigma / np.where(positive, y, 1.0), np.nan)
-        repeated = (measurement.n_repeats[keep] > 1)[:, None] & positive
-        fill = np.nanmedian(np.where(repeated, rel, np.nan), axis=0) if repeated.any() \
-            else np.full(y.shape[1], REL_SIGMA_FLOOR)
-        fill = np.where(np.isfinite(fill), fill, REL_SIGMA_FLOOR)
-        rel = np.where(repeated, rel, fill[None, :])
-        rel = np.sqrt(rel ** 2 + REL_SIGMA_FLOOR ** 2)
+        rel = _relative_sigma(y, measurement.brdf_std[keep], measurement.n_repeats[keep])
+        # log residuals: σ(log y) ≈ σ/y; linear: σ itself, floored at the relative floor of
+        # the wavelength's typical magnitude so near-zero readings do not dominate.
         w = 1.0 / rel ** 2 if residuals == "log" else \
-            1.0 / (rel * np.maximum(np.abs(y), _scale(y))) ** 2
+            1.0 / ((rel * y) ** 2 + (REL_SIGMA_FLOOR * _scale(y)) ** 2)
     else:
         w = np.ones_like(y) if residuals == "log" else np.broadcast_to(
             1.0 / _scale(y) ** 2, y.shape).copy()
@@ -145,6 +139,24 @@ def prepare(measurement: Measurement, *, residuals: str = "log",
                    in_plane_cosines(ti[keep], measurement.theta_o_deg[keep]), y, w, positive,
                    residuals, {"theta_i_deg": dropped_ti,
                                "non_positive_values": int((~positive).sum())})
+
+
+def _relative_sigma(y: np.ndarray, std: np.ndarray, n_repeats: np.ndarray) -> np.ndarray:
+    """Relative standard deviation of each mean (N, L), σ/y with σ = std/√n, floored.
+
+    Configurations read once (no std) and non-positive readings take the median relative
+    σ of the repeated readings at their wavelength (or the floor if there are none).
+    """
+    positive = y > 0
+    repeated = (n_repeats > 1)[:, None] & positive
+    sigma = std / np.sqrt(np.maximum(n_repeats, 1))[:, None]
+    rel = np.where(repeated, sigma / np.where(positive, y, 1.0), np.nan)
+    fill = np.full(y.shape[1], REL_SIGMA_FLOOR)
+    has = repeated.any(axis=0)
+    if has.any():
+        fill[has] = np.nanmedian(rel[:, has], axis=0)
+    rel = np.where(repeated, rel, fill[None, :])
+    return np.sqrt(rel ** 2 + REL_SIGMA_FLOOR ** 2)
 
 
 def _scale(y: np.ndarray) -> np.ndarray:
@@ -446,7 +458,7 @@ class FitOptions:
 
     refine: bool = True
     step2: str = "mirror"
-    optimizer: str = "nlopt-bobyqa"
+    optimizer: str = DEFAULT_OPTIMIZER
     alpha: float | None = None
 
 

@@ -29,8 +29,8 @@ from typing import Any
 
 import numpy as np
 
-from ..brdf import (dlog_ggx_d_dlog_alpha, goniochromatic, goniochromatic_exponent_arg,
-                    log_ggx_d)
+from ..brdf import (LOG_MAX, dlog_ggx_d_dlog_alpha, goniochromatic,
+                    goniochromatic_exponent_arg, log_ggx_d)
 from ..errors import FitError
 from .common import (ALPHA_MAX, ALPHA_MIN, FitData, FitOptions, FitReport,
                      LinearProfile, ModelFit, Stopwatch, error_figures, golden_section,
@@ -99,7 +99,7 @@ class Step2:
         off = _offset(self.data, alpha)
         beta, cost, ok = self.linear.solve(off)
         if self.data.residuals == "log":
-            rho = np.where(ok, np.exp(np.minimum(beta[0], 700.0)), 0.0)
+            rho = np.where(ok, np.exp(np.minimum(beta[0], LOG_MAX)), 0.0)
             return rho, np.where(ok, beta[1], 0.0), float(cost[ok].sum()), ok
         return _solve_spectra_linear(self.data, off, self.x)
 
@@ -115,7 +115,7 @@ def _solve_spectra_linear(data: FitData, off, x):
     base = np.exp(off)[:, None]                      # D/4 per configuration (N, 1)
 
     def rho_of(c):
-        g = base * np.exp(np.minimum(np.outer(x, c), 700.0))
+        g = base * np.exp(np.minimum(np.outer(x, c), LOG_MAX))
         num = np.sum(w * y * g, axis=0)
         den = np.sum(w * g * g, axis=0)
         return np.where(den > 0, np.maximum(num, 0.0) / np.where(den > 0, den, 1.0), 0.0), g
@@ -142,9 +142,9 @@ def joint_least_squares(data: FitData, log_alpha0: float, beta0: np.ndarray,
     or √w (y − e^η). Parameters: log α and β (K, L). Returns (alpha, beta, nfev, message).
     """
     from scipy.optimize import least_squares
+    from scipy.sparse import csr_matrix
 
     K, L = beta0.shape
-    N = data.n_configurations
     sw = np.sqrt(data.w)
     used = sw > 0
     log_y = np.log(np.where(data.positive, data.y, 1.0))
@@ -155,25 +155,33 @@ def joint_least_squares(data: FitData, log_alpha0: float, beta0: np.ndarray,
 
     def fun(theta):
         e, _ = eta(theta)
-        r = (log_y - e) if data.residuals == "log" else (data.y - np.exp(np.minimum(e, 700)))
+        r = (log_y - e) if data.residuals == "log" else \
+            (data.y - np.exp(np.minimum(e, LOG_MAX)))
         return (sw * r)[used]
+
+    # Sparse structure: each residual (n, l) depends on log α and on β[:, l] only.
+    n_idx, l_idx = np.nonzero(used)
+    n_res = n_idx.size
+    rows = np.repeat(np.arange(n_res), 1 + K)
+    cols = np.concatenate([np.zeros((n_res, 1), dtype=int),
+                           1 + np.arange(K)[None, :] * L + l_idx[:, None]], axis=1).ravel()
 
     def jac(theta):
         e, a = eta(theta)
-        dm = np.ones_like(e) if data.residuals == "log" else np.exp(np.minimum(e, 700))
-        J = np.zeros((N, L, 1 + K * L))
-        J[:, :, 0] = -(sw * dm) * dlog_ggx_d_dlog_alpha(data.cos.cos_theta_h, a)[:, None]
-        for k in range(K):
-            cols = 1 + k * L + np.arange(L)
-            J[:, np.arange(L), cols] = -(sw * dm) * design[:, k][:, None]
-        return J[used]
+        dm = np.ones_like(e) if data.residuals == "log" else np.exp(np.minimum(e, LOG_MAX))
+        s = -(sw * dm)[n_idx, l_idx]
+        vals = np.concatenate([
+            (s * dlog_ggx_d_dlog_alpha(data.cos.cos_theta_h, a)[n_idx])[:, None],
+            s[:, None] * design[n_idx]], axis=1).ravel()
+        return csr_matrix((vals, (rows, cols)), shape=(n_res, 1 + K * L))
 
     lo = np.full(1 + K * L, -np.inf)
     hi = np.full(1 + K * L, np.inf)
     lo[0], hi[0] = np.log(ALPHA_MIN), np.log(ALPHA_MAX)
     theta0 = np.concatenate([[np.clip(log_alpha0, lo[0], hi[0])], beta0.ravel()])
     res = least_squares(fun, theta0, jac=jac, bounds=(lo, hi), method="trf",
-                        x_scale="jac", xtol=1e-10, ftol=1e-10, gtol=1e-10, max_nfev=500)
+                        tr_solver="lsmr", x_scale="jac", xtol=1e-10, ftol=1e-10, gtol=1e-10,
+                        max_nfev=500)
     return float(np.exp(res.x[0])), res.x[1:].reshape(K, L), int(res.nfev), res.message
 
 
