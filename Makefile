@@ -26,17 +26,18 @@ $(STAMP): pyproject.toml
 
 include pipelines/rgbink.mk
 include pipelines/carpaint.mk
+include pipelines/lobes.mk
 
-demo: $(STAMP) rgbink carpaint
+demo: $(STAMP) rgbink carpaint lobes
 	@echo
 	@echo "Demo outputs (materials, their Figure-4 plots, the measurements):"
-	@for d in rgbink carpaint; do echo "  $(OUT)/$$d/"; ls -1 $(OUT)/$$d | sed 's/^/    /'; done
+	@for d in rgbink carpaint lobes; do echo "  $(OUT)/$$d/"; ls -1 $(OUT)/$$d | sed 's/^/    /'; done
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
 
 bench: $(STAMP)
-	$(BIN)/python benchmarks/bench_fit.py
+	@for b in benchmarks/bench_*.py; do echo; echo "### $$b"; $(BIN)/python $$b || exit 1; done
 
 clean:
 	rm -rf $(OUT)

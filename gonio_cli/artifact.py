@@ -132,7 +132,9 @@ def write_artifact(path: str | os.PathLike, schema: str, schema_version: int,
 
 #: What makes each artifact, for the fix of a wrong or broken input file.
 _MAKERS = {"gonio.measurement": "pass a measurement made by gonio ingest (which reads the CSVs)",
-           "gonio.material": "pass a material made by gonio fit"}
+           "gonio.material": "pass a material made by gonio fit",
+           "gonio.lobe_basis": "pass a basis made by gonio lobes basis",
+           "gonio.lobes": "pass lobe weights made by gonio lobes fit"}
 
 
 def read_artifact(path: str | os.PathLike, schema: str,

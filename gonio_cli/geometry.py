@@ -79,3 +79,11 @@ def cos_half_sum(cos_theta_i, cos_theta_o) -> np.ndarray:
     ci = np.clip(np.asarray(cos_theta_i, dtype=float), 0.0, 1.0)
     co = np.clip(np.asarray(cos_theta_o, dtype=float), 0.0, 1.0)
     return 0.5 * (np.sqrt((1.0 + ci) * (1.0 + co)) - np.sqrt((1.0 - ci) * (1.0 - co)))
+
+
+def reflect(w: np.ndarray, n=(0.0, 0.0, 1.0)) -> np.ndarray:
+    """Mirror direction R = 2 (n·w) n − w of unit vectors ``w`` (..., 3) about ``n`` (..., 3).
+    """
+    w = np.asarray(w, dtype=float)
+    n = np.asarray(n, dtype=float)
+    return 2.0 * np.sum(n * w, axis=-1, keepdims=True) * n - w

@@ -213,3 +213,183 @@ def write_material(path: str | os.PathLike, m: Material, **envelope) -> dict:
     """Write a material atomically with provenance."""
     return write_artifact(path, Material.SCHEMA, Material.VERSION, m.to_payload(),
                           **envelope)
+
+
+# ------------------------------------------------------------------------ lobe basis --
+
+def _exponent_list(values, path, where: str) -> np.ndarray:
+    """Exponents (m,) of a basis: at least one, finite, > 0 (seed 001 eq. 2)."""
+    try:
+        e = np.asarray(values, dtype=float)
+    except (TypeError, ValueError):
+        raise ArtifactError(f"{where} is not a list of numbers", path=path) from None
+    if e.ndim != 1 or e.size == 0:
+        raise ArtifactError(f"{where} is empty", path=path,
+                            fix="choose a basis with gonio lobes basis")
+    bad = e[~(np.isfinite(e) & (e > 0))]
+    if bad.size:
+        raise ArtifactError(f"{where} holds the exponent {bad[0]!r}, not a positive number",
+                            path=path, fix="every cosine-lobe exponent must be > 0")
+    return e
+
+
+@dataclass
+class LobeBasis:
+    """Cosine-lobe exponents for 1 … N lobes (``gonio.lobe_basis`` v1, seed 001 §3.2).
+
+    Attributes
+    ----------
+    bases : one dict per lobe count, ascending: ``n_lobes``, ``exponents`` (m,) sorted,
+        ``error`` (seed 001 eq. 4: max + mean relative RMS over the materials),
+        ``max_error``, ``mean_error``, ``per_material`` (n,), ``evaluations``, ``time_s``,
+        ``message``.
+    materials : the database: [{"path", "model"}] in the order of ``per_material``.
+    sample_set, channels, solver : how the errors were measured.
+    exponent_range : [min, max] of the search.
+    """
+
+    bases: list[dict[str, Any]]
+    materials: list[dict[str, Any]]
+    sample_set: str
+    channels: str
+    solver: str
+    exponent_range: list[float]
+    view_angle_deg: list[float]
+
+    SCHEMA = "gonio.lobe_basis"
+    VERSION = 1
+    FIELDS = ("bases", "materials", "sample_set", "channels", "solver", "exponent_range",
+              "view_angle_deg")
+    BASIS_FIELDS = ("n_lobes", "exponents", "error", "max_error", "mean_error",
+                    "per_material", "evaluations", "time_s", "message")
+
+    def to_payload(self) -> dict[str, Any]:
+        return {k: getattr(self, k) for k in self.FIELDS}
+
+    def exponents(self, n_lobes: int | None = None, path=None) -> np.ndarray:
+        """The exponents of the basis with ``n_lobes`` lobes (default: the largest)."""
+        counts = [b["n_lobes"] for b in self.bases]
+        if n_lobes is None:
+            n_lobes = max(counts)
+        if n_lobes not in counts:
+            from .errors import InputError
+
+            raise InputError(f"--lobes {n_lobes}: the basis has no {n_lobes}-lobe set",
+                             path=path, fix=f"choose one of {', '.join(map(str, counts))}")
+        return np.asarray(self.bases[counts.index(n_lobes)]["exponents"], dtype=float)
+
+    @classmethod
+    def from_document(cls, doc: dict[str, Any], path=None) -> "LobeBasis":
+        check_keys(doc, ENVELOPE_KEYS + cls.FIELDS, path=path)
+        bases = doc.get("bases")
+        if not isinstance(bases, list) or not bases:
+            raise ArtifactError("field 'bases' is missing or empty (an empty basis)",
+                                path=path, fix="choose a basis with gonio lobes basis")
+        for k, b in enumerate(bases):
+            if not isinstance(b, dict):
+                raise ArtifactError(f"bases[{k}] is not an object", path=path)
+            check_keys(b, cls.BASIS_FIELDS, path=path, where=f"bases[{k}].")
+            e = _exponent_list(b.get("exponents"), path, f"bases[{k}].exponents")
+            if b.get("n_lobes") != e.size:
+                raise ArtifactError(f"bases[{k}].n_lobes={b.get('n_lobes')!r} but it holds "
+                                    f"{e.size} exponents", path=path)
+        for key in ("sample_set", "channels", "solver"):
+            if not isinstance(doc.get(key), str):
+                raise ArtifactError(f"field {key!r} is missing or not a string", path=path)
+        return cls(list(bases), list(doc.get("materials") or []), doc["sample_set"],
+                   doc["channels"], doc["solver"], list(doc.get("exponent_range") or []),
+                   list(doc.get("view_angle_deg") or []))
+
+
+def _read_as(cls, path):
+    """Read an artifact of ``cls.SCHEMA`` / ``cls.VERSION`` and validate it into ``cls``."""
+    return cls.from_document(read_artifact(path, cls.SCHEMA, (cls.VERSION,)), path=path)
+
+
+def _write_as(path, obj, **envelope) -> dict:
+    """Write ``obj`` (a schema dataclass) atomically with provenance."""
+    return write_artifact(path, obj.SCHEMA, obj.VERSION, obj.to_payload(), **envelope)
+
+
+def read_lobe_basis(path: str | os.PathLike) -> LobeBasis:
+    """Read and validate a ``gonio.lobe_basis`` artifact."""
+    return _read_as(LobeBasis, path)
+
+
+def write_lobe_basis(path: str | os.PathLike, b: LobeBasis, **envelope) -> dict:
+    """Write a lobe basis atomically with provenance."""
+    return _write_as(path, b, **envelope)
+
+
+# ----------------------------------------------------------------------------- lobes --
+
+@dataclass
+class Lobes:
+    """Cosine-lobe weights of one material (``gonio.lobes`` v1, seed 001 eqs. 1-3, §5.2).
+
+    f cos θi ≈ K_D (L·N) + (L·N) Σ K_DD,i (R·V)^E_i + Σ K_G,i (R·V)^E_i, weights in sr⁻¹.
+
+    Attributes
+    ----------
+    exponents : (m,) float > 0, the basis (read by ``gonio prefilter``).
+    channel_kind : "spectral" or "xyz"; channels : (C,) wavelength_nm or ["X", "Y", "Z"].
+    view_angle_deg : (V,) the table's view angles (the renderer interpolates).
+    diffuse : (V, C) K_D ; directional_diffuse : (V, m, C) K_DD ; gloss : (V, m, C) K_G,
+        all ≥ 0.
+    errors : per solver {"l1", "rms", "rms_relative", "time_s"}: (V,) lists.
+    solver, sample_set : how the weights were fitted ; n_samples : (V,) per view angle.
+    """
+
+    exponents: np.ndarray
+    channel_kind: str
+    channels: list
+    view_angle_deg: np.ndarray
+    diffuse: np.ndarray
+    directional_diffuse: np.ndarray
+    gloss: np.ndarray
+    errors: dict[str, Any]
+    solver: str
+    sample_set: str
+    n_samples: list
+
+    SCHEMA = "gonio.lobes"
+    VERSION = 1
+    FIELDS = ("exponents", "channel_kind", "channels", "view_angle_deg", "diffuse",
+              "directional_diffuse", "gloss", "errors", "solver", "sample_set", "n_samples")
+
+    def to_payload(self) -> dict[str, Any]:
+        return {k: getattr(self, k) for k in self.FIELDS}
+
+    @classmethod
+    def from_document(cls, doc: dict[str, Any], path=None) -> "Lobes":
+        check_keys(doc, ENVELOPE_KEYS + cls.FIELDS, path=path)
+        e = _exponent_list(doc.get("exponents"), path, "field 'exponents'")
+        views = _array(doc, "view_angle_deg", path, 1)
+        kd = _array(doc, "diffuse", path, 2)
+        kdd = _array(doc, "directional_diffuse", path, 3)
+        kg = _array(doc, "gloss", path, 3)
+        channels = doc.get("channels")
+        if doc.get("channel_kind") not in ("spectral", "xyz") or not isinstance(channels, list):
+            raise ArtifactError("field 'channel_kind' is not spectral or xyz, or 'channels' "
+                                "is not a list", path=path)
+        V, m, C = views.size, e.size, len(channels)
+        if kd.shape != (V, C) or kdd.shape != (V, m, C) or kg.shape != (V, m, C):
+            raise ArtifactError(f"inconsistent shapes: {V} view angles, {m} exponents, {C} "
+                                f"channels but diffuse {kd.shape}, directional_diffuse "
+                                f"{kdd.shape}, gloss {kg.shape}", path=path,
+                                fix="regenerate it with gonio lobes fit")
+        if min(kd.min(), kdd.min(), kg.min()) < 0:
+            raise ArtifactError("holds a negative weight", path=path)
+        return cls(e, doc["channel_kind"], channels, views, kd, kdd, kg,
+                   dict(doc.get("errors") or {}), str(doc.get("solver", "")),
+                   str(doc.get("sample_set", "")), list(doc.get("n_samples") or []))
+
+
+def read_lobes(path: str | os.PathLike) -> Lobes:
+    """Read and validate a ``gonio.lobes`` artifact."""
+    return _read_as(Lobes, path)
+
+
+def write_lobes(path: str | os.PathLike, lobes: Lobes, **envelope) -> dict:
+    """Write lobe weights atomically with provenance."""
+    return _write_as(path, lobes, **envelope)

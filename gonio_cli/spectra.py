@@ -133,6 +133,24 @@ def srgb_encode(linear) -> np.ndarray:
     return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
 
 
+#: sRGB (IEC 61966-2-1) decode: encoded values up to this are on the linear segment.
+SRGB_DECODE_BREAK = 0.04045
+
+def srgb_decode(encoded: np.ndarray) -> np.ndarray:
+    """IEC 61966-2-1 sRGB transfer function inverted: encoded [0, 1] → linear [0, 1].
+
+    The inverse of :func:`srgb_encode` (same standard, same break
+    point); float32 in, float32 out, shape kept.
+
+    >>> float(srgb_decode(np.float32(0.5)).round(6))
+    0.214041
+    """
+    x = np.clip(np.asarray(encoded, dtype=np.float32), 0.0, 1.0)
+    return np.where(x <= SRGB_DECODE_BREAK, x / np.float32(12.92),
+                    ((x + np.float32(0.055)) / np.float32(1.055)) ** np.float32(2.4)
+                    ).astype(np.float32)
+
+
 def illuminant(name: str, grid_nm) -> np.ndarray:
     """A CIE illuminant by name (``D65``, ``A``, ``FL2`` …) on the grid, scaled so that
     Σ S ȳ / Σ ȳ = 1 (CONVENTIONS). (n_λ,)."""

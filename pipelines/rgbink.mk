@@ -14,7 +14,8 @@ RGBINK_FIT := --exclude-theta-i 70
 
 RGBINK_TARGETS := \
   $(foreach i,$(INKS),$(RGBINK)/$(i).measurement.json $(RGBINK)/$(i).material.json \
-                      $(RGBINK)/$(i).fit.png $(RGBINK)/$(i).torrance-sparrow.material.json)
+                      $(RGBINK)/$(i).fit.png $(RGBINK)/$(i).torrance-sparrow.material.json) \
+  $(RGBINK)/print.png $(RGBINK)/print.json
 
 .PHONY: rgbink
 rgbink: $(RGBINK_TARGETS)
@@ -35,3 +36,9 @@ $(RGBINK)/%.material.json $(RGBINK)/%.fit.png: $(RGBINK)/%.measurement.json
 
 $(RGBINK)/%.torrance-sparrow.material.json: $(RGBINK)/%.measurement.json
 	$(GONIO) fit $< -o $@ --model torrance-sparrow $(RGBINK_FIT)
+
+# The print: dot-off-dot R/G/B ink masks of the sample image (seed 000 Figure 6), with
+# the three screens a screen printer burns and the coverage/tone report.
+$(RGBINK)/print.png $(RGBINK)/print.json &: sample_data/print_image.png | $(STAMP)
+	$(GONIO) halftone $< -o $(RGBINK)/print.png --method floyd-steinberg --split \
+	  --report $(RGBINK)/print.json

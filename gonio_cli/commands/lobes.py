@@ -1,7 +1,154 @@
-"""Placeholder for the ``gonio lobes`` shell (being written); registers nothing."""
+"""``gonio lobes basis`` and ``gonio lobes fit``: the thin shell over :mod:`gonio_cli.lobes`."""
 
-EXAMPLE = ""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import List, Optional
+
+import typer
+
+SAMPLE_SET_HELP = "seed001 (default, seed 001 §4), dense, or a CSV with theta_i_deg,theta_o_deg."
 
 
-def register(app) -> None:
-    pass
+def _samples_option():
+    return typer.Option("seed001", "--samples", metavar="NAME|FILE.csv", help=SAMPLE_SET_HELP)
+
+
+def _choice_option(flag: str, default: str, choices: str, help: str):
+    """A string option whose metavar lists its choices (validated by the core's registry)."""
+    return typer.Option(default, flag, metavar=choices, help=help)
+
+sub = typer.Typer(help="Cosine-lobe approximation of BRDFs (seed 001): choose exponents, "
+                       "fit weights.", no_args_is_help=True, add_completion=False,
+                  pretty_exceptions_enable=False, rich_markup_mode=None)
+
+
+@sub.command("basis")
+def basis(
+    materials: List[Path] = typer.Argument(..., metavar="MATERIAL.json...", show_default=False,
+                                           help="gonio.material files: the database of eq. 4."),
+    output: Path = typer.Option(..., "--output", "-o", metavar="BASIS.json",
+                                help="The gonio.lobe_basis file to write."),
+    max_lobes: int = typer.Option(11, "--max-lobes", metavar="N",
+                                  help="Choose exponents for 1 ... N lobes."),
+    samples: str = _samples_option(),
+    channels: str = _choice_option("--channels", "xyz", "xyz|spectral",
+                                   "Colour channels the errors are measured in."),
+    solver: str = _choice_option("--solver", "nnls", "nnls|lp-simplex",
+                                 "Weights inside eq. 4 (nnls: continuous, monotone)."),
+    plot: Optional[Path] = typer.Option(None, "--plot", metavar="BASIS.png",
+                                        help="Draw error and exponents against lobe count."),
+) -> None:
+    """Choose cosine-lobe exponents for 1...N lobes (seed 001 §3.2, eq. 4, Figures 2-3).
+
+    \b
+    Example:
+      gonio lobes basis red.material.json green.material.json --max-lobes 11 -o basis.json
+    """
+    from .. import lobes as core
+    from .. import log
+    from ..schemas import LobeBasis, read_material, write_lobe_basis
+
+    core.check_channels(channels)
+    mats = [read_material(p) for p in materials]
+    s = core.sample_set(samples)
+    with log.timer() as t:
+        targets = [core.target_values(m, s, channels)[0] for m in mats]
+        result = core.select_basis(
+            targets, s, max_lobes, solver=solver,
+            progress=lambda counts: log.progress(counts, "lobe basis", total=len(counts)))
+    bases = [{"n_lobes": st.n_lobes, "exponents": st.exponents, "error": st.error,
+              "max_error": st.max_error, "mean_error": st.mean_error,
+              "per_material": st.per_material, "evaluations": st.evaluations,
+              "time_s": st.time_s, "message": st.message} for st in result.steps]
+    doc = LobeBasis(bases, [{"path": str(p), "model": m.model} for p, m in zip(materials, mats)],
+                    samples, channels, solver, [core.EXPONENT_MIN, core.EXPONENT_MAX],
+                    [float(v) for v in s.view_angle_deg])
+    write_lobe_basis(output, doc, inputs=materials, time_s=t["time_s"],
+                     parameters={"max_lobes": max_lobes, "samples": samples,
+                                 "channels": channels, "solver": solver})
+    if plot is not None:
+        from ..lobes.plot import plot_basis
+
+        plot_basis(plot, result)
+    last = result.steps[-1]
+    log.info(f"{output}: {len(result.steps)} bases from {len(mats)} materials, "
+             f"{s.n_samples} samples; {last.n_lobes} lobes: error {last.error:.4g} "
+             f"(max {last.max_error:.4g}, mean {last.mean_error:.4g}); {t['time_s']:.1f} s")
+
+
+@sub.command("fit")
+def fit(
+    material: Path = typer.Argument(..., metavar="MATERIAL.json", show_default=False,
+                                    help="A gonio.material file (gonio fit)."),
+    output: Path = typer.Option(..., "--output", "-o", metavar="LOBES.json",
+                                help="The gonio.lobes file to write."),
+    basis_path: Optional[Path] = typer.Option(None, "--basis", metavar="BASIS.json",
+                                              help="A gonio.lobe_basis file (gonio lobes basis)."),
+    n_lobes: Optional[int] = typer.Option(None, "--lobes", metavar="N",
+                                          help="Which lobe count of the basis (default: largest)."),
+    exponents: Optional[str] = typer.Option(None, "--exponents", metavar="E1,E2,...",
+                                            help="Exponents given directly instead of --basis."),
+    samples: str = _samples_option(),
+    view_angles: str = typer.Option("0:80:10", "--view-angles", metavar="START:STOP:STEP|LIST",
+                                    help="View angles of the weight table (deg, seed 001 §5.2)."),
+    channels: str = _choice_option("--channels", "spectral", "spectral|xyz",
+                                   "Weights per wavelength of the grid, or per XYZ."),
+    solver: str = _choice_option("--solver", "lp", "lp|lp-simplex|nnls|lsq-clamp",
+                                 "Solver of the weights written (all are compared)."),
+    time_limit_s: float = typer.Option(1.0, "--time-limit-s", metavar="S",
+                                       help="Stop an LP slower than this and say so."),
+) -> None:
+    """Fit non-negative cosine-lobe weights at each view angle (seed 001 §4, eqs. 5-6, §5.2).
+
+    \b
+    Example:
+      gonio lobes fit red.material.json --basis basis.json -o red.lobes.json
+    """
+    from .. import lobes as core
+    from .. import log
+    from ..errors import InputError
+    from ..schemas import Lobes, read_lobe_basis, read_material, write_lobes
+
+    core.check_channels(channels)
+    core.check_solver(solver)
+    if (basis_path is None) == (exponents is None):
+        raise InputError("give exactly one of --basis BASIS.json and --exponents E1,E2,...",
+                         fix="e.g. --basis basis.json")
+    if not (time_limit_s > 0):
+        raise InputError(f"--time-limit-s {time_limit_s:g} is not positive")
+    inputs = [material]
+    if basis_path is not None:
+        e = read_lobe_basis(basis_path).exponents(n_lobes, path=basis_path)
+        inputs.append(basis_path)
+    else:
+        try:
+            e = [float(v) for v in exponents.split(",") if v.strip()]
+        except ValueError:
+            raise InputError(f"--exponents {exponents!r} is not a list of numbers",
+                             fix="e.g. --exponents 1,10,100") from None
+    e = core.check_exponents(e, where="--exponents" if basis_path is None else str(basis_path))
+    mat = read_material(material)
+    s = core.sample_set(samples, core.parse_view_angles(view_angles))
+    with log.timer() as t:
+        table = core.fit_weight_table(mat, e, s, channels, solver, time_limit_s=time_limit_s)
+    lobes = Lobes(table.exponents, channels, table.channels, table.view_angle_deg,
+                  table.diffuse, table.directional_diffuse, table.gloss, table.errors,
+                  solver, samples, table.n_samples)
+    write_lobes(output, lobes, inputs=inputs, time_s=t["time_s"],
+                parameters={"lobes": n_lobes, "exponents": [float(v) for v in e],
+                            "samples": samples, "view_angles": view_angles,
+                            "channels": channels, "solver": solver,
+                            "time_limit_s": time_limit_s})
+    parts = [f"{name}: rel-RMS {max(r['rms_relative']):.3g} (worst view), "
+             f"{1e3 * sorted(r['time_s'])[len(r['time_s']) // 2]:.2f} ms/view (median)"
+             for name, r in table.errors.items()]
+    log.info(f"{output}: {e.size} lobes, {len(table.view_angle_deg)} view angles, "
+             f"{len(table.channels)} channels; " + "; ".join(parts))
+
+
+EXAMPLE = "gonio lobes basis red.material.json blue.material.json -o basis.json --plot basis.png"
+
+
+def register(app: typer.Typer) -> None:
+    app.add_typer(sub, name="lobes")

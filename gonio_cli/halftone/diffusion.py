@@ -1,0 +1,225 @@
+"""Vector error diffusion over the four exclusive ink states {none, R, G, B}.
+
+Each pixel's *error-corrected coverage* v = c + e (c the target coverage, e the error
+diffused into the pixel from pixels already decided) is replaced by the nearest of the
+four corner points {0, e_R, e_G, e_B} of the coverage simplex (Euclidean distance). Since
+|v − e_k|² = |v|² − 2 v_k + 1 and |v − 0|² = |v|², ink k wins over bare substrate exactly
+when v_k > 1/2, and among the inks the largest v_k wins. So the rule is: take the ink with
+the largest corrected coverage (the first of R, G, B on a tie) if it exceeds one half,
+else leave the substrate bare (a tie at one half leaves it bare). The vector difference
+v − corner is then spread to the unvisited neighbours with the weights of the chosen
+diffusion matrix, all three channels with the same weights (vector error diffusion).
+
+Rows are scanned serpentine (left to right on even rows, right to left on odd rows, the
+matrix mirrored), which breaks up the directional "worms" of raster scanning (Ulichney
+1987, *Digital Halftoning*, ch. 8).
+
+Two implementations of the same arithmetic exist: :func:`diffuse_reference`, plain
+Python, slow and obviously right, and the numba kernel behind :func:`diffuse`, which keeps
+only ``rows`` lines of error in a ring buffer. Both add the same float64 products in the
+same order, so their outputs are identical bit for bit (a test checks this).
+
+References
+----------
+R. W. Floyd and L. Steinberg, "An adaptive algorithm for spatial greyscale", Proc. SID
+17(2), 75-77, 1976.
+J. F. Jarvis, C. N. Judice and W. H. Ninke, "A survey of techniques for the display of
+continuous tone pictures on bilevel displays", Computer Graphics and Image Processing 5,
+13-40, 1976.
+P. Stucki, "MECCA — a multiple-error correction computation algorithm for bi-level image
+hardcopy reproduction", IBM Research Report RZ1060, 1981.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Number of ink channels and the label of each state in a label image (H, W) uint8:
+#: 0 bare substrate, 1 R, 2 G, 3 B (label k selects channel k − 1).
+N_INKS = 3
+
+#: Corrected coverage an ink must exceed to beat bare substrate: the perpendicular bisector
+#: between the corners 0 and e_k of the simplex (see the module docstring).
+HALF = 0.5
+
+
+@dataclass(frozen=True)
+class DiffusionMatrix:
+    """Error-diffusion weights as taps: the error goes to (row + dy, col + s·dx), s = ±1 the
+    scan direction, with weight ``numerators / denominator``.
+
+    Attributes
+    ----------
+    name : str
+    taps : tuple of (dy, dx, numerator)
+    denominator : int
+    citation : str
+    """
+
+    name: str
+    taps: tuple[tuple[int, int, int], ...]
+    denominator: int
+    citation: str
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(dy, dx, w): (n,) int64, (n,) int64, (n,) float64 weights summing to 1."""
+        t = np.array(self.taps, dtype=np.int64)
+        return t[:, 0].copy(), t[:, 1].copy(), t[:, 2] / float(self.denominator)
+
+
+FLOYD_STEINBERG = DiffusionMatrix(
+    "floyd-steinberg",
+    ((0, 1, 7), (1, -1, 3), (1, 0, 5), (1, 1, 1)), 16,
+    "Floyd & Steinberg 1976, Proc. SID 17(2) 75-77")
+
+#: The twelve positions (dy, dx) shared by the Jarvis–Judice–Ninke and Stucki matrices:
+#: two to the right on the current row, five on each of the next two rows.
+TWELVE_TAPS = ((0, 1), (0, 2),
+               (1, -2), (1, -1), (1, 0), (1, 1), (1, 2),
+               (2, -2), (2, -1), (2, 0), (2, 1), (2, 2))
+
+JARVIS = DiffusionMatrix(
+    "jarvis", tuple((dy, dx, n) for (dy, dx), n in
+                    zip(TWELVE_TAPS, (7, 5, 3, 5, 7, 5, 3, 1, 3, 5, 3, 1))), 48,
+    "Jarvis, Judice & Ninke 1976, Comput. Graph. Image Process. 5, 13-40")
+
+STUCKI = DiffusionMatrix(
+    "stucki", tuple((dy, dx, n) for (dy, dx), n in
+                    zip(TWELVE_TAPS, (8, 4, 2, 4, 8, 4, 2, 1, 2, 4, 2, 1))), 42,
+    "Stucki 1981, IBM Research Report RZ1060")
+
+
+def as_float32(coverage) -> np.ndarray:
+    """Coverage as C-contiguous float32 (H, W, 3), the one dtype both implementations read
+    (float32 holds a coverage to 6e-8, far below one pixel in 4096²)."""
+    return np.ascontiguousarray(coverage, dtype=np.float32)
+
+
+def diffuse_reference(coverage: np.ndarray, matrix: DiffusionMatrix,
+                      serpentine: bool = True) -> np.ndarray:
+    """Plain-Python vector error diffusion: the truth the numba kernel is tested against.
+
+    Parameters
+    ----------
+    coverage : (H, W, 3) float array
+        Target ink coverage in [0, 1] with r + g + b ≤ 1 (linear light); read as float32.
+    matrix : DiffusionMatrix
+    serpentine : bool
+        Alternate the scan direction per row (default) or scan every row left to right.
+
+    Returns
+    -------
+    labels : (H, W) uint8
+        0 bare substrate, k = 1, 2, 3 ink k − 1 (R, G, B).
+    """
+    c = as_float32(coverage)
+    h, w = c.shape[:2]
+    dy, dx, wt = matrix.arrays()
+    err = [[[0.0, 0.0, 0.0] for _ in range(w)] for _ in range(h)]
+    labels = np.zeros((h, w), dtype=np.uint8)
+    for y in range(h):
+        step = -1 if (serpentine and y % 2 == 1) else 1
+        cols = range(w - 1, -1, -1) if step < 0 else range(w)
+        for x in cols:
+            v = [float(c[y, x, k]) + err[y][x][k] for k in range(N_INKS)]
+            best, label = v[0], 1
+            for k in (1, 2):
+                if v[k] > best:
+                    best, label = v[k], k + 1
+            if not best > HALF:
+                label = 0
+            labels[y, x] = label
+            e = [v[k] - (1.0 if label == k + 1 else 0.0) for k in range(N_INKS)]
+            for t in range(len(wt)):
+                yy, xx = y + int(dy[t]), x + step * int(dx[t])
+                if yy < h and 0 <= xx < w:
+                    for k in range(N_INKS):
+                        err[yy][xx][k] += e[k] * float(wt[t])
+    return labels
+
+
+def _kernel_source(coverage, dy, dx, wt, serpentine, labels):  # pragma: no cover - jitted
+    """The numba kernel (see :func:`diffuse`); ``labels`` (H, W) uint8 is filled in place.
+
+    Error lives in a ring buffer of ``rows`` lines padded by ``pad`` columns on each side,
+    so no bounds checks run in the inner loop; what lands in the padding or below the last
+    row is dropped, exactly as the reference's bounds checks drop it.
+    """
+    h, w = coverage.shape[0], coverage.shape[1]
+    n = dy.shape[0]
+    rows = 1
+    pad = 0
+    for t in range(n):
+        rows = max(rows, dy[t] + 1)
+        pad = max(pad, abs(dx[t]))
+    err = np.zeros((rows, w + 2 * pad, 3), dtype=np.float64)
+    ring = np.empty(n, dtype=np.int64)
+    offset = np.empty(n, dtype=np.int64)
+    for y in range(h):
+        cur = y % rows
+        step = 1
+        if serpentine and (y % 2 == 1):
+            step = -1
+        for t in range(n):
+            ring[t] = (cur + dy[t]) % rows
+            offset[t] = step * dx[t]
+        for i in range(w):
+            x = i if step == 1 else w - 1 - i
+            xe = x + pad
+            v0 = np.float64(coverage[y, x, 0]) + err[cur, xe, 0]
+            v1 = np.float64(coverage[y, x, 1]) + err[cur, xe, 1]
+            v2 = np.float64(coverage[y, x, 2]) + err[cur, xe, 2]
+            best = v0
+            label = 1
+            if v1 > best:
+                best = v1
+                label = 2
+            if v2 > best:
+                best = v2
+                label = 3
+            if not best > HALF:
+                label = 0
+            labels[y, x] = label
+            e0 = v0 - (1.0 if label == 1 else 0.0)
+            e1 = v1 - (1.0 if label == 2 else 0.0)
+            e2 = v2 - (1.0 if label == 3 else 0.0)
+            for t in range(n):
+                r = ring[t]
+                xx = xe + offset[t]
+                wk = wt[t]
+                err[r, xx, 0] += e0 * wk
+                err[r, xx, 1] += e1 * wk
+                err[r, xx, 2] += e2 * wk
+        err[cur, :, :] = 0.0
+
+
+_KERNEL: dict = {}
+
+
+def compile_kernel() -> float:
+    """Compile the numba kernel if this process has not yet; return the seconds spent
+    compiling now, numba's import included (0 once compiled). Compiled eagerly for float32 coverage; no on-disk
+    cache, so nothing is ever written beside the package."""
+    if "fn" in _KERNEL:
+        return 0.0
+    start = time.perf_counter()  # importing numba is part of the price of compiling
+    import numba
+
+    sig = "void(float32[:, :, ::1], int64[::1], int64[::1], float64[::1], boolean, uint8[:, ::1])"
+    _KERNEL["fn"] = numba.njit([sig], nogil=True, error_model="numpy")(_kernel_source)
+    return time.perf_counter() - start
+
+
+def diffuse(coverage: np.ndarray, matrix: DiffusionMatrix,
+            serpentine: bool = True) -> np.ndarray:
+    """Vector error diffusion (numba); same arguments and result as
+    :func:`diffuse_reference`, identical output, about 10⁴ times faster."""
+    compile_kernel()
+    c = as_float32(coverage)
+    labels = np.zeros(c.shape[:2], dtype=np.uint8)
+    dy, dx, wt = matrix.arrays()
+    _KERNEL["fn"](c, dy, dx, wt, bool(serpentine), labels)
+    return labels

@@ -1,0 +1,213 @@
+"""Threshold screens for ordered halftoning of exclusive inks: Bayer, clustered dot, blue
+noise (void and cluster).
+
+A screen is a tile T (n, m) of thresholds in (0, 1), one per rank: t = (rank + ½) / (n m).
+It is repeated over the image. With three exclusive inks the unit interval of each pixel
+is stacked: ink R owns [0, r), G owns [r, r + g), B owns [r + g, r + g + b) and the rest
+is bare substrate, so a pixel gets the ink whose interval holds its threshold
+(:func:`threshold_stack`). Exactly one state per pixel by construction; over a whole tile
+of a flat patch ink k covers the fraction of ranks in its interval, within 1/(n m) of its
+coverage. R takes the lowest thresholds, G the next, B the next: with a dispersed screen
+(Bayer, blue noise) each band of ranks is itself dispersed; with a clustered dot the inks
+grow as concentric rings (R core, G ring, B ring) in every cell.
+
+References
+----------
+B. E. Bayer, "An optimum method for two-level rendition of continuous-tone pictures",
+IEEE International Conference on Communications, 26-11 to 26-15, 1973.
+R. Ulichney, "The void-and-cluster method for dither array generation", Proc. SPIE 1913,
+Human Vision, Visual Processing, and Digital Display IV, 332-343, 1993.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from ..artifact import atomic_path
+from ..errors import InputError
+
+#: Environment variable naming the folder of gonio's caches (tests point it at tmp_path).
+CACHE_ENV = "GONIO_CACHE_DIR"
+
+#: Ulichney 1993's Gaussian width (pixels) of the void-and-cluster energy filter.
+VOID_AND_CLUSTER_SIGMA = 1.5
+
+#: Fraction of pixels set in the random initial pattern (Ulichney 1993: "no more than
+#: half", ~10 % is customary); the seed makes the mask reproducible.
+VOID_AND_CLUSTER_INITIAL_FRACTION = 0.1
+VOID_AND_CLUSTER_SEED = 0
+
+#: Bumped whenever the generator changes, so a cached mask of an older generator is
+#: never read (it is part of the cache file name).
+VOID_AND_CLUSTER_VERSION = 1
+
+
+def ranks_to_thresholds(ranks: np.ndarray) -> np.ndarray:
+    """Ranks 0 … N−1 of an (n, m) tile → thresholds (rank + ½)/N, (n, m) float32."""
+    ranks = np.asarray(ranks)
+    return ((ranks + 0.5) / ranks.size).astype(np.float32)
+
+
+def bayer_ranks(size: int) -> np.ndarray:
+    """Bayer's (1973) recursive index matrix, (size, size) int, size a power of two ≥ 2.
+
+    M₂ = [[0, 2], [3, 1]], M₂ₙ = [[4Mₙ, 4Mₙ + 2], [4Mₙ + 3, 4Mₙ + 1]].
+
+    >>> bayer_ranks(2).tolist()
+    [[0, 2], [3, 1]]
+    """
+    m = np.zeros((1, 1), dtype=np.int64)
+    while m.shape[0] < size:
+        m = np.block([[4 * m, 4 * m + 2], [4 * m + 3, 4 * m + 1]])
+    return m
+
+
+def clustered_ranks(cell: int) -> np.ndarray:
+    """A clustered-dot cell (cell, cell) int: ranks grow outwards from the cell centre
+    (distance, then angle, then index on ties), so a level of k/cell² fills the k pixels
+    nearest the centre — seed 000's example: 0.3 of R in a 3 × 3 cell fills 3 pixels.
+    """
+    yy, xx = np.mgrid[0:cell, 0:cell].astype(float)
+    centre = (cell - 1) / 2.0
+    d2 = (yy - centre) ** 2 + (xx - centre) ** 2
+    angle = np.arctan2(yy - centre, xx - centre)
+    order = np.lexsort((np.arange(cell * cell), angle.ravel(), d2.ravel()))
+    ranks = np.empty(cell * cell, dtype=np.int64)
+    ranks[order] = np.arange(cell * cell)
+    return ranks.reshape(cell, cell)
+
+
+def _toroidal_gaussian(size: int, sigma: float) -> np.ndarray:
+    """exp(−d²/2σ²) over the toroidal offsets of a (size, size) tile, (size, size)."""
+    d = np.minimum(np.arange(size), size - np.arange(size)).astype(float)
+    g = np.exp(-d ** 2 / (2.0 * sigma ** 2))
+    return np.outer(g, g)
+
+
+def void_and_cluster_ranks(size: int, sigma: float = VOID_AND_CLUSTER_SIGMA,
+                           seed: int = VOID_AND_CLUSTER_SEED) -> np.ndarray:
+    """Ulichney's (1993) void-and-cluster dither array, (size, size) int ranks.
+
+    Energy of a pattern is its toroidal convolution with a Gaussian (σ = ``sigma`` px);
+    the *tightest cluster* is the set pixel of highest energy, the *largest void* the
+    empty pixel of lowest energy. Steps: (0) a seeded random pattern with 10 % set pixels
+    is relaxed by moving the tightest cluster into the largest void until they coincide;
+    (1) removing tightest clusters one by one ranks the initial pixels downwards; (2) adding
+    largest voids one by one ranks the rest upwards. Ulichney's phase 3 (tightest cluster
+    of the empty pixels once more than half are set) picks the same pixel as a largest
+    void under a linear energy filter, so phases 2 and 3 are one loop here. Energies are
+    updated incrementally (add or subtract one shifted Gaussian).
+    """
+    n = size * size
+    lut = _toroidal_gaussian(size, sigma)
+
+    def splat(index: int) -> np.ndarray:
+        return np.roll(lut, divmod(index, size), axis=(0, 1)).ravel()
+
+    rng = np.random.default_rng(seed)
+    ones = max(1, int(round(VOID_AND_CLUSTER_INITIAL_FRACTION * n)))
+    pattern = np.zeros(n, dtype=bool)
+    pattern[rng.choice(n, ones, replace=False)] = True
+    energy = np.real(np.fft.ifft2(np.fft.fft2(pattern.reshape(size, size))
+                                  * np.fft.fft2(lut))).ravel()
+    for _ in range(n):  # relaxation converges in far fewer moves; n is a hard stop
+        cluster = int(np.argmax(np.where(pattern, energy, -np.inf)))
+        pattern[cluster] = False
+        energy -= splat(cluster)
+        void = int(np.argmin(np.where(pattern, np.inf, energy)))
+        pattern[void] = True
+        energy += splat(void)
+        if void == cluster:
+            break
+    ranks = np.empty(n, dtype=np.int64)
+    p, e = pattern.copy(), energy.copy()
+    for rank in range(ones - 1, -1, -1):
+        cluster = int(np.argmax(np.where(p, e, -np.inf)))
+        p[cluster] = False
+        e -= splat(cluster)
+        ranks[cluster] = rank
+    p, e = pattern, energy
+    for rank in range(ones, n):
+        void = int(np.argmin(np.where(p, np.inf, e)))
+        p[void] = True
+        e += splat(void)
+        ranks[void] = rank
+    return ranks.reshape(size, size)
+
+
+def cache_dir() -> Path:
+    """``$GONIO_CACHE_DIR``, else ``$XDG_CACHE_HOME/gonio``, else ``~/.cache/gonio``."""
+    if os.environ.get(CACHE_ENV):
+        return Path(os.environ[CACHE_ENV])
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "gonio"
+
+
+def blue_noise_ranks(size: int) -> tuple[np.ndarray, str]:
+    """The void-and-cluster ranks of a (size, size) tile, generated once and cached.
+
+    Returns the ranks and where they came from (``"cache"``, ``"generated"``, or
+    ``"generated (cache not writable: …)"``). A cache file that is unreadable or not a
+    permutation of 0 … size²−1 is regenerated, never trusted.
+    """
+    path = cache_dir() / (f"void_and_cluster_v{VOID_AND_CLUSTER_VERSION}_{size}x{size}_"
+                          f"sigma{VOID_AND_CLUSTER_SIGMA}_seed{VOID_AND_CLUSTER_SEED}.npy")
+    try:
+        ranks = np.load(path, allow_pickle=False)
+        if ranks.shape == (size, size) and np.array_equal(
+                np.sort(ranks.ravel()), np.arange(size * size)):
+            return ranks, "cache"
+    except (OSError, ValueError):
+        pass
+    ranks = void_and_cluster_ranks(size)
+    try:
+        with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+            np.save(fh, ranks.astype(np.int32))
+    except OSError as exc:
+        return ranks, f"generated (cache not writable: {exc.strerror or exc})"
+    return ranks, "generated"
+
+
+def threshold_stack(coverage: np.ndarray, thresholds: np.ndarray) -> np.ndarray:
+    """Ordered halftoning of exclusive inks with one tiled threshold screen.
+
+    Parameters
+    ----------
+    coverage : (H, W, 3) float
+        Target coverage, r + g + b ≤ 1.
+    thresholds : (n, m) float
+        The screen tile, values in (0, 1); tiled from the top-left pixel.
+
+    Returns
+    -------
+    labels : (H, W) uint8
+        0 bare, 1 R (t < r), 2 G (r ≤ t < r + g), 3 B (r + g ≤ t < r + g + b).
+    """
+    c = np.asarray(coverage, dtype=np.float32)
+    h, w = c.shape[:2]
+    n, m = thresholds.shape
+    t = np.tile(thresholds, (-(-h // n), -(-w // m)))[:h, :w]
+    labels = np.zeros((h, w), dtype=np.uint8)
+    upper = np.zeros((h, w), dtype=np.float32)
+    for k in range(3):
+        lower = upper
+        upper = lower + c[:, :, k]
+        labels[(t >= lower) & (t < upper)] = k + 1
+    return labels
+
+
+def check_power_of_two(value: int, option: str, lo: int, hi: int) -> None:
+    """Refuse a screen size that is not a power of two in [lo, hi]."""
+    if not (lo <= value <= hi) or value & (value - 1):
+        raise InputError(f"{option} {value} is not a power of two in [{lo}, {hi}]",
+                         fix=f"use one of {', '.join(str(1 << k) for k in range(lo.bit_length() - 1, hi.bit_length()))}")
+
+
+def check_range(value: int, option: str, lo: int, hi: int) -> None:
+    """Refuse an integer option outside [lo, hi]."""
+    if not lo <= value <= hi:
+        raise InputError(f"{option} {value} is outside [{lo}, {hi}]",
+                         fix=f"use an integer from {lo} to {hi}")

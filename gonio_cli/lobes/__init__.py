@@ -1,0 +1,724 @@
+"""Cosine-lobe approximation of BRDFs (seed 001, Shimizu & Meyer): the core of ``gonio lobes``.
+
+Representation (seed 001 §3.1). With L the light, V the view, N the normal and
+R = 2 (N·L) N − L the mirror direction of the light, the reflected radiance per unit
+incident radiance and solid angle is
+
+    f cos θi = K_D (L·N)                                   (eq. 1, diffuse)
+             + (L·N) Σ_i K_DD,i (R·V)^E_i                  (eq. 3, directional diffuse)
+             + Σ_i K_G,i (R·V)^E_i                         (eq. 2, gloss)
+
+so every weight is in sr⁻¹ and the quantity fitted is the **cosine-weighted** BRDF
+f · cos θi of the target (the BRDF itself never includes cos θi, CONVENTIONS; the
+seed's equations are written for reflected light, which does). A pure Lambertian
+f = ρ/π is exactly K_D = ρ/π with every lobe weight 0. Negative dot products are clamped
+to zero, as seed 001 notes under eq. 1: (R·V) ≤ 0 gives a lobe value of exactly 0.
+
+Choosing exponents (seed 001 §3.2, eq. 4): :func:`select_basis`. Fitting weights
+(seed 001 §4, eqs. 5-6): :func:`fit_weights` with a solver of :data:`WEIGHT_SOLVERS`.
+Samples (seed 001 §4): :data:`SAMPLE_SETS`. Angle-dependent weights (seed 001 §5.2):
+:func:`fit_weight_table`, one fit per view angle, a table the renderer interpolates.
+
+Rendering with prefiltered maps (CONVENTIONS: P_E is the *normalised* average
+∫ L max(0, r·ω)^E dω / ∫ max(0, r·ω)^E dω, and ∫_sphere max(0, r·ω)^E dω = 2π/(E+1)):
+
+    L_o = K_D π P_1(N) + (R·N) Σ K_DD,i 2π/(E_i+1) P_Ei(R) + Σ K_G,i 2π/(E_i+1) P_Ei(R)
+
+(seed 001 eqs. 7-9 with the normalisation written out).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Callable, Sequence
+
+import numpy as np
+
+from ..errors import FitError, InputError
+from ..geometry import cosines, in_plane_directions, reflect
+
+# ------------------------------------------------------------------------ constants --
+
+#: Floor of a cosine before its log: exp(E log 1e-300) underflows cleanly to 0 for every
+#: E ≥ 1 instead of log(0) = −inf giving NaN at E·(−inf) when E = 0 is mistyped.
+COS_LOG_FLOOR = 1e-300
+
+#: Admissible exponents. E = 1 is the widest lobe the renderer's diffuse map uses (seed
+#: 001 eq. 9); at E = 1e4 the lobe is ~0.8° wide (half maximum), finer than any
+#: goniometer aperture or the near-mirror samples (1° apart), so wider ones are not seen.
+EXPONENT_MIN = 1.0
+EXPONENT_MAX = 1e4
+
+#: Samples whose light or view is more than this many degrees from the normal are left
+#: out: the target models are 0 or unreliable at grazing (Smith G → 0, cos θi → 0).
+HORIZON_DEG = 85.0
+
+#: A lobe column whose largest value over the samples is below this is "not seen": its
+#: weight would be undetermined (any value fits), so the sample set is refused.
+UNSEEN_COLUMN = 1e-300
+
+#: Default view angles (deg) of the weight table (seed 001 §5.2), interpolated by the
+#: renderer; 10° steps resolve the colour shift of the sample inks (c ≤ 6, seed 000).
+DEFAULT_VIEW_ANGLES_DEG = (0.0, 10.0, 20.0, 30.0, 40.0, 50.0, 60.0, 70.0, 80.0)
+
+#: View angles (deg) whose samples together form the "global" set used to choose the
+#: basis (seed 001 Figure 4 shows 10, 40 and 70°): ~60 samples with ``seed001``.
+GLOBAL_VIEW_ANGLES_DEG = (10.0, 40.0, 70.0)
+
+#: Default time limit of one LP (s): seed 001 §4 asks for one so a slow solve cannot
+#: stall an interactive design session; a ~60 × 17 LP takes ~10 ms.
+LP_TIME_LIMIT_S = 1.0
+
+#: The three components in the order of the design matrix's columns.
+COMPONENTS = ("diffuse", "directional_diffuse", "gloss")
+
+
+# ------------------------------------------------------------------ lobes, eqs. 1-3 --
+
+def cosine_lobe(cos_rv, exponents) -> np.ndarray:
+    """Phong cosine lobes max(0, R·V)^E (seed 001 eqs. 2-3), evaluated as exp(E log cos).
+
+    Parameters
+    ----------
+    cos_rv : (...,) float
+        R·V, the cosine between the mirror direction of the light and the view.
+    exponents : (m,) float
+        Exponents E > 0 (1 … 1e4 in practice).
+
+    Returns
+    -------
+    (..., m) float in [0, 1]: exactly 0 where R·V ≤ 0 (the clamp of seed 001 §3.1),
+    1 at R·V = 1 for every E, and for E up to 1e4 never overflow or NaN: values that
+    are below float64's range underflow to 0. NaN in ``cos_rv`` stays NaN.
+    """
+    c = np.asarray(cos_rv, dtype=float)[..., None]
+    e = np.asarray(exponents, dtype=float)
+    log_c = np.log(np.clip(c, COS_LOG_FLOOR, 1.0))
+    with np.errstate(under="ignore"):
+        value = np.exp(e * log_c)
+    return np.where(c > 0.0, value, np.where(np.isnan(c), np.nan, 0.0))
+
+
+def design_matrix(cos_theta_i, cos_rv, exponents) -> np.ndarray:
+    """Columns of seed 001 eqs. 1-3 (and eq. 6) for weights [K_D, K_DD,1..m, K_G,1..m].
+
+    Parameters
+    ----------
+    cos_theta_i : (N,) float, L·N of each sample (clamped to ≥ 0).
+    cos_rv : (N,) float, R·V of each sample.
+    exponents : (m,) float > 0.
+
+    Returns
+    -------
+    M : (N, 1 + 2m) float. M @ x is f cos θi (sr⁻¹ × cosine) of the lobe model with
+    weights x: column 0 = L·N (eq. 1), columns 1..m = (L·N)(R·V)^E_i (eq. 3),
+    columns m+1..2m = (R·V)^E_i (eq. 2).
+    """
+    ci = np.clip(np.asarray(cos_theta_i, dtype=float), 0.0, 1.0)
+    lobes = cosine_lobe(cos_rv, exponents)
+    return np.concatenate([ci[:, None], ci[:, None] * lobes, lobes], axis=1)
+
+
+def split_weights(x: np.ndarray, n_lobes: int) -> dict[str, np.ndarray]:
+    """Weights (1 + 2m, ...) → {"diffuse": (...), "directional_diffuse": (m, ...),
+    "gloss": (m, ...)} in the column order of :func:`design_matrix`."""
+    return {"diffuse": x[0], "directional_diffuse": x[1:1 + n_lobes],
+            "gloss": x[1 + n_lobes:1 + 2 * n_lobes]}
+
+
+def check_exponents(exponents, where: str = "basis") -> np.ndarray:
+    """Validate exponents (m,): at least one, finite, > 0. Raises InputError naming them."""
+    e = np.asarray(exponents, dtype=float).ravel()
+    if e.size == 0:
+        raise InputError(f"{where}: the basis is empty (no exponents)",
+                         fix="choose one with gonio lobes basis or pass --exponents 1,10,100")
+    bad = e[~(np.isfinite(e) & (e > 0))]
+    if bad.size:
+        raise InputError(f"{where}: exponent {bad[0]:g} is not a positive finite number",
+                         fix="every cosine-lobe exponent E must be > 0 (seed 001 eq. 2)")
+    return e
+
+
+# -------------------------------------------------------------------- sample sets --
+
+@dataclass(frozen=True)
+class Samples:
+    """In-plane sample configurations grouped by view angle (seed 001 §4).
+
+    Attributes
+    ----------
+    light_deg : (N,) float, the light's signed in-plane angle φ: ωi = (−sin φ, 0, cos φ),
+        so φ ≥ 0 is CONVENTIONS' θi and φ < 0 puts the light on the detector's side.
+    view_deg : (N,) float, the detector's θo (CONVENTIONS): ωo = (sin θo, 0, cos θo);
+        the mirror configuration is φ = θo.
+    view_index : (N,) int, index of each sample's row in ``view_angle_deg``.
+    view_angle_deg : (V,) float, the view angles of the weight table.
+    role : (N,) str, "diffuse", "directional" or "mirror" (informative).
+    name : the sample set's name (registry key or CSV path).
+    """
+
+    light_deg: np.ndarray
+    view_deg: np.ndarray
+    view_index: np.ndarray
+    view_angle_deg: np.ndarray
+    role: np.ndarray
+    name: str
+
+    @property
+    def n_samples(self) -> int:
+        return int(self.light_deg.size)
+
+    def directions(self) -> tuple[np.ndarray, np.ndarray]:
+        """ωi, ωo (N, 3)."""
+        return in_plane_directions(self.light_deg, self.view_deg)
+
+    def cos_theta_i(self) -> np.ndarray:
+        return np.cos(np.radians(self.light_deg))
+
+    def cos_rv(self) -> np.ndarray:
+        """R·V (N,) with R the mirror of ωi about +z: cos(θo − φ) in plane."""
+        wi, wo = self.directions()
+        return np.sum(reflect(wi) * wo, axis=-1)
+
+    def view(self, k: int) -> "Samples":
+        """The samples of the k-th view angle only."""
+        rows = self.view_index == k
+        return Samples(self.light_deg[rows], self.view_deg[rows], np.zeros(rows.sum(), int),
+                       self.view_angle_deg[k:k + 1], self.role[rows], self.name)
+
+
+@dataclass(frozen=True)
+class SamplePattern:
+    """Light offsets δ = φ − θv (deg) from the mirror configuration, per view angle θv.
+
+    ``mirror``: near-mirror samples (shape and height of the gloss, seed 001 §4);
+    ``directional``: off-specular samples (the directional-diffuse lobes, like the
+    aspecular angles of multi-angle instruments); ``diffuse``: the one sample lit 45°
+    from the mirror direction (seed 001 §4: lit at 45°, seen at the normal).
+    """
+
+    mirror: tuple[float, ...]
+    directional: tuple[float, ...]
+    diffuse: tuple[float, ...]
+    description: str
+
+    def samples(self, view_angle_deg: Sequence[float], name: str) -> Samples:
+        """All samples of the pattern at each view angle, beyond-horizon ones dropped."""
+        views = np.asarray(view_angle_deg, dtype=float)
+        light, view, index, role = [], [], [], []
+        for k, tv in enumerate(views):
+            for kind, offsets in (("mirror", self.mirror), ("directional", self.directional),
+                                  ("diffuse", self.diffuse)):
+                for d in offsets:
+                    if abs(tv + d) <= HORIZON_DEG:
+                        light.append(tv + d)
+                        view.append(tv)
+                        index.append(k)
+                        role.append(kind)
+        return Samples(np.array(light, float), np.array(view, float), np.array(index, int),
+                       views, np.array(role, dtype=object), name)
+
+
+#: Sample patterns by name (seed 001 §4 is the default). Each gives ~20 samples per view
+#: angle (seed001) or ~60 (dense); the global set (basis selection) is the union over
+#: :data:`GLOBAL_VIEW_ANGLES_DEG`, ~60 samples for seed001.
+SAMPLE_SETS: dict[str, SamplePattern] = {
+    "seed001": SamplePattern(
+        mirror=(0.0, -1.0, 1.0, -2.0, 2.0, -4.0, 4.0, -7.0, 7.0),
+        directional=(-10.0, 10.0, -15.0, 15.0, -25.0, 25.0, -35.0, 35.0, -50.0, -65.0),
+        diffuse=(-45.0,),
+        description="seed 001 §4: one diffuse sample lit 45° off the mirror, ten "
+                    "off-specular (10-65°) and nine near-mirror (0-7°) per view"),
+    "dense": SamplePattern(
+        mirror=tuple(float(d) for d in (0, -1, 1, -2, 2, -3, 3, -4, 4)),
+        directional=tuple(float(d) for d in np.r_[-80:-4:2.5, 5:80:2.5]),
+        diffuse=(-45.0,),
+        description="every 2.5° of light angle from the mirror to the horizon, 1° near "
+                    "the mirror: a check of the sparse set, ~3× the samples"),
+}
+DEFAULT_SAMPLE_SET = "seed001"
+
+
+def read_sample_csv(path) -> tuple[np.ndarray, np.ndarray]:
+    """A custom sample set: CSV with header ``theta_i_deg,theta_o_deg`` (one row each).
+
+    θi is the light's signed angle φ (CONVENTIONS' θi when ≥ 0; < 0 on the detector's
+    side), θo the detector. Returns (φ, θo) in degrees, (N,) each.
+    """
+    import csv
+
+    try:
+        with open(path, newline="", encoding="utf-8") as fh:
+            rows = list(csv.reader(fh))
+    except OSError as exc:
+        raise InputError(f"cannot read the sample set ({exc.strerror})", path=path) from None
+    header = [h.strip() for h in rows[0]] if rows else []
+    if header[:2] != ["theta_i_deg", "theta_o_deg"]:
+        raise InputError(f"header is {','.join(header)!r}", path=path, row=1,
+                         fix="a sample-set CSV starts with theta_i_deg,theta_o_deg")
+    light, view = [], []
+    for k, row in enumerate(rows[1:], start=2):
+        if not any(cell.strip() for cell in row):
+            continue
+        try:
+            a, b = float(row[0]), float(row[1])
+        except (ValueError, IndexError):
+            raise InputError(f"{row!r} is not two numbers", path=path, row=k) from None
+        if not (np.isfinite(a) and np.isfinite(b)):
+            raise InputError(f"theta_i_deg={a:g}, theta_o_deg={b:g} is not finite",
+                             path=path, row=k)
+        light.append(a)
+        view.append(b)
+    return np.array(light, float), np.array(view, float)
+
+
+def sample_set(name: str, view_angle_deg: Sequence[float] | None = None) -> Samples:
+    """The sample set ``name`` (a key of :data:`SAMPLE_SETS` or a CSV path).
+
+    ``view_angle_deg``: the table's view angles (deg, in [0, 90)); ``None`` gives
+    :data:`GLOBAL_VIEW_ANGLES_DEG` (basis selection). A CSV's view angles are its distinct
+    θo values (``view_angle_deg`` is then ignored). Samples beyond :data:`HORIZON_DEG`
+    are dropped; an empty set is an InputError.
+    """
+    if name in SAMPLE_SETS:
+        views = GLOBAL_VIEW_ANGLES_DEG if view_angle_deg is None else view_angle_deg
+        views = np.asarray(views, dtype=float).ravel()
+        bad = views[~((views >= 0) & (views < 90))]
+        if bad.size:
+            raise InputError(f"view angle {bad[0]:g} deg is outside [0, 90)",
+                             fix="e.g. --view-angles 0:80:10")
+        samples = SAMPLE_SETS[name].samples(views, name)
+    elif str(name).lower().endswith(".csv"):
+        light, view = read_sample_csv(name)
+        keep = (np.abs(light) <= HORIZON_DEG) & (np.abs(view) <= HORIZON_DEG)
+        light, view = light[keep], view[keep]
+        views, index = np.unique(view, return_inverse=True)
+        samples = Samples(light, view, index.astype(int).ravel(), views,
+                          np.array(["custom"] * light.size, dtype=object), str(name))
+    else:
+        raise InputError(f"sample set {name!r} is unknown",
+                         fix=f"use one of {', '.join(SAMPLE_SETS)} or a CSV file "
+                             "with columns theta_i_deg,theta_o_deg")
+    if samples.n_samples == 0:
+        raise InputError(f"sample set {name}: no sample within {HORIZON_DEG:g} deg of the "
+                         "normal, so there is nothing to fit",
+                         fix="use light and view angles inside (-85, 85) deg")
+    return samples
+
+
+def parse_view_angles(spec: str) -> np.ndarray:
+    """``"0:80:10"`` (inclusive) or ``"10,40,70"`` → (V,) degrees."""
+    text = str(spec).strip()
+    try:
+        if ":" in text:
+            start, stop, step = (float(p) for p in text.split(":"))
+            if step <= 0 or stop < start:
+                raise ValueError
+            values = np.arange(start, stop + 0.5 * step, step)
+        else:
+            values = np.array([float(p) for p in text.split(",") if p.strip()])
+    except ValueError:
+        raise InputError(f"--view-angles {spec!r} is not START:STOP:STEP or a list",
+                         fix="e.g. --view-angles 0:80:10 or --view-angles 10,40,70") from None
+    if values.size == 0:
+        raise InputError("--view-angles is empty", fix="e.g. --view-angles 0:80:10")
+    return values
+
+
+# ------------------------------------------------------------------------- channels --
+
+#: Channel kinds: spectral bands of the material's grid, or CIE XYZ (CONVENTIONS).
+CHANNELS = {"spectral": "one channel per wavelength of the working grid",
+            "xyz": "CIE 1931 XYZ = Σ f cmf / Σ ȳ (CONVENTIONS)"}
+
+
+def check_channels(kind: str) -> str:
+    if kind not in CHANNELS:
+        raise InputError(f"--channels {kind!r} is unknown", fix=f"use one of {', '.join(CHANNELS)}")
+    return kind
+
+
+def target_values(material, samples: Samples, channels: str = "spectral"):
+    """The target b of seed 001 eq. 6: f cos θi of ``material`` at the samples.
+
+    Parameters
+    ----------
+    material : :class:`gonio_cli.schemas.Material` (any registered model).
+    samples : :class:`Samples` (N samples).
+    channels : "spectral" or "xyz".
+
+    Returns
+    -------
+    b : (N, C) float, sr⁻¹ × cosine, C = n_λ (spectral) or 3 (XYZ of f cos θi, the same
+        linear map on every sample, so lobe weights in XYZ are XYZ of spectral weights).
+    labels : list, the wavelengths (nm, float) or ["X", "Y", "Z"].
+    """
+    check_channels(channels)
+    wi, wo = samples.directions()
+    f = material.evaluate(cosines(wi, wo))                     # (N, n_λ) sr⁻¹
+    b = f * samples.cos_theta_i()[:, None]
+    if channels == "xyz":
+        from ..spectra import spectrum_to_xyz
+
+        return spectrum_to_xyz(b, material.wavelength_nm), ["X", "Y", "Z"]
+    return b, [float(w) for w in material.wavelength_nm]
+
+
+# -------------------------------------------------------------------- weight solvers --
+
+@dataclass
+class WeightFit:
+    """One weight fit (seed 001 eqs. 5-6), like scipy's ``OptimizeResult``.
+
+    weights : (K, C) float ≥ 0, K = 1 + 2m in :func:`design_matrix` order.
+    l1 : Σ over samples and channels of |M x − b| (what ``lp`` minimises).
+    rms : sqrt(mean (M x − b)²); rms_relative : sqrt(Σ r² / Σ b²) (scale-free).
+    time_s : wall time of the solve; success, message : as the solver reported.
+    """
+
+    solver: str
+    weights: np.ndarray
+    l1: float
+    rms: float
+    rms_relative: float
+    time_s: float
+    success: bool = True
+    message: str = "solved"
+
+
+def _lp_l1(M: np.ndarray, B: np.ndarray, time_limit_s: float = LP_TIME_LIMIT_S):
+    """min Σ|M x − b| s.t. x ≥ 0 for every column of B, as one LP (seed 001 §4).
+
+    The L1 objective through slack variables ([Gas84] in seed 001): M x + u − v = b,
+    u, v ≥ 0, minimise Σ (u + v); at the optimum u_n v_n = 0, so Σ(u + v) = Σ|r|. All C
+    channels are one block-diagonal LP: one HiGHS call, no per-call overhead per channel.
+    """
+    from scipy import sparse
+    from scipy.optimize import linprog
+
+    N, K = M.shape
+    C = B.shape[1]
+    block = sparse.hstack([sparse.csr_array(M), sparse.eye_array(N), -sparse.eye_array(N)])
+    A = sparse.kron(sparse.eye_array(C), block, format="csc")
+    cost = np.tile(np.concatenate([np.zeros(K), np.ones(2 * N)]), C)
+    res = linprog(cost, A_eq=A, b_eq=B.T.ravel(), bounds=(0, None), method="highs",
+                  options={"time_limit": float(time_limit_s), "presolve": True})
+    if res.status == 1:
+        raise FitError(f"the weight LP stopped at its time limit of {time_limit_s:g} s "
+                       f"before reaching the optimum ({res.message.strip()})",
+                       fix="raise --time-limit-s or use fewer samples (seed 001 §4)")
+    if res.status != 0 or res.x is None:
+        raise FitError(f"the weight LP failed: {res.message.strip()}",
+                       fix="check that the target is finite and the sample set sees every lobe")
+    x = res.x.reshape(C, K + 2 * N)[:, :K].T
+    return np.maximum(x, 0.0), True, "optimal (HiGHS)"
+
+
+def _lp_simplex(M: np.ndarray, B: np.ndarray, time_limit_s: float = LP_TIME_LIMIT_S):
+    """The same LP as ``lp`` by the compiled dense simplex of
+    :mod:`gonio_cli.lobes.simplex` (~0.1 ms per channel); a channel that hits its
+    iteration cap (cycling on a degenerate problem) is re-solved by HiGHS."""
+    from .simplex import lp_l1_simplex
+
+    X, iterations, ok = lp_l1_simplex(M, B)
+    message = f"optimal (dense simplex, {int(iterations.max())} pivots at most)"
+    if not ok.all():
+        X[:, ~ok] = _lp_l1(M, B[:, ~ok], time_limit_s)[0]
+        message += f"; {int((~ok).sum())} channels re-solved by HiGHS"
+    return X, True, message
+
+
+def _nnls(M: np.ndarray, B: np.ndarray, time_limit_s: float = LP_TIME_LIMIT_S):
+    """Non-negative least squares per channel (scipy.optimize.nnls, Lawson–Hanson)."""
+    from scipy.optimize import nnls
+
+    X = np.empty((M.shape[1], B.shape[1]))
+    for c in range(B.shape[1]):
+        X[:, c] = nnls(M, B[:, c])[0]
+    return X, True, "optimal (Lawson-Hanson)"
+
+
+def _lsq_clamp(M: np.ndarray, B: np.ndarray, time_limit_s: float = LP_TIME_LIMIT_S):
+    """Least squares, then negative weights clamped to 0 (as [KM00]; seed 001 §4 explains
+    why it fails: the clamped lobes' error is never corrected by the others)."""
+    X = np.linalg.lstsq(M, B, rcond=None)[0]
+    clamped = int(np.sum(X < 0))
+    return np.maximum(X, 0.0), True, f"{clamped} negative weights clamped to 0"
+
+
+#: Weight solvers by name: (function(M, B, time_limit_s) → (X, success, message), what).
+WEIGHT_SOLVERS: dict[str, tuple[Callable, str]] = {
+    "lp": (_lp_l1, "min Σ|Mx − b|, x ≥ 0: linear programme, scipy HiGHS (seed 001 §4)"),
+    "lp-simplex": (_lp_simplex, "the same LP by a compiled dense simplex, ~10× faster"),
+    "nnls": (_nnls, "min Σ(Mx − b)², x ≥ 0: scipy nnls"),
+    "lsq-clamp": (_lsq_clamp, "least squares, negatives clamped to 0 (the failure seed 001 "
+                              "§4 describes)"),
+}
+DEFAULT_SOLVER = "lp"
+
+
+def check_solver(name: str) -> str:
+    if name not in WEIGHT_SOLVERS:
+        raise InputError(f"--solver {name!r} is unknown",
+                         fix=f"use one of {', '.join(WEIGHT_SOLVERS)}")
+    return name
+
+
+def residual_errors(M: np.ndarray, X: np.ndarray, B: np.ndarray) -> tuple[float, float, float]:
+    """(L1, RMS, relative RMS) of M X − B over every sample and channel."""
+    r = M @ X - B
+    total = float(np.sum(B * B))
+    return (float(np.sum(np.abs(r))), float(np.sqrt(np.mean(r * r))),
+            float(np.sqrt(np.sum(r * r) / total)) if total > 0 else 0.0)
+
+
+def check_design(M: np.ndarray, exponents, where: str = "") -> None:
+    """Refuse a sample set that leaves a weight undetermined: a column of M (a lobe the
+    samples never see, R·V ≤ 0 or underflowing everywhere) with no non-zero value."""
+    if M.shape[0] == 0:
+        raise FitError(f"{where}the sample set is empty", fix="use a sample set with samples")
+    seen = np.max(np.abs(M), axis=0) > UNSEEN_COLUMN
+    if not seen.all():
+        k = int(np.argmin(seen))
+        m = (M.shape[1] - 1) // 2
+        what = "the diffuse term" if k == 0 else (
+            f"the {'directional-diffuse' if k <= m else 'gloss'} lobe "
+            f"E={np.asarray(exponents)[(k - 1) % m]:g}")
+        raise FitError(f"{where}no sample sees {what} (its column of seed 001 eq. 6 is "
+                       "zero), so the LP cannot determine its weight",
+                       fix="add samples near the mirror direction (R·V > 0)")
+
+
+def fit_weights(M: np.ndarray, B: np.ndarray, solver: str = DEFAULT_SOLVER,
+                time_limit_s: float = LP_TIME_LIMIT_S) -> WeightFit:
+    """Non-negative weights x (K, C) with M x ≈ B (seed 001 eqs. 5-6).
+
+    Parameters
+    ----------
+    M : (N, K) float, :func:`design_matrix`; B : (N, C) float, :func:`target_values`.
+    solver : a key of :data:`WEIGHT_SOLVERS`; time_limit_s : the LP's time limit.
+    """
+    check_solver(solver)
+    if not np.all(np.isfinite(B)):
+        raise FitError("the target holds NaN or inf at some sample",
+                       fix="check the material's parameters")
+    start = time.perf_counter()
+    X, success, message = WEIGHT_SOLVERS[solver][0](M, B, time_limit_s)
+    elapsed = time.perf_counter() - start
+    l1, rms, rel = residual_errors(M, X, B)
+    return WeightFit(solver, X, l1, rms, rel, elapsed, success, message)
+
+
+# --------------------------------------------------------------- weight table (§5.2) --
+
+@dataclass
+class WeightTable:
+    """Weights per view angle (seed 001 §5.2) and every solver's errors.
+
+    exponents : (m,) ; view_angle_deg : (V,) ; channels : labels (C,)
+    diffuse : (V, C) ; directional_diffuse, gloss : (V, m, C), all ≥ 0, sr⁻¹.
+    errors : {solver: {"l1", "rms", "rms_relative", "time_s": (V,) lists}}.
+    n_samples : (V,) samples per view angle.
+    """
+
+    exponents: np.ndarray
+    view_angle_deg: np.ndarray
+    channels: list
+    diffuse: np.ndarray
+    directional_diffuse: np.ndarray
+    gloss: np.ndarray
+    errors: dict[str, dict[str, list]]
+    n_samples: list
+    solver: str
+    time_s: float = 0.0
+
+
+def fit_weight_table(material, exponents, samples: Samples, channels: str = "spectral",
+                     solver: str = DEFAULT_SOLVER, compare: Sequence[str] = tuple(WEIGHT_SOLVERS),
+                     time_limit_s: float = LP_TIME_LIMIT_S) -> WeightTable:
+    """Fit the weights at every view angle of ``samples`` (seed 001 §4 and §5.2).
+
+    ``solver`` gives the weights written; every solver in ``compare`` is run on the same
+    samples and its errors and time reported. Raises FitError if a view's samples leave a
+    weight undetermined (:func:`check_design`) or the LP fails or hits its time limit.
+    """
+    e = check_exponents(exponents)
+    check_solver(solver)
+    b_all, labels = target_values(material, samples, channels)
+    M_all = design_matrix(samples.cos_theta_i(), samples.cos_rv(), e)
+    V, m, C = samples.view_angle_deg.size, e.size, b_all.shape[1]
+    X = np.zeros((V, 1 + 2 * m, C))
+    solvers = [solver] + [s for s in compare if s != solver]
+    errors = {s: {"l1": [], "rms": [], "rms_relative": [], "time_s": []} for s in solvers}
+    counts = []
+    start = time.perf_counter()
+    for k, tv in enumerate(samples.view_angle_deg):
+        rows = samples.view_index == k
+        where = f"view angle {tv:g} deg: "
+        M, B = M_all[rows], b_all[rows]
+        check_design(M, e, where)
+        counts.append(int(rows.sum()))
+        for s in solvers:
+            r = fit_weights(M, B, s, time_limit_s)
+            if s == solver:
+                X[k] = r.weights
+            for key in ("l1", "rms", "rms_relative", "time_s"):
+                errors[s][key].append(getattr(r, key))
+    parts = split_weights(np.moveaxis(X, 0, 1), m)            # leading axis K → parts
+    return WeightTable(e, samples.view_angle_deg, labels, parts["diffuse"],
+                       np.moveaxis(parts["directional_diffuse"], 0, 1),
+                       np.moveaxis(parts["gloss"], 0, 1), errors, counts, solver,
+                       time.perf_counter() - start)
+
+
+# ------------------------------------------------------------ basis selection (§3.2) --
+
+@dataclass
+class BasisStep:
+    """The best basis of one lobe count (seed 001 Figures 2 and 3).
+
+    exponents : (m,) sorted ; error : eq. 4, max + mean relative RMS over the database ;
+    max_error, mean_error : its two terms ; per_material : relative RMS per material ;
+    evaluations : objective evaluations ; time_s ; message : how the search ended.
+    """
+
+    n_lobes: int
+    exponents: np.ndarray
+    error: float
+    max_error: float
+    mean_error: float
+    per_material: list
+    evaluations: int
+    time_s: float
+    message: str
+
+
+@dataclass
+class BasisResult:
+    steps: list[BasisStep] = field(default_factory=list)
+    solver: str = "nnls"
+    n_samples: int = 0
+    time_s: float = 0.0
+
+
+#: Solvers the basis search may use inside eq. 4. ``nnls`` minimises the very RMS that
+#: eq. 4 measures, so the objective is continuous in E and can only fall when a lobe is
+#: added; ``lp-simplex`` (seed 001's LP, the fast exact solver: HiGHS would take minutes
+#: over thousands of evaluations) gives vertex solutions that jump with E.
+BASIS_SOLVERS = ("nnls", "lp-simplex")
+
+#: nlopt settings of the exponent search (log E): stop when log E moves < 1e-3 (0.1 % in
+#: E, far below what changes a prefiltered map) or the objective < 1e-6 relative.
+BASIS_XTOL_LOG = 1e-3
+BASIS_FTOL_REL = 1e-6
+#: Objective evaluations per exponent being searched (the search is m-dimensional).
+BASIS_EVALS_PER_LOBE = 150
+
+
+def basis_objective(log_exponents, cos_theta_i, cos_rv, groups, targets: Sequence[np.ndarray],
+                    solver: str = "nnls"):
+    """Seed 001 eq. 4: max_i Error(E, B_i) + mean_i Error(E, B_i).
+
+    The weights are fitted per group of samples (one view angle each, as
+    :func:`fit_weight_table` will use them, seed 001 §5.2), and Error(E, B_i) is the
+    relative RMS sqrt(Σ r² / Σ b²) of material i over every group, sample and channel,
+    so bright and dark materials count alike.
+
+    Parameters
+    ----------
+    log_exponents : (m,) log E ; cos_theta_i, cos_rv, groups : (N,) ; targets : n arrays
+    (N, C). Returns (f, per-material errors (n,)).
+    """
+    M = design_matrix(cos_theta_i, cos_rv, np.exp(np.asarray(log_exponents, dtype=float)))
+    errs = np.empty(len(targets))
+    for i, B in enumerate(targets):
+        sse = sum(np.sum((M[g] @ fit_weights(M[g], B[g], solver).weights - B[g]) ** 2)
+                  for g in groups)
+        total = float(np.sum(B * B))
+        errs[i] = np.sqrt(sse / total) if total > 0 else 0.0
+    return float(errs.max() + errs.mean()), errs
+
+
+def _gap_starts(log_e: np.ndarray, lo: float, hi: float) -> np.ndarray:
+    """Candidate log-exponents for a new lobe: midpoints of the gaps between the lobes
+    already found and the bounds (seed 001 Fig. 2: exponents spread evenly in log E)."""
+    points = np.sort(np.concatenate([[lo, hi], log_e]))
+    return 0.5 * (points[:-1] + points[1:])
+
+
+def select_basis(targets: Sequence[np.ndarray], samples: Samples, max_lobes: int = 11,
+                 solver: str = "nnls", exponent_range=(EXPONENT_MIN, EXPONENT_MAX),
+                 progress: Callable | None = None) -> BasisResult:
+    """Choose exponents for 1 … ``max_lobes`` lobes by nlopt over log E (seed 001 §3.2).
+
+    Parameters
+    ----------
+    targets : n arrays (N, C), each material's b at ``samples`` (the database).
+    samples : :class:`Samples`; weights are fitted per view angle (eq. 4's Error).
+    max_lobes : the largest lobe count; solver : one of :data:`BASIS_SOLVERS`.
+    progress : optional wrapper of the lobe-count loop (a progress bar).
+
+    One lobe is added at a time; each search starts from the lobes already found plus
+    the best gap midpoint (:func:`_gap_starts`), and keeps the best point it evaluated,
+    so with ``nnls`` (whose residual cannot grow when a column is added) the error never
+    rises with the lobe count. nlopt LN_SBPLX (Subplex: derivative-free, robust to the
+    kinks the max in eq. 4 makes) on log E within ``exponent_range``.
+    """
+    import nlopt
+
+    if solver not in BASIS_SOLVERS:
+        raise InputError(f"--solver {solver!r} is not usable for the basis search",
+                         fix=f"use one of {', '.join(BASIS_SOLVERS)}")
+    if not targets:
+        raise InputError("no material to choose a basis for", fix="pass MATERIAL.json files")
+    if int(max_lobes) < 1:
+        raise InputError(f"--max-lobes {max_lobes} is below 1", fix="e.g. --max-lobes 11")
+    lo, hi = np.log(exponent_range[0]), np.log(exponent_range[1])
+    if not (np.isfinite(lo) and np.isfinite(hi) and hi > lo):
+        raise InputError(f"exponent range {exponent_range} is not 0 < min < max")
+    result = BasisResult(solver=solver, n_samples=samples.n_samples)
+    cos_theta_i, cos_rv = samples.cos_theta_i(), samples.cos_rv()
+    groups = [samples.view_index == k for k in range(samples.view_angle_deg.size)]
+    start_all = time.perf_counter()
+    log_e = np.empty(0)
+    counts = range(1, int(max_lobes) + 1)
+    for m in (progress(counts) if progress else counts):
+        t0 = time.perf_counter()
+        best = {"x": None, "f": np.inf, "errs": None}
+        evals = {"n": 0}
+
+        def f(x):
+            evals["n"] += 1
+            value, errs = basis_objective(x, cos_theta_i, cos_rv, groups, targets, solver)
+            if value < best["f"]:
+                best.update(x=np.array(x, dtype=float), f=value, errs=errs)
+            return value
+
+        for s in _gap_starts(log_e, lo, hi):
+            f(np.append(log_e, s))
+        x0 = best["x"].copy()
+        opt = nlopt.opt(nlopt.LN_SBPLX, m)
+        opt.set_min_objective(lambda x, grad: f(x))
+        opt.set_lower_bounds([lo] * m)
+        opt.set_upper_bounds([hi] * m)
+        opt.set_xtol_abs(BASIS_XTOL_LOG)
+        opt.set_ftol_rel(BASIS_FTOL_REL)
+        opt.set_maxeval(BASIS_EVALS_PER_LOBE * m)
+        opt.set_initial_step(0.5)
+        try:
+            opt.optimize(x0)
+            code = opt.last_optimize_result()
+            message = {3: "converged (ftol)", 4: "converged (xtol)",
+                       5: "stopped at maxeval"}.get(code, f"nlopt result {code}")
+        except Exception as exc:  # round-off stops: the best point evaluated stands
+            message = f"nlopt stopped ({exc.__class__.__name__}); kept the best point"
+        log_e = np.sort(best["x"])
+        errs = best["errs"]
+        if result.steps and best["f"] > result.steps[-1].error:
+            message += "; error rose from the previous count (LP vertex jump; use nnls)"
+        result.steps.append(BasisStep(m, np.exp(log_e), best["f"], float(errs.max()),
+                                      float(errs.mean()), [float(v) for v in errs],
+                                      evals["n"], time.perf_counter() - t0, message))
+    result.time_s = time.perf_counter() - start_all
+    return result

@@ -1,0 +1,23 @@
+# lobes: cosine-lobe basis over the demo's materials and lobe weights per material
+# (seed 001 §3–4). Included by the top Makefile (GONIO, OUT, STAMP, RGBINK, CARPAINT).
+
+LOBES := $(OUT)/lobes
+LOBE_MATERIALS := $(foreach i,$(INKS),$(RGBINK)/$(i).material.json) $(CARPAINT)/paint.material.json
+LOBE_COUNT := 8
+
+LOBES_TARGETS := $(LOBES)/basis.json $(LOBES)/basis.png \
+  $(foreach i,$(INKS),$(LOBES)/$(i).lobes.json) $(LOBES)/paint.lobes.json
+
+.PHONY: lobes
+lobes: $(LOBES_TARGETS)
+
+# Exponents for 1…11 lobes chosen over all four materials (seed 001 eq. 4).
+$(LOBES)/basis.json $(LOBES)/basis.png &: $(LOBE_MATERIALS)
+	$(GONIO) lobes basis $^ --max-lobes 11 -o $(LOBES)/basis.json --plot $(LOBES)/basis.png
+
+# Weights per view angle with LOBE_COUNT lobes of that basis (seed 001 eqs. 5–6, §5.2).
+$(LOBES)/%.lobes.json: $(RGBINK)/%.material.json $(LOBES)/basis.json
+	$(GONIO) lobes fit $< --basis $(LOBES)/basis.json --lobes $(LOBE_COUNT) -o $@
+
+$(LOBES)/paint.lobes.json: $(CARPAINT)/paint.material.json $(LOBES)/basis.json
+	$(GONIO) lobes fit $< --basis $(LOBES)/basis.json --lobes $(LOBE_COUNT) -o $@
