@@ -105,6 +105,26 @@ def write_png(path: str | os.PathLike, pixels: np.ndarray,
     _write(path, a, "uint8", metadata)
 
 
+def write_png_1bit(path: str | os.PathLike, mask: np.ndarray,
+                   metadata: Mapping[str, Any] | None = None) -> None:
+    """Write a boolean (H, W) mask as a true 1-bit greyscale PNG (white = True), atomically.
+
+    OpenImageIO's PNG writer has no 1-bit output, so this uses Pillow (a well-kept
+    library matplotlib already depends on). Metadata go into tEXt chunks with the same
+    ``gonio:`` keys, which :func:`read_image` returns.
+    """
+    from PIL import Image as PILImage
+    from PIL.PngImagePlugin import PngInfo
+
+    info = PngInfo()
+    info.add_text(META_PREFIX + "gonio_version", __version__)
+    for key, value in (metadata or {}).items():
+        info.add_text(META_PREFIX + key,
+                      value if isinstance(value, str) else json.dumps(value, allow_nan=False))
+    with atomic_path(path) as tmp:
+        PILImage.fromarray(np.asarray(mask, dtype=bool)).save(tmp, format="PNG", pnginfo=info)
+
+
 def write_exr(path: str | os.PathLike, pixels: np.ndarray,
               metadata: Mapping[str, Any] | None = None) -> None:
     """Write float32 EXR atomically (scene-referred linear values, CONVENTIONS)."""

@@ -278,3 +278,19 @@ def test_read_measurement_refuses_another_schema(tmp_path, rng):
     artifact.write_json(out, {**measurement_doc(rng), "schema": "gonio.material"})
     with pytest.raises(ArtifactError, match="expected 'gonio.measurement'"):
         read_measurement(out)
+
+
+def test_atomic_writes_get_normal_file_permissions(tmp_path):
+    # mkstemp makes 0600 files; an artifact must be readable like any file the user makes.
+    import os
+    import stat
+
+    from gonio_cli.artifact import atomic_path
+
+    old = os.umask(0o022)
+    try:
+        with atomic_path(tmp_path / "a.json") as tmp:
+            tmp.write_text("{}")
+    finally:
+        os.umask(old)
+    assert stat.S_IMODE((tmp_path / "a.json").stat().st_mode) == 0o644

@@ -74,6 +74,9 @@ def test_split_writes_one_screen_per_ink(run_gonio, tmp_path):
         assert screen.pixels.shape == (256, 256, 1)
         assert read_image(tmp_path / f"print.{ink}.png").metadata["ink"] == ink
         np.testing.assert_array_equal(np.round(screen.pixels[:, :, 0] * 255), mask[:, :, k])
+        from PIL import Image as PILImage
+
+        assert PILImage.open(tmp_path / f"print.{ink}.png").mode == "1"  # a true 1-bit PNG
 
 
 def test_linear_exr_input_is_coverage(run_gonio, tmp_path):

@@ -70,7 +70,7 @@ def halftone(
     from ..artifact import make_document, write_json
     from ..errors import InputError
     from ..halftone import coverage as cov
-    from ..imageio import read_image, write_png
+    from ..imageio import read_image, write_png, write_png_1bit
 
     # options first, so a typo costs nothing and nothing is written
     m = core.get_method(method)
@@ -102,8 +102,7 @@ def halftone(
             "input": str(image), "time_s": round(t["time_s"], 6)}
     write_png(output, result.mask(), metadata=meta)
     for k, path in enumerate(screens):
-        write_png(path, (result.labels == k + 1).astype("uint8") * 255,
-                  metadata={**meta, "ink": core.INKS[k]})
+        write_png_1bit(path, result.labels == k + 1, metadata={**meta, "ink": core.INKS[k]})
     if report is not None:
         write_json(report, make_document(core.REPORT_SCHEMA, core.REPORT_SCHEMA_VERSION,
                                          payload, inputs=[image], parameters=parameters,
