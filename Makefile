@@ -27,11 +27,12 @@ $(STAMP): pyproject.toml
 include pipelines/rgbink.mk
 include pipelines/carpaint.mk
 include pipelines/lobes.mk
+include pipelines/sky.mk
 
-demo: $(STAMP) rgbink carpaint lobes
+demo: $(STAMP) rgbink carpaint lobes sky
 	@echo
-	@echo "Demo outputs (materials, their Figure-4 plots, the measurements):"
-	@for d in rgbink carpaint lobes; do echo "  $(OUT)/$$d/"; ls -1 $(OUT)/$$d | sed 's/^/    /'; done
+	@echo "Demo outputs (measurements, materials and their plots, the print, lobes, the prefiltered sky):"
+	@for d in rgbink carpaint lobes sky; do echo "  $(OUT)/$$d/"; ls -1 $(OUT)/$$d | sed 's/^/    /'; done
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q

@@ -1,0 +1,11 @@
+# sky: the sample HDR sky (sun ~1e5× the sky) prefiltered once per lobe exponent of the
+# car paint's lobe weights, plus the diffuse map (seed 001 §5.1, eqs. 7–9). Included by
+# the top Makefile after lobes.mk (GONIO, OUT, STAMP, LOBES).
+
+SKY := $(OUT)/sky
+
+.PHONY: sky
+sky: $(SKY)/index.json
+
+$(SKY)/index.json: sample_data/sky.exr $(LOBES)/paint.lobes.json | $(STAMP)
+	$(GONIO) prefilter $< --lobes $(LOBES)/paint.lobes.json -o $(SKY)
