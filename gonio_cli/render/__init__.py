@@ -1,0 +1,112 @@
+"""``gonio render``: a CPU numpy rasterizer with spectral shading (seeds 000, 001, 004).
+
+The frame is computed in stages, each a module with a pure numpy core; the data passed
+between them are the dataclasses below, so each stage can be tested on its own:
+
+1. :mod:`.scene`    TOML scene file → :class:`Scene` (camera, objects, lights,
+                    environment, output), every path relative to the scene file,
+                    unknown keys and wrong types refused with the key and the file.
+2. :mod:`.mesh`     OBJ (trimesh) and built-ins (``builtin:sphere``, ``builtin:plane``)
+                    → :class:`Mesh` in world space (transform applied, smooth normals).
+3. :mod:`.raster`   :class:`Camera` + meshes → :class:`GBuffer` (per pixel of the
+                    supersampled image: object, position, normal, view direction, uv and
+                    its footprint), by a batched z-buffer (many triangles per array op).
+4. :mod:`.texture`  halftone masks → area-filtered coverage pyramid (mipmaps) and the
+                    coverage of R, G, B ink and bare substrate per pixel.
+5. :mod:`.shade`    GBuffer + materials + :class:`Light` list (+ environment) → XYZ per
+                    pixel (CONVENTIONS: XYZ = Σ L cmf / Σ ȳ), via the tabulated spectral
+                    sum (eq. 5 depends on the angles only through x for one light
+                    spectrum) or the exact 41-wavelength path.
+6. :mod:`.tonemap`  XYZ → linear sRGB → exposure → tone map → sRGB-encoded 8-bit.
+7. :mod:`gonio_cli.commands.render` the CLI: PNG and EXR out, ``--report run.json``.
+
+Conventions (``CONVENTIONS.md``): right-handed world; camera ``eye``, ``target``, ``up``,
+``fov_deg`` = full vertical field of view; pixel centres at (col + ½, row + ½), row 0 the
+top; BRDFs never include cos θi; a directional light has irradiance E at normal incidence,
+a point light intensity I (E = I/d²); light spectra are scaled so Σ S ȳ / Σ ȳ = 1.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+
+@dataclass
+class Camera:
+    """Pinhole camera. ``eye``, ``target``, ``up``: (3,) world; ``fov_deg``: full vertical
+    field of view in degrees; ``width``, ``height``: output pixels (before supersampling)."""
+
+    eye: np.ndarray
+    target: np.ndarray
+    up: np.ndarray
+    fov_deg: float
+    width: int
+    height: int
+
+
+@dataclass
+class Mesh:
+    """A triangle mesh in world space.
+
+    vertices : (V, 3) float64 ; faces : (F, 3) int64 (counter-clockwise = front)
+    normals : (V, 3) unit vertex normals (smooth) ; uvs : (V, 2) or None
+    (OpenGL convention: v = 0 is the bottom row of a texture image).
+    """
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    normals: np.ndarray
+    uvs: np.ndarray | None = None
+    name: str = ""
+
+
+@dataclass
+class GBuffer:
+    """What the rasterizer leaves at each pixel (H, W) of the supersampled image.
+
+    object_id : (H, W) int, index into the scene's objects, −1 where nothing was hit
+    position : (H, W, 3) world position ; normal : (H, W, 3) unit shading normal, flipped
+        towards the viewer on back faces ; view : (H, W, 3) unit direction to the eye (ωo)
+    uv : (H, W, 2) or None (perspective-correct) ; uv_footprint : (H, W) the size of the
+        pixel in texture space (uv units), for the mip level ; ssaa : the supersampling
+        factor (H = ssaa × camera.height)
+    Background pixels hold zeros (never NaN).
+    """
+
+    object_id: np.ndarray
+    position: np.ndarray
+    normal: np.ndarray
+    view: np.ndarray
+    uv: np.ndarray | None = None
+    uv_footprint: np.ndarray | None = None
+    ssaa: int = 1
+
+    @property
+    def covered(self) -> np.ndarray:
+        return self.object_id >= 0
+
+
+@dataclass
+class Light:
+    """A light. ``kind``: "directional" (``direction``: (3,) unit vector from the surface
+    towards the light, ``irradiance`` E at normal incidence) or "point" (``position`` (3,),
+    ``intensity`` I, E = I/d²). ``spectrum``: (L,) on the working grid, Σ S ȳ / Σ ȳ = 1."""
+
+    kind: str
+    spectrum: np.ndarray
+    direction: np.ndarray | None = None
+    irradiance: float = 0.0
+    position: np.ndarray | None = None
+    intensity: float = 0.0
+    name: str = ""
+
+
+@dataclass
+class Stats:
+    """Per-stage wall times (s) and counters for the run report (``--report``)."""
+
+    time_s: dict[str, float] = field(default_factory=dict)
+    counts: dict[str, Any] = field(default_factory=dict)
