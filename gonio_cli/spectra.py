@@ -94,12 +94,52 @@ def resample(wavelength_nm_in, values, grid_nm) -> np.ndarray:
 
 # ----------------------------------------------------------------------------- colour --
 
-@functools.lru_cache(maxsize=8)
-def _cmfs_cached(grid_key: tuple[float, ...]) -> np.ndarray:
-    import colour  # first use only (slow import)
+#: Version of the cached colour tables (bump when :func:`_colour_tables` changes).
+COLOUR_TABLES_VERSION = 1
+
+
+@functools.lru_cache(maxsize=1)
+def colour_tables() -> dict[str, np.ndarray]:
+    """The colour-science tables gonio uses, cached on disk (:mod:`gonio_cli.cache`).
+
+    colour-science takes ~1.5 s to import; its CMFs, illuminants, the sRGB matrix and the
+    Mallett–Yuksel basis are read once from it and kept in a cache file named by the
+    colour-science version, so a render or a report does not pay the import again.
+    """
+    from importlib.metadata import version
+
+    from .cache import cached_arrays
+
+    name = (f"colour-tables-v{COLOUR_TABLES_VERSION}-"
+            f"colour-science-{version('colour-science')}.npz")
+    return cached_arrays(name, _colour_tables,
+                         check=lambda d: {"cmfs_wl", "srgb_matrix", "basis_wl"} <= set(d))
+
+
+def _colour_tables() -> dict[str, np.ndarray]:
+    import colour  # the only place gonio imports colour-science for its data
 
     cmfs = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"]
-    return np.stack([np.interp(grid_key, cmfs.wavelengths, cmfs.values[:, k])
+    basis = colour.recovery.MSDS_BASIS_FUNCTIONS_sRGB_MALLETT2019
+    out = {"cmfs_wl": np.asarray(cmfs.wavelengths, dtype=float),
+           "cmfs_values": np.asarray(cmfs.values, dtype=float),
+           "srgb_matrix": np.asarray(colour.RGB_COLOURSPACES["sRGB"].matrix_XYZ_to_RGB,
+                                     dtype=float),
+           "basis_wl": np.asarray(basis.wavelengths, dtype=float),
+           "basis_values": np.asarray(basis.values, dtype=float)}
+    names = sorted(colour.SDS_ILLUMINANTS)
+    out["illuminant_names"] = np.array(names)
+    for k, n in enumerate(names):
+        sd = colour.SDS_ILLUMINANTS[n]
+        out[f"illuminant{k}_wl"] = np.asarray(sd.wavelengths, dtype=float)
+        out[f"illuminant{k}_values"] = np.asarray(sd.values, dtype=float)
+    return out
+
+
+@functools.lru_cache(maxsize=8)
+def _cmfs_cached(grid_key: tuple[float, ...]) -> np.ndarray:
+    t = colour_tables()
+    return np.stack([np.interp(grid_key, t["cmfs_wl"], t["cmfs_values"][:, k])
                      for k in range(3)], axis=-1)
 
 
@@ -114,12 +154,9 @@ def spectrum_to_xyz(radiance, grid_nm) -> np.ndarray:
     return np.asarray(radiance, dtype=float) @ cm / cm[:, 1].sum()
 
 
-@functools.lru_cache(maxsize=1)
 def xyz_to_linear_srgb_matrix() -> np.ndarray:
     """IEC 61966-2-1 XYZ → linear sRGB matrix (D65 white), from colour-science. (3, 3)."""
-    import colour
-
-    return np.array(colour.RGB_COLOURSPACES["sRGB"].matrix_XYZ_to_RGB, dtype=float)
+    return colour_tables()["srgb_matrix"].copy()
 
 
 def xyz_to_linear_srgb(xyz) -> np.ndarray:
@@ -154,13 +191,26 @@ def srgb_decode(encoded: np.ndarray) -> np.ndarray:
 def illuminant(name: str, grid_nm) -> np.ndarray:
     """A CIE illuminant by name (``D65``, ``A``, ``FL2`` …) on the grid, scaled so that
     Σ S ȳ / Σ ȳ = 1 (CONVENTIONS). (n_λ,)."""
-    import colour
-
-    sds = colour.SDS_ILLUMINANTS
-    if name not in sds:
+    t = colour_tables()
+    names = [str(n) for n in t["illuminant_names"]]
+    if name not in names:
         raise InputError(f"unknown illuminant {name!r}",
-                         fix=f"use one of {', '.join(sorted(sds)[:12])}, ... or a CSV")
-    sd = sds[name]
-    s = np.interp(np.asarray(grid_nm, dtype=float), sd.wavelengths, sd.values)
+                         fix=f"use one of {', '.join(names[:12])}, ... or a CSV")
+    k = names.index(name)
+    s = np.interp(np.asarray(grid_nm, dtype=float), t[f"illuminant{k}_wl"],
+                  t[f"illuminant{k}_values"])
     ybar = cmfs(grid_nm)[:, 1]
     return s * ybar.sum() / (s @ ybar)
+
+
+def rgb_spectral_basis(grid_nm) -> np.ndarray:
+    """(n_λ, 3): a linear-sRGB radiance ``rgb`` is the spectrum ``basis @ rgb``.
+
+    CONVENTIONS: D65(λ) · Σc rgb_c B_c(λ), with B_c the Mallett–Yuksel 2019 sRGB basis and
+    D65 scaled to Y = 1, so (1, 1, 1) is D65 with Y = 1 and each channel is carried alone.
+    """
+    t = colour_tables()
+    g = np.asarray(grid_nm, dtype=float)
+    basis = np.stack([np.interp(g, t["basis_wl"], t["basis_values"][:, k]) for k in range(3)],
+                     axis=-1)
+    return illuminant("D65", g)[:, None] * basis

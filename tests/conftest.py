@@ -2,12 +2,18 @@
 
 from __future__ import annotations
 
+import os
+import tempfile
 from dataclasses import dataclass
 
 import numpy as np
 import pytest
 
 from gonio_cli import cli, log
+from gonio_cli.cache import CACHE_ENV
+
+# Tests never write into the user's cache: one temporary cache for the whole session.
+os.environ.setdefault(CACHE_ENV, tempfile.mkdtemp(prefix="gonio-test-cache-"))
 
 
 @dataclass

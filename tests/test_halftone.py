@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from gonio_cli.cache import CACHE_ENV
 from gonio_cli.errors import InputError
 from gonio_cli.halftone import (METHODS, TONE_SIGMA_PX, halftone, ink_coverage,
                                 labels_to_mask, prepare, tone_error)
@@ -63,7 +64,7 @@ MIN_TONE_COVERAGE = 0.05
 def cache_in_tmp(monkeypatch, tmp_path_factory):
     """The blue-noise cache goes to a per-session temporary folder, never the home or
     the repository."""
-    monkeypatch.setenv(screens.CACHE_ENV, str(tmp_path_factory.getbasetemp() / "cache"))
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path_factory.getbasetemp() / "cache"))
 
 
 def flat(target, size=PATCH_PX) -> np.ndarray:
@@ -366,7 +367,7 @@ def test_void_and_cluster_is_blue():
 
 
 def test_blue_noise_cache(tmp_path, monkeypatch):
-    monkeypatch.setenv(screens.CACHE_ENV, str(tmp_path))
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path))
     first, source = screens.blue_noise_ranks(16)
     assert source == "generated" and len(list(tmp_path.glob("void_and_cluster_v*.npy"))) == 1
     second, source = screens.blue_noise_ranks(16)
@@ -382,7 +383,7 @@ def test_blue_noise_cache(tmp_path, monkeypatch):
 def test_blue_noise_cache_not_writable(tmp_path, monkeypatch):
     blocker = tmp_path / "file"
     blocker.write_text("not a folder")
-    monkeypatch.setenv(screens.CACHE_ENV, str(blocker / "cache"))
+    monkeypatch.setenv(CACHE_ENV, str(blocker / "cache"))
     ranks, source = screens.blue_noise_ranks(8)
     assert source.startswith("generated (cache not writable") and ranks.shape == (8, 8)
 

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gonio_cli.halftone import screens
+from gonio_cli.cache import CACHE_ENV
 from gonio_cli.imageio import read_image, write_exr, write_png
 
 SAMPLE = Path(__file__).resolve().parent.parent / "sample_data" / "print_image.png"
@@ -18,7 +18,7 @@ SAMPLE = Path(__file__).resolve().parent.parent / "sample_data" / "print_image.p
 @pytest.fixture(autouse=True)
 def cache_in_tmp(monkeypatch, tmp_path_factory):
     """The blue-noise cache goes to a temporary folder, never the home or the repository."""
-    monkeypatch.setenv(screens.CACHE_ENV, str(tmp_path_factory.getbasetemp() / "cache"))
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path_factory.getbasetemp() / "cache"))
 
 
 def mask_of(path) -> np.ndarray:

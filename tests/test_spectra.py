@@ -197,3 +197,36 @@ def test_srgb_encode_at_the_curve_points():
     np.testing.assert_allclose(got, want, rtol=1e-15, atol=1e-15)
     # The two branches meet at the knee (IEC 61966-2-1: continuous to ~1e-7 there).
     assert power(0.0031308) == pytest.approx(got[1], abs=1e-6)
+
+
+def test_colour_tables_are_cached_on_disk_and_equal_colour_science(tmp_path, monkeypatch):
+    # The cache spares every later run the ~1.5 s colour-science import; its content must be
+    # colour-science's own numbers, and a corrupt cache file is recomputed, not trusted.
+    import colour
+
+    from gonio_cli import spectra
+    from gonio_cli.cache import CACHE_ENV
+
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path))
+    spectra.colour_tables.cache_clear()
+    try:
+        t = spectra.colour_tables()
+        files = list(tmp_path.glob("colour-tables-*.npz"))
+        assert len(files) == 1
+        cm = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"]
+        np.testing.assert_array_equal(t["cmfs_values"], cm.values)
+        files[0].write_bytes(b"not an npz")
+        spectra.colour_tables.cache_clear()
+        np.testing.assert_array_equal(spectra.colour_tables()["cmfs_values"], cm.values)
+    finally:
+        spectra.colour_tables.cache_clear()
+
+
+def test_rgb_basis_white_is_d65_with_y_one():
+    from gonio_cli.spectra import illuminant, rgb_spectral_basis, spectrum_to_xyz
+
+    g = sp.parse_grid()
+    basis = rgb_spectral_basis(g)
+    # Mallett–Yuksel: the three basis functions sum to 1 at every wavelength (to 1e-3).
+    np.testing.assert_allclose(basis.sum(axis=1), illuminant("D65", g), rtol=2e-3)
+    assert spectrum_to_xyz(basis @ np.ones(3), g)[1] == pytest.approx(1.0, rel=2e-3)

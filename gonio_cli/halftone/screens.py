@@ -21,16 +21,12 @@ Human Vision, Visual Processing, and Digital Display IV, 332-343, 1993.
 
 from __future__ import annotations
 
-import os
-from pathlib import Path
-
 import numpy as np
 
 from ..artifact import atomic_path
+from ..cache import cache_dir
 from ..errors import InputError
 
-#: Environment variable naming the folder of gonio's caches (tests point it at tmp_path).
-CACHE_ENV = "GONIO_CACHE_DIR"
 
 #: Ulichney 1993's Gaussian width (pixels) of the void-and-cluster energy filter.
 VOID_AND_CLUSTER_SIGMA = 1.5
@@ -136,14 +132,6 @@ def void_and_cluster_ranks(size: int, sigma: float = VOID_AND_CLUSTER_SIGMA,
         e += splat(void)
         ranks[void] = rank
     return ranks.reshape(size, size)
-
-
-def cache_dir() -> Path:
-    """``$GONIO_CACHE_DIR``, else ``$XDG_CACHE_HOME/gonio``, else ``~/.cache/gonio``."""
-    if os.environ.get(CACHE_ENV):
-        return Path(os.environ[CACHE_ENV])
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return Path(base) / "gonio"
 
 
 def blue_noise_ranks(size: int) -> tuple[np.ndarray, str]:
