@@ -28,11 +28,12 @@ include pipelines/rgbink.mk
 include pipelines/carpaint.mk
 include pipelines/lobes.mk
 include pipelines/sky.mk
+include pipelines/render.mk
 
-demo: $(STAMP) rgbink carpaint lobes sky
+demo: $(STAMP) rgbink carpaint lobes sky render
 	@echo
 	@echo "Demo outputs (measurements, materials and their plots, the print, lobes, the prefiltered sky):"
-	@for d in rgbink carpaint lobes sky; do echo "  $(OUT)/$$d/"; ls -1 $(OUT)/$$d | sed 's/^/    /'; done
+	@for d in rgbink carpaint lobes sky render; do echo "  $(OUT)/$$d/"; ls -1 $(OUT)/$$d | sed 's/^/    /'; done
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q

@@ -188,11 +188,16 @@ def srgb_decode(encoded: np.ndarray) -> np.ndarray:
                     ).astype(np.float32)
 
 
+def illuminant_names() -> list[str]:
+    """Names of the CIE illuminants colour-science knows (``D65``, ``A``, ``FL2`` …)."""
+    return [str(n) for n in colour_tables()["illuminant_names"]]
+
+
 def illuminant(name: str, grid_nm) -> np.ndarray:
     """A CIE illuminant by name (``D65``, ``A``, ``FL2`` …) on the grid, scaled so that
     Σ S ȳ / Σ ȳ = 1 (CONVENTIONS). (n_λ,)."""
     t = colour_tables()
-    names = [str(n) for n in t["illuminant_names"]]
+    names = illuminant_names()
     if name not in names:
         raise InputError(f"unknown illuminant {name!r}",
                          fix=f"use one of {', '.join(names[:12])}, ... or a CSV")

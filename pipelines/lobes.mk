@@ -19,5 +19,8 @@ $(LOBES)/basis.json $(LOBES)/basis.png &: $(LOBE_MATERIALS)
 $(LOBES)/%.lobes.json: $(RGBINK)/%.material.json $(LOBES)/basis.json
 	$(GONIO) lobes fit $< --basis $(LOBES)/basis.json --lobes $(LOBE_COUNT) -o $@
 
+# The paint is rendered under the sky: lobes fitted over the whole hemisphere (in-plane
+# samples give lobes too wide across the plane for environment light, docs/lobes.md).
 $(LOBES)/paint.lobes.json: $(CARPAINT)/paint.material.json $(LOBES)/basis.json
-	$(GONIO) lobes fit $< --basis $(LOBES)/basis.json --lobes $(LOBE_COUNT) -o $@
+	$(GONIO) lobes fit $< --basis $(LOBES)/basis.json --lobes $(LOBE_COUNT) -o $@ \
+	  --samples hemisphere --solver nnls

@@ -263,3 +263,18 @@ def test_simplex_falls_back_to_highs_at_its_iteration_cap(monkeypatch):
     got = L.fit_weights(M, B, "lp-simplex")
     assert "re-solved by HiGHS" in got.message
     assert got.l1 == pytest.approx(want.l1, rel=HIGHS_TOL)
+
+
+def test_hemisphere_sample_set_covers_the_half_hemisphere_evenly():
+    # 200 lights per view, all above the 85° horizon, on the y ≥ 0 half (an isotropic BRDF
+    # repeats itself in the other half); uniform in solid angle: mean cos θi of a uniform
+    # density on the cap up to 85° is (1 + cos 85°)/2.
+    s = L.sample_set("hemisphere", [0.0, 40.0])
+    assert s.n_samples == 2 * L.HEMISPHERE_POINTS
+    wi, wo = s.directions()
+    np.testing.assert_allclose(np.linalg.norm(wi, axis=1), 1.0, atol=1e-12)
+    assert np.all(wi[:, 1] >= 0) and np.all(wi[:, 2] >= np.cos(np.radians(L.HORIZON_DEG)) - 1e-12)
+    assert s.cos_theta_i().mean() == pytest.approx((1 + np.cos(np.radians(85.0))) / 2, abs=2e-3)
+    np.testing.assert_allclose(wo[s.view_index == 1], [[np.sin(np.radians(40)), 0,
+                                                        np.cos(np.radians(40))]] * 200)
+    assert s.view(1).directions()[0].shape == (200, 3)

@@ -7,7 +7,9 @@ from typing import List, Optional
 
 import typer
 
-SAMPLE_SET_HELP = "seed001 (default, seed 001 §4), dense, or a CSV with theta_i_deg,theta_o_deg."
+SAMPLE_SET_HELP = ("seed001 (default, seed 001 §4), dense, hemisphere (lights off the plane too: "
+                   "use it for lobes rendered under an environment), or a CSV with "
+                   "theta_i_deg,theta_o_deg.")
 
 
 def _samples_option():

@@ -54,6 +54,10 @@ EXPONENT_MAX = 1e4
 #: out: the target models are 0 or unreliable at grazing (Smith G → 0, cos θi → 0).
 HORIZON_DEG = 85.0
 
+#: Lights per view of the ``hemisphere`` sample set: ~3.7° apart on the half hemisphere,
+#: finer than the narrowest lobe the demo's materials need (E ≈ 70, ~7° wide).
+HEMISPHERE_POINTS = 200
+
 #: A lobe column whose largest value over the samples is below this is "not seen": its
 #: weight would be undetermined (any value fits), so the sample set is refused.
 UNSEEN_COLUMN = 1e-300
@@ -164,6 +168,8 @@ class Samples:
     view_angle_deg: np.ndarray
     role: np.ndarray
     name: str
+    wi: np.ndarray | None = None    # (N, 3) light directions off the plane (hemisphere set)
+    wo: np.ndarray | None = None    # (N, 3) view directions, given with ``wi``
 
     @property
     def n_samples(self) -> int:
@@ -171,10 +177,12 @@ class Samples:
 
     def directions(self) -> tuple[np.ndarray, np.ndarray]:
         """ωi, ωo (N, 3)."""
+        if self.wi is not None:
+            return self.wi, self.wo
         return in_plane_directions(self.light_deg, self.view_deg)
 
     def cos_theta_i(self) -> np.ndarray:
-        return np.cos(np.radians(self.light_deg))
+        return np.clip(self.directions()[0][:, 2], 0.0, 1.0)
 
     def cos_rv(self) -> np.ndarray:
         """R·V (N,) with R the mirror of ωi about +z: cos(θo − φ) in plane."""
@@ -185,7 +193,9 @@ class Samples:
         """The samples of the k-th view angle only."""
         rows = self.view_index == k
         return Samples(self.light_deg[rows], self.view_deg[rows], np.zeros(rows.sum(), int),
-                       self.view_angle_deg[k:k + 1], self.role[rows], self.name)
+                       self.view_angle_deg[k:k + 1], self.role[rows], self.name,
+                       None if self.wi is None else self.wi[rows],
+                       None if self.wo is None else self.wo[rows])
 
 
 @dataclass(frozen=True)
@@ -220,10 +230,41 @@ class SamplePattern:
                        views, np.array(role, dtype=object), name)
 
 
+@dataclass(frozen=True)
+class HemispherePattern:
+    """Lights spread evenly over the hemisphere (a golden-angle spiral, uniform in solid
+    angle, up to :data:`HORIZON_DEG`) at each view angle, folded onto the y ≥ 0 half: an
+    isotropic BRDF is symmetric about the plane of incidence, so the other half repeats it.
+
+    Seed 001 §4 samples only the plane of incidence; its round lobes then fit the in-plane
+    cut but come out ~2× too wide across it at oblique views, which environment lighting
+    sees (mean CIEDE2000 6–8 against brute-force integration, against < 2 from this set).
+    """
+
+    points: int
+    description: str
+
+    def samples(self, view_angle_deg: Sequence[float], name: str) -> Samples:
+        k = np.arange(self.points) + 0.5
+        z_min = np.cos(np.radians(HORIZON_DEG))
+        z = 1.0 - k / self.points * (1.0 - z_min)          # uniform in solid angle
+        phi = np.pi * (1.0 + np.sqrt(5.0)) * k              # golden-angle spiral
+        r = np.sqrt(1.0 - z * z)
+        lights = np.stack([r * np.cos(phi), r * np.abs(np.sin(phi)), z], axis=-1)
+        views = np.asarray(view_angle_deg, dtype=float)
+        tv = np.radians(np.repeat(views, self.points))
+        wo = np.stack([np.sin(tv), np.zeros_like(tv), np.cos(tv)], axis=-1)
+        wi = np.tile(lights, (views.size, 1))
+        n = wi.shape[0]
+        return Samples(np.degrees(np.arccos(wi[:, 2])), np.degrees(tv),
+                       np.repeat(np.arange(views.size), self.points), views,
+                       np.array(["hemisphere"] * n, dtype=object), name, wi, wo)
+
+
 #: Sample patterns by name (seed 001 §4 is the default). Each gives ~20 samples per view
 #: angle (seed001) or ~60 (dense); the global set (basis selection) is the union over
 #: :data:`GLOBAL_VIEW_ANGLES_DEG`, ~60 samples for seed001.
-SAMPLE_SETS: dict[str, SamplePattern] = {
+SAMPLE_SETS: dict[str, SamplePattern | HemispherePattern] = {
     "seed001": SamplePattern(
         mirror=(0.0, -1.0, 1.0, -2.0, 2.0, -4.0, 4.0, -7.0, 7.0),
         directional=(-10.0, 10.0, -15.0, 15.0, -25.0, 25.0, -35.0, 35.0, -50.0, -65.0),
@@ -236,6 +277,10 @@ SAMPLE_SETS: dict[str, SamplePattern] = {
         diffuse=(-45.0,),
         description="every 2.5° of light angle from the mirror to the horizon, 1° near "
                     "the mirror: a check of the sparse set, ~3× the samples"),
+    "hemisphere": HemispherePattern(
+        points=HEMISPHERE_POINTS,
+        description="lights over the whole hemisphere (half by symmetry) per view: lobes "
+                    "that also hold across the plane of incidence, for environment light"),
 }
 DEFAULT_SAMPLE_SET = "seed001"
 

@@ -1,0 +1,370 @@
+"""Meshes for ``gonio render``: built-ins and OBJ files → :class:`~gonio_cli.render.Mesh`.
+
+Mesh specs (the ``mesh`` key of a scene object):
+
+``builtin:sphere[?segments=S[&rings=R]]``
+    The unit sphere at the origin (CONVENTIONS): a UV sphere of ``S`` segments in φ and
+    ``R`` rings in θ (default S = 144, R = S / 2: 20 448 triangles, the issue's ~20 000
+    triangle benchmark). Vertices sit at θ = π j / R, φ = 2π i / S on the environment-map
+    direction (sin θ sin φ, cos θ, −sin θ cos φ) (:func:`gonio_cli.envmap.spherical_to_direction`),
+    with u = φ / 2π and v = 1 − θ / π; the seam column i = S repeats column 0 with u = 1,
+    and each pole is one vertex per segment so every triangle has its own pole u.
+    Normals are the analytic ones (the position).
+``builtin:plane[?segments=N]``
+    Mitsuba 3's ``rectangle``: the square [−1, 1]² in the xy-plane at z = 0, front face
+    towards +z, u = (x + 1) / 2, v = (y + 1) / 2 (seen from +z with +y up a texture appears
+    upright, OpenGL v = 0 at the bottom), split into N × N quads (default 1).
+``path/to/file.obj`` (or any format trimesh reads)
+    Relative to ``base_dir``. OBJ files are parsed by trimesh's OBJ loader, keeping ``vt``
+    texture coordinates and ``vn`` normals (``trimesh.load`` itself drops the file's
+    normals, so OBJ goes through :func:`trimesh.exchange.obj.load_obj`); other formats by
+    ``trimesh.load(path, process=False, force="mesh")``. Without normals in the file,
+    smooth area-weighted vertex normals are computed with vertices that share a position
+    (duplicated at UV seams) pooled, so seams do not show.
+
+Validation (STYLE 7, 10): non-finite vertices are an :class:`InputError` naming the file
+and the count; zero-area triangles are dropped with one :func:`gonio_cli.log.warn` that
+counts them; a mesh with no triangle left is an error.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from urllib.parse import parse_qsl
+
+import numpy as np
+
+from .. import log
+from ..envmap import spherical_to_direction
+from ..errors import InputError
+from . import Mesh
+
+#: Default φ segments of ``builtin:sphere`` (rings = segments / 2): 2 · 144 · 71 = 20 448
+#: triangles, the issue's ~20 000-triangle benchmark sphere.
+SPHERE_SEGMENTS = 144
+#: Fewest segments / rings that still make a closed solid.
+SPHERE_MIN_SEGMENTS = 3
+SPHERE_MIN_RINGS = 2
+#: Most segments accepted (2 · 4096 · 2048 ≈ 17 M triangles is already far beyond a frame).
+BUILTIN_MAX_SEGMENTS = 4096
+#: A triangle is degenerate if its area is at most this fraction of the squared diagonal of
+#: the mesh's bounding box: float64 cross products of nearly collinear edges carry round-off
+#: ~1e-16 of the squared size, so 1e-14 separates true zero-area faces from small ones.
+DEGENERATE_REL_AREA = 1e-14
+#: Normals shorter than this (after summing face normals) are replaced by the face normal.
+MIN_NORMAL_LENGTH = 1e-12
+
+BUILTIN_PREFIX = "builtin:"
+
+
+# ----------------------------------------------------------------------------- built-ins
+
+def uv_sphere(segments: int = SPHERE_SEGMENTS, rings: int | None = None) -> Mesh:
+    """The unit UV sphere of ``builtin:sphere`` (see the module docstring).
+
+    Parameters
+    ----------
+    segments : int
+        Divisions in φ (≥ 3).
+    rings : int, optional
+        Divisions in θ (≥ 2); default ``segments // 2``.
+
+    Returns
+    -------
+    Mesh with (R + 1)(S + 1) vertices and 2 S (R − 1) counter-clockwise (outward) faces;
+    normals = positions, uvs (u = φ / 2π, v = 1 − θ / π).
+    """
+    S = int(segments)
+    R = int(rings) if rings is not None else max(SPHERE_MIN_RINGS, S // 2)
+    theta = np.pi * np.arange(R + 1) / R
+    phi = 2.0 * np.pi * np.arange(S + 1) / S
+    pos = spherical_to_direction(theta[:, None], phi[None, :])          # (R+1, S+1, 3)
+    pos[0, :] = (0.0, 1.0, 0.0)                                          # exact poles
+    pos[-1, :] = (0.0, -1.0, 0.0)
+    u = np.broadcast_to(phi / (2.0 * np.pi), (R + 1, S + 1)).copy()
+    v = np.broadcast_to((1.0 - theta / np.pi)[:, None], (R + 1, S + 1)).copy()
+    # a pole vertex serves one triangle: give it the u of that triangle's middle
+    u[0, :] -= 0.5 / S    # north triangle of column i uses pole vertex i + 1
+    u[-1, :] += 0.5 / S   # south triangle of column i uses pole vertex i
+    idx = np.arange((R + 1) * (S + 1)).reshape(R + 1, S + 1)
+    a, b = idx[:-1, :-1], idx[:-1, 1:]       # (j, i), (j, i+1)
+    c, d = idx[1:, :-1], idx[1:, 1:]         # (j+1, i), (j+1, i+1)
+    # ∂/∂φ × ∂/∂θ points outwards, so (j,i) → (j,i+1) → (j+1,i) is counter-clockwise
+    upper = np.stack([a, b, c], axis=-1)[1:]           # degenerate in ring 0 (a, b at pole)
+    lower = np.stack([b, d, c], axis=-1)[:-1]          # degenerate in ring R−1
+    faces = np.concatenate([upper.reshape(-1, 3), lower.reshape(-1, 3)]).astype(np.int64)
+    vertices = pos.reshape(-1, 3)
+    return Mesh(vertices=vertices, faces=faces, normals=vertices.copy(),
+                uvs=np.stack([u.ravel(), v.ravel()], axis=-1), name="builtin:sphere")
+
+
+def plane(segments: int = 1) -> Mesh:
+    """The square [−1, 1]² at z = 0 of ``builtin:plane``, facing +z, N × N quads.
+
+    Returns
+    -------
+    Mesh with (N + 1)² vertices, 2 N² faces, normals +z, u = (x + 1) / 2, v = (y + 1) / 2.
+    """
+    n = int(segments)
+    t = np.linspace(-1.0, 1.0, n + 1)
+    x, y = np.meshgrid(t, t)                          # x along columns, y along rows
+    vertices = np.stack([x.ravel(), y.ravel(), np.zeros(x.size)], axis=-1)
+    idx = np.arange((n + 1) ** 2).reshape(n + 1, n + 1)
+    a, b = idx[:-1, :-1], idx[:-1, 1:]                # (y0, x0), (y0, x1)
+    c, d = idx[1:, :-1], idx[1:, 1:]                  # (y1, x0), (y1, x1)
+    faces = np.concatenate([np.stack([a, b, d], -1).reshape(-1, 3),
+                            np.stack([a, d, c], -1).reshape(-1, 3)]).astype(np.int64)
+    normals = np.tile([0.0, 0.0, 1.0], (len(vertices), 1))
+    uvs = (vertices[:, :2] + 1.0) / 2.0
+    return Mesh(vertices=vertices, faces=faces, normals=normals, uvs=uvs,
+                name="builtin:plane")
+
+
+def _int_option(options: dict, key: str, default, lo: int, spec: str) -> int | None:
+    if key not in options:
+        return default
+    text = options.pop(key)
+    try:
+        value = int(text)
+    except ValueError:
+        value = None
+    if value is None or not lo <= value <= BUILTIN_MAX_SEGMENTS:
+        raise InputError(f"mesh {spec!r}: {key}={text!r} is not an integer in "
+                         f"[{lo}, {BUILTIN_MAX_SEGMENTS}]")
+    return value
+
+
+def _builtin(spec: str) -> Mesh:
+    body = spec[len(BUILTIN_PREFIX):]
+    kind, _, query = body.partition("?")
+    options = dict(parse_qsl(query, keep_blank_values=True))
+    if kind == "sphere":
+        segments = _int_option(options, "segments", SPHERE_SEGMENTS, SPHERE_MIN_SEGMENTS, spec)
+        rings = _int_option(options, "rings", None, SPHERE_MIN_RINGS, spec)
+        mesh = uv_sphere(segments, rings)
+    elif kind == "plane":
+        mesh = plane(_int_option(options, "segments", 1, 1, spec))
+    else:
+        raise InputError(f"unknown built-in mesh {spec!r}",
+                         fix="use builtin:sphere or builtin:plane, or an OBJ file")
+    if options:
+        raise InputError(f"mesh {spec!r}: unknown option(s) {', '.join(sorted(options))}",
+                         fix="builtin:sphere takes segments and rings, builtin:plane segments")
+    mesh.name = spec
+    return mesh
+
+
+# ----------------------------------------------------------------------------- files
+
+def _load_obj(path: str):
+    """(vertices, faces, normals or None, uvs or None) of an OBJ, all groups concatenated."""
+    from trimesh.exchange.obj import load_obj
+
+    with open(path, "rb") as f:
+        result = load_obj(f, skip_materials=True)
+    parts = list(result.get("geometry", {}).values())
+    if not parts:
+        return np.zeros((0, 3)), np.zeros((0, 3), np.int64), None, None
+    verts, faces, normals, uvs, offset = [], [], [], [], 0
+    for g in parts:
+        v = np.asarray(g["vertices"], dtype=np.float64).reshape(-1, 3)
+        verts.append(v)
+        faces.append(np.asarray(g["faces"], dtype=np.int64).reshape(-1, 3) + offset)
+        vn = g.get("vertex_normals")
+        normals.append(None if vn is None else np.asarray(vn, np.float64).reshape(-1, 3))
+        uv = getattr(g.get("visual"), "uv", None)
+        uvs.append(None if uv is None or len(uv) != len(v)
+                   else np.asarray(uv, np.float64).reshape(-1, 2))
+        offset += len(v)
+    return (np.concatenate(verts), np.concatenate(faces),
+            None if any(n is None for n in normals) else np.concatenate(normals),
+            None if any(u is None for u in uvs) else np.concatenate(uvs))
+
+
+def _load_file(path: str):
+    if not Path(path).is_file():
+        raise InputError("no such mesh file", path=path, fix="check the path in the scene file")
+    try:
+        if path.lower().endswith(".obj"):
+            return _load_obj(path)
+        import trimesh
+
+        m = trimesh.load(path, process=False, force="mesh")
+        uv = getattr(getattr(m, "visual", None), "uv", None)
+        return (np.asarray(m.vertices, np.float64), np.asarray(m.faces, np.int64), None,
+                None if uv is None else np.asarray(uv, np.float64))
+    except InputError:
+        raise
+    except Exception as exc:  # trimesh raises many types for unreadable files
+        raise InputError(f"cannot read it as a mesh ({type(exc).__name__}: {exc})",
+                         path=path, fix="use a triangulated OBJ") from exc
+
+
+def smooth_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Area-weighted smooth vertex normals, pooled over vertices at the same position.
+
+    Each face adds its unnormalised normal (V1 − V0) × (V2 − V0) (length = 2 × area, so the
+    sum is area-weighted) to the vertices of its corners; vertices with identical
+    positions (split at UV seams) share one sum, so seams do not show.
+
+    Parameters
+    ----------
+    vertices : (V, 3) float ; faces : (F, 3) int, counter-clockwise = front
+
+    Returns
+    -------
+    (V, 3) float64 unit normals (a vertex on no face gets +z).
+    """
+    v = np.asarray(vertices, np.float64)
+    f = np.asarray(faces, np.int64)
+    _, group = np.unique(v, axis=0, return_inverse=True)
+    group = group.ravel()
+    fn = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+    acc = np.zeros((group.max() + 1 if len(group) else 0, 3))
+    for k in range(3):
+        np.add.at(acc, group[f[:, k]], fn)
+    n = acc[group]
+    length = np.linalg.norm(n, axis=-1, keepdims=True)
+    ok = length[:, 0] > MIN_NORMAL_LENGTH
+    out = np.tile([0.0, 0.0, 1.0], (len(v), 1))
+    out[ok] = n[ok] / length[ok]
+    return out
+
+
+def validate(mesh: Mesh, source: str | None = None) -> Mesh:
+    """Refuse non-finite input, drop zero-area triangles (one counted warning).
+
+    Parameters
+    ----------
+    mesh : Mesh
+    source : str, optional
+        The file (or spec) named in messages; default ``mesh.name``.
+
+    Returns
+    -------
+    The mesh, with degenerate faces removed (vertices kept).
+    """
+    where = source or mesh.name
+    v = np.asarray(mesh.vertices, np.float64)
+    bad = ~np.isfinite(v).all(axis=-1)
+    if bad.any():
+        raise InputError(f"{int(bad.sum())} of {len(v)} vertices are not finite (NaN or inf), "
+                         f"the first is vertex {int(np.argmax(bad)) + 1}", path=where,
+                         fix="repair or re-export the mesh")
+    if mesh.uvs is not None and not np.isfinite(mesh.uvs).all():
+        raise InputError(f"{int((~np.isfinite(mesh.uvs).all(-1)).sum())} texture coordinates "
+                         "are not finite", path=where, fix="repair or re-export the mesh")
+    f = np.asarray(mesh.faces, np.int64).reshape(-1, 3)
+    if len(f) and (f.min() < 0 or f.max() >= len(v)):
+        raise InputError("faces index vertices that do not exist", path=where)
+    if len(f):
+        diag2 = float(np.sum((v.max(0) - v.min(0)) ** 2))
+        area2 = np.linalg.norm(np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]),
+                               axis=-1)
+        degenerate = area2 <= 2.0 * DEGENERATE_REL_AREA * diag2
+        if degenerate.any():
+            log.warn(f"{where}: skipped {int(degenerate.sum())} degenerate (zero-area) "
+                     f"triangle(s) of {len(f)}")
+            f = f[~degenerate]
+    if len(f) == 0:
+        raise InputError("the mesh has no (non-degenerate) triangles", path=where)
+    mesh.faces = f
+    return mesh
+
+
+def load_mesh(spec: str, base_dir: str | os.PathLike | None = None) -> Mesh:
+    """Load a mesh from a spec (``builtin:…`` or a file path; see the module docstring).
+
+    Parameters
+    ----------
+    spec : str
+        ``builtin:sphere[?segments=S&rings=R]``, ``builtin:plane[?segments=N]`` or a path.
+    base_dir : path, optional
+        Directory relative paths are resolved against (the scene file's folder).
+
+    Returns
+    -------
+    Mesh in its own model space (apply :func:`transform` for the object's placement),
+    with unit smooth normals, uvs or None, and ``name`` = the spec.
+
+    Raises
+    ------
+    InputError
+        Unknown built-in or option, missing or unreadable file, non-finite vertices, no
+        triangles left.
+    """
+    if spec.startswith(BUILTIN_PREFIX):
+        return validate(_builtin(spec))
+    path = Path(spec)
+    if base_dir is not None and not path.is_absolute():
+        path = Path(base_dir) / path
+    path_s = os.fspath(path)
+    vertices, faces, normals, uvs = _load_file(path_s)
+    mesh = Mesh(vertices=vertices, faces=faces, normals=np.zeros_like(vertices), uvs=uvs,
+                name=spec)
+    mesh = validate(mesh, path_s)
+    if normals is not None:
+        length = np.linalg.norm(normals, axis=-1, keepdims=True)
+        usable = np.isfinite(normals).all(-1) & (length[:, 0] > MIN_NORMAL_LENGTH)
+        if usable.all():
+            mesh.normals = normals / length
+            return mesh
+    mesh.normals = smooth_normals(mesh.vertices, mesh.faces)
+    return mesh
+
+
+def require_uvs(mesh: Mesh, why: str) -> None:
+    """Raise :class:`InputError` if ``mesh`` has no texture coordinates.
+
+    ``why`` completes "which … needs", e.g. ``"the mask of object 2"``.
+    """
+    if mesh.uvs is None:
+        raise InputError(f"mesh {mesh.name} has no texture coordinates, which {why} needs",
+                         fix="export the mesh with UVs (vt lines in OBJ) or drop the mask")
+
+
+# ----------------------------------------------------------------------------- placement
+
+def rotation_matrix(rotate_deg) -> np.ndarray:
+    """(3, 3) rotation of XYZ Euler angles in degrees: about x first, then y, then z
+    (fixed world axes), R = Rz · Ry · Rx, right-handed (counter-clockwise looking down
+    the axis)."""
+    ax, ay, az = np.radians(np.asarray(rotate_deg, np.float64).reshape(3))
+    cx, sx, cy, sy, cz, sz = np.cos(ax), np.sin(ax), np.cos(ay), np.sin(ay), np.cos(az), np.sin(az)
+    rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
+    ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
+    rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
+    return rz @ ry @ rx
+
+
+def transform(mesh: Mesh, translate=(0.0, 0.0, 0.0), rotate_deg=(0.0, 0.0, 0.0),
+              scale=1.0) -> Mesh:
+    """Place a mesh: p' = R · (s ⊙ p) + t (scale, then rotate, then translate).
+
+    Parameters
+    ----------
+    mesh : Mesh
+    translate : (3,) float
+    rotate_deg : (3,) float
+        XYZ Euler angles in degrees (:func:`rotation_matrix`).
+    scale : float or (3,) float
+        Uniform or per-axis; must be non-zero.
+
+    Returns
+    -------
+    A new Mesh. Normals go through the inverse transpose of R · S (= R · S⁻¹) and are
+    renormalised; a mirroring scale (negative determinant) reverses the winding so that
+    counter-clockwise stays the front.
+    """
+    s = np.broadcast_to(np.asarray(scale, np.float64), (3,)).copy()
+    if not np.all(np.isfinite(s)) or np.any(s == 0.0):
+        raise InputError(f"scale {scale!r} must be finite and non-zero in every axis")
+    t = np.asarray(translate, np.float64).reshape(3)
+    r = rotation_matrix(rotate_deg)
+    vertices = (mesh.vertices * s) @ r.T + t
+    normals = (mesh.normals / s) @ r.T
+    normals /= np.maximum(np.linalg.norm(normals, axis=-1, keepdims=True), MIN_NORMAL_LENGTH)
+    faces = mesh.faces[:, ::-1].copy() if np.prod(s) < 0 else mesh.faces.copy()
+    return Mesh(vertices=vertices, faces=faces, normals=normals,
+                uvs=None if mesh.uvs is None else mesh.uvs.copy(), name=mesh.name)

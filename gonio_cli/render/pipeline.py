@@ -1,0 +1,319 @@
+"""The render pipeline: a validated :class:`~gonio_cli.render.scene.Scene` → images.
+
+Stages, each timed into :class:`~gonio_cli.render.Stats` (``time_s[name]``) and listed
+in the run report only if it ran ("leave out what the scene does not need"):
+
+``scene``        the TOML file (:func:`gonio_cli.render.scene.load_scene`, timed by the CLI)
+``meshes``       built-ins and OBJ files, placed by each object's transform
+``materials``    gonio.material / gonio.measurement files, each read once
+``textures``     mask pyramids: printed objects only
+``lobes``        lobe weights: only with an environment
+``environment``  prefiltered maps: only if the scene has an ``[environment]``
+``rasterize``    the batched z-buffer at ssaa × the image size
+``shade``        spectral shading → XYZ (and ``shade.*`` sub-stages of :mod:`.shade`)
+``downsample``   XYZ → linear sRGB (IEC matrix), background, box filter of the ssaa
+``tonemap``      exposure, tone map, sRGB encoding, 8 bits
+``write_exr``, ``write_png``   the files (atomic)
+
+The frame time of the issue is rasterize + shade + downsample + tonemap; the total is
+scene loading to images written (the CLI measures it from before ``load_scene``).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .. import log
+from ..errors import InputError
+from . import Stats
+from .scene import Scene
+
+#: Stages whose sum is the frame time (issue 8 "Done when": rasterize, shade, tone map).
+FRAME_STAGES = ("rasterize", "shade", "downsample", "tonemap")
+
+REPORT_SCHEMA = "gonio.render-report"
+REPORT_VERSION = 1
+
+
+@dataclass
+class Frame:
+    """A rendered frame: ``linear`` (H, W, 3) float32 scene-linear sRGB (the EXR),
+    ``display`` (H, W, 3) uint8 sRGB-encoded after exposure and tone map (the PNG),
+    ``xyz`` (H, W, 3) float64 CIE XYZ (box-filtered), ``coverage`` (H, W) the fraction of
+    each pixel's samples that hit an object."""
+
+    linear: np.ndarray
+    display: np.ndarray
+    xyz: np.ndarray
+    coverage: np.ndarray
+
+
+class _Stage:
+    """``with _Stage(stats, "name"):`` adds the wall time to ``stats.time_s["name"]``."""
+
+    def __init__(self, stats: Stats, name: str):
+        self.stats, self.name = stats, name
+
+    def __enter__(self):
+        self.t0 = time.perf_counter()
+        return self
+
+    def __exit__(self, *exc):
+        self.stats.time_s[self.name] = (self.stats.time_s.get(self.name, 0.0)
+                                        + time.perf_counter() - self.t0)
+        return False
+
+
+# ---------------------------------------------------------------------------- loading --
+
+def load_meshes(scene: Scene) -> list:
+    """Each object's mesh in world space; a mask needs texture coordinates."""
+    from .mesh import load_mesh, require_uvs, transform
+
+    cache: dict[str, Any] = {}
+    meshes = []
+    for o in scene.objects:
+        if o.mesh not in cache:
+            try:
+                cache[o.mesh] = load_mesh(o.mesh, scene.path.parent)
+            except InputError as exc:
+                if not o.is_builtin:
+                    raise  # names the mesh file
+                raise InputError(f"[[object]] {o.index + 1} mesh: {exc.message}",
+                                 path=scene.display, fix=exc.fix) from None
+        mesh = transform(cache[o.mesh], o.translate, o.rotate_deg, o.scale)
+        if o.mask is not None:
+            require_uvs(mesh, f"the mask of [[object]] {o.index + 1} ({o.name}) in "
+                              f"{scene.path.name}")
+        meshes.append(mesh)
+    return meshes
+
+
+def on_grid(material, grid_nm: np.ndarray, path: Path):
+    """A fitted material with its spectral parameters on the render's grid: resampled
+    with a warning when its grid differs (CONVENTIONS), refused when it does not cover."""
+    from ..brdf import MODELS
+    from ..spectra import covers, resample, same_grid
+
+    if same_grid(material.wavelength_nm, grid_nm):
+        return material
+    if not covers(material.wavelength_nm, grid_nm):
+        raise InputError(f"covers {material.wavelength_nm.min():g}-"
+                         f"{material.wavelength_nm.max():g} nm, not the render's grid "
+                         f"{grid_nm[0]:g}-{grid_nm[-1]:g} nm", path=path,
+                         fix="choose [output] grid_nm inside the material's range")
+    log.warn(f"{path}: material resampled from {material.wavelength_nm.size} wavelengths "
+             f"onto the render's grid ({grid_nm.size} samples)")
+    params = dict(material.params)
+    for name in MODELS[material.model].spectral_params:
+        params[name] = resample(material.wavelength_nm, params[name], grid_nm)
+    return type(material)(material.model, np.asarray(grid_nm, float), params,
+                          material.status, material.fit)
+
+
+def build_surfaces(scene: Scene, stats: Stats) -> list:
+    """One :class:`~gonio_cli.render.shade.Surface` per object: materials read once per
+    file, mask pyramids for printed objects only, lobes only with an environment."""
+    from ..schemas import read_lobes, read_material
+    from .shade import Surface
+
+    materials: dict[Path, Any] = {}
+
+    def material(path: Path):
+        if path not in materials:
+            m = read_material(path)
+            if m.status != "success":
+                log.warn(f"{path}: a fit with status {m.status!r} is rendered")
+            materials[path] = on_grid(m, scene.grid_nm, path)
+        return materials[path]
+
+    surfaces = []
+    with _Stage(stats, "materials"):
+        for o in scene.objects:
+            s = Surface(name=o.name)
+            if o.material is not None:
+                s.material = material(o.material)
+            elif o.measured is not None:
+                s.material = load_measured(o.measured, scene.grid_nm)
+            else:
+                s.inks = [material(p) for p in o.inks]
+                sub = o.substrate
+                s.substrate = (None if sub is None or (sub.kd == 0 and sub.ks == 0) else
+                               {"kd": sub.kd, "ks": sub.ks, "shininess": sub.shininess})
+            surfaces.append(s)
+    printed = [(o, s) for o, s in zip(scene.objects, surfaces) if o.mask is not None]
+    if printed:
+        with _Stage(stats, "textures"):
+            pyramids: dict[Path, Any] = {}
+            for o, s in printed:
+                if o.mask not in pyramids:
+                    pyramids[o.mask] = load_mask_pyramid(o.mask)
+                s.coverage = pyramids[o.mask].coverage
+    if scene.environment is not None:
+        with _Stage(stats, "lobes"):
+            lobes: dict[Path, Any] = {}
+
+            def read(p):
+                if p not in lobes:
+                    lobes[p] = read_lobes(p)
+                return lobes[p]
+
+            for o, s in zip(scene.objects, surfaces):
+                if o.lobes is None:
+                    raise InputError(f"[[object]] {o.index + 1} ({o.name}): the scene has an "
+                                     "[environment], which needs the object's lobes",
+                                     path=scene.display,
+                                     fix="add lobes = \"....lobes.json\" (gonio lobes fit)")
+                s.lobes = [read(p) for p in o.lobes] if isinstance(o.lobes, list) \
+                    else read(o.lobes)
+    return surfaces
+
+
+def load_measured(path: Path, grid_nm: np.ndarray):
+    """The measured reference material (seed 000 Figure 5) of :mod:`.measured`, its
+    spectra resampled onto the render's grid (with a warning) when needed."""
+    from dataclasses import replace
+
+    from ..schemas import read_measurement
+    from ..spectra import covers, resample, same_grid
+    from .measured import measured_material
+
+    m = read_measurement(path)
+    if not same_grid(m.wavelength_nm, grid_nm):
+        if not covers(m.wavelength_nm, grid_nm):
+            raise InputError(f"covers {m.wavelength_nm.min():g}-{m.wavelength_nm.max():g} "
+                             f"nm, not the render's grid {grid_nm[0]:g}-{grid_nm[-1]:g} nm",
+                             path=path, fix="choose [output] grid_nm inside its range")
+        log.warn(f"{path}: measurement resampled from {m.wavelength_nm.size} wavelengths "
+                 f"onto the render's grid ({grid_nm.size} samples)")
+        m = replace(m, wavelength_nm=np.asarray(grid_nm, float),
+                    brdf=resample(m.wavelength_nm, m.brdf, grid_nm), brdf_std=None)
+    return measured_material(m, name=str(path))
+
+
+def load_mask_pyramid(path: Path):
+    """The area-filtered coverage pyramid of a halftone mask image (:mod:`.texture`),
+    which validates the mask and names the file in its errors."""
+    from .texture import MaskPyramid
+
+    return MaskPyramid.from_file(path)
+
+
+# ----------------------------------------------------------------------------- render --
+
+def render_scene(scene: Scene, stats: Stats | None = None) -> Frame:
+    """Render a scene; every stage's time goes into ``stats``. Returns the :class:`Frame`."""
+    stats = stats if stats is not None else Stats()
+    with _Stage(stats, "meshes"):
+        meshes = load_meshes(scene)
+    surfaces = build_surfaces(scene, stats)
+    environment = None
+    if scene.environment is not None:
+        from .environment import load_environment
+
+        with _Stage(stats, "environment"):
+            environment = load_environment(scene.environment.prefiltered)
+    from .raster import downsample, rasterize
+    from .shade import shade
+
+    ssaa = scene.output.ssaa
+    with _Stage(stats, "rasterize"):
+        gbuffer = rasterize(scene.camera, meshes, ssaa)
+    t0 = time.perf_counter()
+    xyz = shade(gbuffer, surfaces, scene.lights, scene.grid_nm, environment=environment,
+                spectral=scene.output.spectral, stats=stats)
+    stats.time_s.setdefault("shade", time.perf_counter() - t0)
+    with _Stage(stats, "downsample"):
+        n_bad = 0
+        if not np.isfinite(xyz).all():  # the per-pixel mask only when needed (it is slow)
+            bad = ~np.isfinite(xyz).all(axis=-1)
+            n_bad = int(bad.sum())
+            log.warn(f"{scene.display}: {n_bad} sample(s) shaded to NaN or inf were set "
+                     "to black")
+            xyz = np.where(bad[..., None], 0.0, xyz)
+        stats.counts["nonfinite_samples"] = n_bad
+        covered = gbuffer.covered.astype(np.float64)
+        from ..spectra import xyz_to_linear_srgb
+
+        linear = xyz_to_linear_srgb(xyz)
+        if np.any(scene.output.background != 0):
+            linear = np.where(covered[..., None] > 0, linear, scene.output.background)
+        linear = np.asarray(downsample(linear, ssaa), dtype=np.float32)
+        xyz = np.asarray(downsample(xyz, ssaa), dtype=np.float64)
+        coverage = np.asarray(downsample(covered[..., None], ssaa))[..., 0]
+    stats.counts["covered_pixels"] = int(np.count_nonzero(coverage > 0))
+    with _Stage(stats, "tonemap"):
+        from .tonemap import display
+
+        png = display(linear, scene.output.exposure, scene.output.tonemap)
+    return Frame(linear, png, xyz, coverage)
+
+
+# ----------------------------------------------------------------------------- output --
+
+def settings(scene: Scene) -> dict[str, Any]:
+    """The render settings, as written into the EXR metadata and the run report."""
+    cam = scene.camera
+    out = scene.output
+    return {"scene": str(scene.path), "vars": scene.variables,
+            "camera": {"eye": cam.eye.tolist(), "target": cam.target.tolist(),
+                       "up": cam.up.tolist(), "fov_deg": cam.fov_deg,
+                       "width": cam.width, "height": cam.height},
+            "ssaa": out.ssaa, "spectral": out.spectral, "exposure": out.exposure,
+            "tonemap": out.tonemap, "grid_nm": out.grid_nm,
+            "objects": [{"name": o.name, "kind": o.kind, "mesh": o.mesh} for o in scene.objects],
+            "lights": [{"name": l.name, "kind": l.kind} for l in scene.lights],
+            "environment": (str(scene.environment.prefiltered) if scene.environment else None)}
+
+
+def write_outputs(frame: Frame, scene: Scene, stats: Stats, *, png, exr=None,
+                  start: float | None = None) -> None:
+    """Write the EXR (scene-linear sRGB float32, settings and time in its metadata) and
+    the PNG (8-bit sRGB), atomically."""
+    from ..imageio import write_exr, write_png
+
+    elapsed = time.perf_counter() - start if start is not None else None
+    meta = {"schema": "gonio.render", "settings": settings(scene),
+            "render_time_s": elapsed if elapsed is not None else
+            sum(v for k, v in stats.time_s.items() if "." not in k),
+            "frame_time_s": frame_time(stats),
+            "colour": "scene-referred linear sRGB (IEC 61966-2-1 primaries, D65), "
+                      "before exposure and tone mapping"}
+    if exr is not None:
+        with _Stage(stats, "write_exr"):
+            write_exr(exr, frame.linear, meta)
+    with _Stage(stats, "write_png"):
+        write_png(png, frame.display, {"schema": "gonio.render", "settings": settings(scene)})
+
+
+def frame_time(stats: Stats) -> float:
+    return float(sum(stats.time_s.get(k, 0.0) for k in FRAME_STAGES))
+
+
+def write_report(path, scene: Scene, stats: Stats, *, total_s: float, png, exr=None) -> dict:
+    """The run report (``gonio.render-report`` v1): each stage that ran with its
+    ``time_s`` (in order), the frame time and the total (scene loading to images
+    written), counters, settings and the inputs with their sha256."""
+    from ..artifact import make_document, write_json
+
+    order = ["scene", "meshes", "materials", "textures", "lobes", "environment",
+             "rasterize", "shade", "downsample", "tonemap", "write_exr", "write_png"]
+    names = [k for k in order if k in stats.time_s]
+    names += [k for k in stats.time_s if k not in names and "." not in k]
+    stages = [{"stage": k, "time_s": stats.time_s[k]} for k in names]
+    substages = [{"stage": k, "time_s": v} for k, v in stats.time_s.items() if "." in k]
+    doc = make_document(
+        REPORT_SCHEMA, REPORT_VERSION,
+        {"stages": stages, "substages": substages, "frame_time_s": frame_time(stats),
+         "frame_stages": [k for k in FRAME_STAGES if k in stats.time_s],
+         "outputs": {"png": str(png), "exr": str(exr) if exr is not None else None},
+         "image": {"width": scene.camera.width, "height": scene.camera.height},
+         "counts": stats.counts},
+        inputs=scene.inputs, parameters=settings(scene), time_s=total_s)
+    write_json(path, doc)
+    return doc

@@ -1,0 +1,530 @@
+"""The scene file of ``gonio render``: TOML → :class:`Scene`, validated at the boundary.
+
+Every path in a scene file is relative to the scene file. Unknown keys, wrong types,
+non-finite numbers and missing files are :class:`~gonio_cli.errors.InputError` s of one
+line that name the file and the key (STYLE 7), e.g.::
+
+    scene.toml: [[object]] 2: unknown key 'materal'; allowed: inks, lobes, mask, ...
+
+A scene may be a template: ``${name}`` in any string is replaced by the variable
+``name``, defined in the scene's ``[vars]`` table (defaults) or on the command line
+(``gonio render --var name=value``, which wins). After substitution a relative path is
+still relative to the scene file. The sample scenes use this to reach the demo's
+artifacts (``material = "${out}/rgbink/${ink}.material.json"`` with ``out = "../../out"``).
+
+Sections (see ``docs/render.md``)::
+
+    [vars]         name = "string" ...                      (optional)
+    [camera]       eye, target, up, fov_deg, width, height
+    [[object]]     mesh, translate, rotate_deg, scale, name and one of
+                   material (+ lobes) | inks + mask (+ substrate, lobes) | measured
+    [[light]]      type = "directional" (direction, irradiance) | "point" (position,
+                   intensity); spectrum = CIE name or CSV; name
+    [environment]  prefiltered (a gonio prefilter index.json)            (optional)
+    [output]       exposure (stops), tonemap, ssaa, spectral, grid_nm, background
+
+Light spectra are CIE illuminants by name (colour-science: ``D65``, ``A``, ``FL2`` …) or
+a CSV ``wavelength_nm,value``, resampled onto the working grid (with a warning when the
+CSV is on another grid) and scaled so that Σ S ȳ / Σ ȳ = 1 (CONVENTIONS).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from ..errors import InputError
+from . import Camera, Light
+
+#: Built-in meshes (``mesh = "builtin:NAME"``); anything else is an OBJ path.
+#: Options after "?" (``builtin:sphere?segments=48``) are checked by :mod:`.mesh`.
+BUILTIN_PREFIX = "builtin:"
+BUILTIN_MESHES = ("sphere", "plane")
+
+SPECTRAL_MODES = ("table", "exact")
+LIGHT_TYPES = ("directional", "point")
+
+#: Supersampling factors above this multiply memory by > 256 per pixel: refused.
+MAX_SSAA = 16
+#: A vector shorter than this has no direction (light direction, camera up).
+MIN_VECTOR_NORM = 1e-12
+
+CAMERA_KEYS = ("eye", "target", "up", "fov_deg", "width", "height")
+OBJECT_KEYS = ("name", "mesh", "translate", "rotate_deg", "scale", "material", "inks",
+               "mask", "substrate", "lobes", "measured")
+SUBSTRATE_KEYS = ("kd", "ks", "shininess")
+LIGHT_KEYS = ("type", "name", "direction", "irradiance", "position", "intensity", "spectrum")
+ENVIRONMENT_KEYS = ("prefiltered",)
+OUTPUT_KEYS = ("exposure", "tonemap", "ssaa", "spectral", "grid_nm", "background")
+TOP_KEYS = ("vars", "camera", "object", "light", "environment", "output")
+
+_VAR = re.compile(r"\$\{([A-Za-z_][A-Za-z0-9_]*)\}")
+
+
+# ------------------------------------------------------------------------ dataclasses --
+
+@dataclass
+class Substrate:
+    """What shows between the ink dots of a print (seed 000 Figures 8–9).
+
+    ``kd``: Lambertian reflectance in [0, 1] (0: the black paper of seed 000);
+    ``ks``: weight of a dim, texture-independent normalised Phong highlight, in [0, 1]
+    (f = kd/π + ks (n + 2)/(2π) max(0, R·V)^n, Phong 1975, seed 000 ref. 27);
+    ``shininess``: its exponent n ≥ 0 (low, e.g. 2–10, as seed 000 uses).
+    """
+
+    kd: float = 0.0
+    ks: float = 0.0
+    shininess: float = 1.0
+
+
+@dataclass
+class SceneObject:
+    """One ``[[object]]``: a mesh, its transform and what it is made of.
+
+    Exactly one of: ``material`` (a gonio.material), ``inks`` (three gonio.material paths,
+    R, G, B) with ``mask`` (an RGB halftone mask image, CONVENTIONS) and ``substrate``, or
+    ``measured`` (a gonio.measurement, interpolated: the reference of seed 000 Figure 5).
+    ``lobes``: gonio.lobes weights for environment light (one path for ``material``,
+    three for ``inks``), or None. ``mesh`` is ``builtin:NAME`` or an absolute OBJ path.
+    """
+
+    index: int
+    mesh: str
+    translate: np.ndarray
+    rotate_deg: np.ndarray
+    scale: np.ndarray
+    name: str = ""
+    material: Path | None = None
+    inks: list[Path] | None = None
+    mask: Path | None = None
+    substrate: Substrate | None = None
+    lobes: Path | list[Path] | None = None
+    measured: Path | None = None
+
+    @property
+    def kind(self) -> str:
+        """"material", "print" or "measured"."""
+        return "print" if self.inks else ("measured" if self.measured else "material")
+
+    @property
+    def is_builtin(self) -> bool:
+        return self.mesh.startswith(BUILTIN_PREFIX)
+
+
+@dataclass
+class Environment:
+    """Prefiltered environment light: a ``gonio prefilter`` index.json (its maps hold
+    linear sRGB radiance; brightness is set by ``[output] exposure``)."""
+
+    prefiltered: Path
+
+
+@dataclass
+class Output:
+    """``exposure``: stops (PNG only, × 2^exposure before the tone map); ``tonemap``: a key
+    of :data:`gonio_cli.render.tonemap.TONEMAPS`; ``ssaa``: supersampling factor per axis;
+    ``spectral``: "table" or "exact"; ``grid_nm``: working grid START:STOP:STEP;
+    ``background``: linear sRGB (3,) of pixels no object covers."""
+
+    exposure: float = 0.0
+    tonemap: str = "filmic"
+    ssaa: int = 2
+    spectral: str = "table"
+    grid_nm: str = "380:780:10"
+    background: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+
+@dataclass
+class Scene:
+    """A validated scene; every path absolute. ``grid_nm``: (n_λ,) the working grid,
+    every light spectrum is on it. ``inputs``: every file the scene reads (provenance)."""
+
+    path: Path
+    camera: Camera
+    objects: list[SceneObject]
+    lights: list[Light]
+    environment: Environment | None
+    output: Output
+    grid_nm: np.ndarray
+    variables: dict[str, str] = field(default_factory=dict)
+    inputs: list[Path] = field(default_factory=list)
+    display: str = ""  # the path as the user gave it, for messages
+
+    @property
+    def needs_uvs(self) -> bool:
+        return any(o.mask is not None for o in self.objects)
+
+
+# ---------------------------------------------------------------------------- checker --
+
+class _Checker:
+    """Type checks that name the file and the key in every message."""
+
+    def __init__(self, path: Path, display: str):
+        self.path = path
+        self.display = display
+        self.base = path.parent
+
+    def error(self, where: str, message: str, fix: str | None = None) -> InputError:
+        return InputError(f"{where}: {message}" if where else message, path=self.display,
+                          fix=fix)
+
+    def table(self, value, where: str) -> dict:
+        if not isinstance(value, dict):
+            raise self.error(where, f"is a {_tname(value)}, expected a table")
+        return value
+
+    def keys(self, table: Mapping, allowed, where: str) -> None:
+        unknown = [k for k in table if k not in allowed]
+        if unknown:
+            raise self.error(where, f"unknown key {unknown[0]!r}",
+                             fix=f"allowed: {', '.join(allowed)}")
+
+    def required(self, table: Mapping, key: str, where: str):
+        if key not in table:
+            raise self.error(where, f"missing key {key!r}")
+        return table[key]
+
+    def number(self, value, where: str, *, lo=None, hi=None, lo_open=False,
+               hi_open=False) -> float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise self.error(where, f"{value!r} is a {_tname(value)}, expected a number")
+        x = float(value)
+        if not math.isfinite(x):
+            raise self.error(where, f"{value!r} is not a finite number")
+        if lo is not None and (x < lo or (lo_open and x == lo)):
+            raise self.error(where, f"{value!r} is below {'or at ' if lo_open else ''}{lo}")
+        if hi is not None and (x > hi or (hi_open and x == hi)):
+            raise self.error(where, f"{value!r} is above {'or at ' if hi_open else ''}{hi}")
+        return x
+
+    def integer(self, value, where: str, *, lo=None, hi=None) -> int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise self.error(where, f"{value!r} is a {_tname(value)}, expected an integer")
+        if (lo is not None and value < lo) or (hi is not None and value > hi):
+            raise self.error(where, f"{value} is outside [{lo}, {hi}]")
+        return int(value)
+
+    def vector(self, value, where: str, n: int = 3, *, nonzero=False) -> np.ndarray:
+        if not isinstance(value, list) or len(value) != n:
+            raise self.error(where, f"{value!r} is not a list of {n} numbers")
+        v = np.array([self.number(x, where) for x in value], dtype=float)
+        if nonzero and np.linalg.norm(v) < MIN_VECTOR_NORM:
+            raise self.error(where, f"{value!r} has no direction (zero length)")
+        return v
+
+    def string(self, value, where: str) -> str:
+        if not isinstance(value, str):
+            raise self.error(where, f"{value!r} is a {_tname(value)}, expected a string")
+        return value
+
+    def choice(self, value, where: str, choices) -> str:
+        s = self.string(value, where)
+        if s not in choices:
+            raise self.error(where, f"{s!r} is unknown", fix=f"use one of {', '.join(choices)}")
+        return s
+
+    def file(self, value, where: str) -> Path:
+        s = self.string(value, where)
+        p = Path(s)
+        p = p if p.is_absolute() else self.base / p
+        if not p.is_file():
+            raise self.error(where, f"no such file {s!r} (looked for {os.path.normpath(p)})",
+                             fix="paths are relative to the scene file")
+        return Path(os.path.normpath(p))
+
+
+def _tname(value) -> str:
+    return {bool: "boolean", int: "integer", float: "number", str: "string", list: "list",
+            dict: "table"}.get(type(value), type(value).__name__)
+
+
+def _substitute(value, variables: Mapping[str, str], chk: _Checker, where: str):
+    """Replace ``${name}`` in every string of a parsed TOML value, recursively."""
+    if isinstance(value, str):
+        def repl(m):
+            if m.group(1) not in variables:
+                raise chk.error(where, f"${{{m.group(1)}}} is not defined",
+                                fix="define it in [vars] or with --var NAME=VALUE")
+            return variables[m.group(1)]
+        return _VAR.sub(repl, value)
+    if isinstance(value, list):
+        return [_substitute(v, variables, chk, f"{where}[{k}]") for k, v in enumerate(value)]
+    if isinstance(value, dict):
+        return {k: _substitute(v, variables, chk, f"{where}.{k}" if where else k)
+                for k, v in value.items()}
+    return value
+
+
+# ------------------------------------------------------------------------------ loader --
+
+def load_scene(path: str | os.PathLike, *, variables: Mapping[str, str] | None = None,
+               overrides: Mapping[str, Any] | None = None) -> Scene:
+    """Read and validate a scene file.
+
+    Parameters
+    ----------
+    path : the TOML file; every relative path in it is relative to its folder.
+    variables : ``${name}`` values that override the scene's ``[vars]`` (``--var``).
+    overrides : command-line settings that replace the file's: ``width``, ``height``
+        (camera), ``ssaa``, ``spectral``, ``exposure``, ``tonemap`` (output); None = keep.
+
+    Raises
+    ------
+    InputError : one line naming the file and the key, for every problem.
+    """
+    display = os.fspath(path)
+    path = Path(path)
+    chk = _Checker(path.resolve(), display)
+    if not path.is_file():
+        raise InputError("no such scene file", path=display, fix="check the path")
+    try:
+        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"not valid TOML: {exc}", path=display) from None
+    except UnicodeDecodeError:
+        raise InputError("not a UTF-8 text file", path=display) from None
+    chk.keys(doc, TOP_KEYS, "")
+
+    defaults = chk.table(doc.get("vars", {}), "[vars]")
+    merged = {}
+    for k, v in defaults.items():
+        merged[k] = chk.string(v, f"[vars] {k}")
+    merged.update(variables or {})
+    doc = _substitute({k: v for k, v in doc.items() if k != "vars"}, merged, chk, "")
+    overrides = {k: v for k, v in (overrides or {}).items() if v is not None}
+
+    camera = _camera(chk, doc, overrides)
+    output = _output(chk, doc, overrides)
+    from ..spectra import parse_grid
+
+    try:
+        grid = parse_grid(output.grid_nm)
+    except InputError as exc:
+        raise chk.error("[output] grid_nm", exc.message, exc.fix) from None
+
+    objects_raw = doc.get("object")
+    if objects_raw is None:
+        raise chk.error("", "no [[object]]", fix="add at least one [[object]] with a mesh")
+    if not isinstance(objects_raw, list):
+        raise chk.error("object", "is a table, expected [[object]] (an array of tables)")
+    objects = [_object(chk, o, k + 1) for k, o in enumerate(objects_raw)]
+
+    lights_raw = doc.get("light", [])
+    if not isinstance(lights_raw, list):
+        raise chk.error("light", "is a table, expected [[light]] (an array of tables)")
+    lights = [_light(chk, l, k + 1, grid) for k, l in enumerate(lights_raw)]
+
+    environment = None
+    if "environment" in doc:
+        env = chk.table(doc["environment"], "[environment]")
+        chk.keys(env, ENVIRONMENT_KEYS, "[environment]")
+        environment = Environment(
+            chk.file(chk.required(env, "prefiltered", "[environment]"),
+                     "[environment] prefiltered"))
+    if not lights and environment is None:
+        raise chk.error("", "no [[light]] and no [environment]: the picture would be black",
+                        fix="add a [[light]] or an [environment]")
+
+    inputs = [chk.path]
+    for o in objects:
+        if not o.is_builtin:
+            inputs.append(Path(o.mesh))
+        for p in (o.material, o.mask, o.measured, *(o.inks or [])):
+            if p is not None:
+                inputs.append(p)
+        if o.lobes is not None:
+            inputs += o.lobes if isinstance(o.lobes, list) else [o.lobes]
+    if environment is not None:
+        inputs.append(environment.prefiltered)
+    for l in lights_raw:
+        s = l.get("spectrum")
+        if isinstance(s, str) and s.lower().endswith(".csv"):
+            inputs.append(chk.file(s, "spectrum"))
+    return Scene(chk.path, camera, objects, lights, environment, output, grid,
+                 dict(merged), list(dict.fromkeys(inputs)), display)
+
+
+def _camera(chk: _Checker, doc, overrides) -> Camera:
+    where = "[camera]"
+    cam = chk.table(chk.required(doc, "camera", ""), where)
+    chk.keys(cam, CAMERA_KEYS, where)
+    eye = chk.vector(chk.required(cam, "eye", where), f"{where} eye")
+    target = chk.vector(chk.required(cam, "target", where), f"{where} target")
+    up = chk.vector(cam.get("up", [0.0, 1.0, 0.0]), f"{where} up", nonzero=True)
+    fov = chk.number(chk.required(cam, "fov_deg", where), f"{where} fov_deg", lo=0.0,
+                     hi=180.0, lo_open=True, hi_open=True)
+    size = {}
+    for key in ("width", "height"):
+        if key in overrides:
+            size[key] = chk.integer(overrides[key], f"--{key}", lo=1, hi=16384)
+        else:
+            size[key] = chk.integer(chk.required(cam, key, where), f"{where} {key}",
+                                    lo=1, hi=16384)
+    forward = target - eye
+    if np.linalg.norm(forward) < MIN_VECTOR_NORM:
+        raise chk.error(f"{where} target", "equals eye: the camera looks nowhere")
+    if np.linalg.norm(np.cross(forward, up)) < MIN_VECTOR_NORM * np.linalg.norm(forward):
+        raise chk.error(f"{where} up", f"{up.tolist()} is parallel to the view direction",
+                        fix="choose an up vector not along target - eye")
+    return Camera(eye, target, up, fov, size["width"], size["height"])
+
+
+def _output(chk: _Checker, doc, overrides) -> Output:
+    from .tonemap import TONEMAPS
+
+    where = "[output]"
+    out = chk.table(doc.get("output", {}), where)
+    chk.keys(out, OUTPUT_KEYS, where)
+    d = Output()
+    src = {**out, **{k: v for k, v in overrides.items() if k in OUTPUT_KEYS}}
+    label = lambda k: f"--{k}" if k in overrides else f"{where} {k}"  # noqa: E731
+    return Output(
+        exposure=chk.number(src.get("exposure", d.exposure), label("exposure")),
+        tonemap=chk.choice(src.get("tonemap", d.tonemap), label("tonemap"), tuple(TONEMAPS)),
+        ssaa=chk.integer(src.get("ssaa", d.ssaa), label("ssaa"), lo=1, hi=MAX_SSAA),
+        spectral=chk.choice(src.get("spectral", d.spectral), label("spectral"), SPECTRAL_MODES),
+        grid_nm=chk.string(src.get("grid_nm", d.grid_nm), label("grid_nm")),
+        background=(chk.vector(out["background"], f"{where} background")
+                    if "background" in out else d.background))
+
+
+def _object(chk: _Checker, raw, number: int) -> SceneObject:
+    where = f"[[object]] {number}"
+    o = chk.table(raw, where)
+    chk.keys(o, OBJECT_KEYS, where)
+    mesh = chk.string(chk.required(o, "mesh", where), f"{where} mesh")
+    if mesh.startswith(BUILTIN_PREFIX):
+        if mesh[len(BUILTIN_PREFIX):].partition("?")[0] not in BUILTIN_MESHES:
+            raise chk.error(f"{where} mesh", f"{mesh!r} is not a built-in mesh",
+                            fix="use " + ", ".join(BUILTIN_PREFIX + m for m in BUILTIN_MESHES)
+                            + " or an OBJ file")
+    else:
+        mesh = os.fspath(chk.file(mesh, f"{where} mesh"))
+    scale = o.get("scale", 1.0)
+    if isinstance(scale, list):
+        scale = chk.vector(scale, f"{where} scale")
+    else:
+        scale = np.full(3, chk.number(scale, f"{where} scale"))
+    if np.any(scale == 0.0):
+        raise chk.error(f"{where} scale", "is zero: the object would be flat or a point")
+    obj = SceneObject(
+        number - 1, mesh,
+        chk.vector(o.get("translate", [0.0, 0.0, 0.0]), f"{where} translate"),
+        chk.vector(o.get("rotate_deg", [0.0, 0.0, 0.0]), f"{where} rotate_deg"),
+        scale, name=chk.string(o.get("name", f"object{number}"), f"{where} name"))
+
+    kinds = [k for k in ("material", "inks", "measured") if k in o]
+    if len(kinds) != 1:
+        raise chk.error(where, ("needs one of" if not kinds else "has more than one of")
+                        + " material, inks (with mask) or measured",
+                        fix="a plain object names a material, a print names inks and a mask")
+    if "material" in o:
+        obj.material = chk.file(o["material"], f"{where} material")
+    elif "measured" in o:
+        obj.measured = chk.file(o["measured"], f"{where} measured")
+    else:
+        inks = o["inks"]
+        if not isinstance(inks, list) or len(inks) != 3:
+            raise chk.error(f"{where} inks", f"{inks!r} is not a list of 3 material paths "
+                            "(R, G, B)")
+        obj.inks = [chk.file(p, f"{where} inks[{k}]") for k, p in enumerate(inks)]
+        obj.mask = chk.file(chk.required(o, "mask", where), f"{where} mask")
+        sub = chk.table(o.get("substrate", {}), f"{where} substrate")
+        chk.keys(sub, SUBSTRATE_KEYS, f"{where} substrate")
+        obj.substrate = Substrate(
+            chk.number(sub.get("kd", 0.0), f"{where} substrate.kd", lo=0.0, hi=1.0),
+            chk.number(sub.get("ks", 0.0), f"{where} substrate.ks", lo=0.0, hi=1.0),
+            chk.number(sub.get("shininess", 1.0), f"{where} substrate.shininess", lo=0.0))
+    for key in ("mask", "substrate"):
+        if key in o and obj.inks is None:
+            raise chk.error(f"{where} {key}", "belongs to a printed object (with inks)")
+    if "lobes" in o:
+        lobes = o["lobes"]
+        if obj.inks is not None:
+            if not isinstance(lobes, list) or len(lobes) != 3:
+                raise chk.error(f"{where} lobes", "a printed object needs 3 lobes files "
+                                "(one per ink)")
+            obj.lobes = [chk.file(p, f"{where} lobes[{k}]") for k, p in enumerate(lobes)]
+        elif obj.material is not None:
+            obj.lobes = chk.file(lobes, f"{where} lobes")
+        else:
+            raise chk.error(f"{where} lobes", "a measured object has no lobes")
+    return obj
+
+
+def _light(chk: _Checker, raw, number: int, grid: np.ndarray) -> Light:
+    where = f"[[light]] {number}"
+    l = chk.table(raw, where)
+    chk.keys(l, LIGHT_KEYS, where)
+    kind = chk.choice(chk.required(l, "type", where), f"{where} type", LIGHT_TYPES)
+    needs = {"directional": ("direction", "irradiance"), "point": ("position", "intensity")}
+    for other in needs["point" if kind == "directional" else "directional"]:
+        if other in l:
+            raise chk.error(f"{where} {other}", f"is not a key of a {kind} light",
+                            fix=f"a {kind} light has {' and '.join(needs[kind])}")
+    spectrum = light_spectrum(chk, l.get("spectrum", "D65"), f"{where} spectrum", grid)
+    name = chk.string(l.get("name", f"light{number}"), f"{where} name")
+    if kind == "directional":
+        d = chk.vector(chk.required(l, "direction", where), f"{where} direction", nonzero=True)
+        return Light("directional", spectrum, direction=d / np.linalg.norm(d),
+                     irradiance=chk.number(chk.required(l, "irradiance", where),
+                                           f"{where} irradiance", lo=0.0), name=name)
+    return Light("point", spectrum,
+                 position=chk.vector(chk.required(l, "position", where), f"{where} position"),
+                 intensity=chk.number(chk.required(l, "intensity", where),
+                                      f"{where} intensity", lo=0.0), name=name)
+
+
+def light_spectrum(chk: _Checker, value, where: str, grid: np.ndarray) -> np.ndarray:
+    """A light spectrum S (n_λ,) on ``grid``, Σ S ȳ / Σ ȳ = 1: a CIE illuminant name or a
+    CSV ``wavelength_nm,value`` (relative to the scene file)."""
+    from ..spectra import cmfs, covers, illuminant, illuminant_names, resample, same_grid
+
+    s = chk.string(value, where)
+    if not s.lower().endswith(".csv"):
+        if s not in illuminant_names():
+            raise chk.error(where, f"{s!r} is neither a CIE illuminant nor a .csv file",
+                            fix="use e.g. D65, A, FL2 (colour-science names) or a CSV "
+                                "wavelength_nm,value")
+        return illuminant(s, grid)
+    path = chk.file(s, where)
+    try:
+        data = np.genfromtxt(path, delimiter=",", names=True, dtype=float)
+    except ValueError as exc:
+        raise chk.error(where, f"{s}: cannot read it as CSV ({exc})") from None
+    names = data.dtype.names or ()
+    if names != ("wavelength_nm", "value"):
+        raise chk.error(where, f"{s}: header is {','.join(names)!r}, expected "
+                        "'wavelength_nm,value'")
+    w = np.atleast_1d(data["wavelength_nm"])
+    v = np.atleast_1d(data["value"])
+    if not (np.all(np.isfinite(w)) and np.all(np.isfinite(v))):
+        raise chk.error(where, f"{s}: holds a non-numeric, NaN or inf value")
+    if w.size < 2 or not np.all(np.diff(w) > 0):
+        raise chk.error(where, f"{s}: wavelength_nm must increase, with at least 2 rows")
+    if np.any(v < 0):
+        raise chk.error(where, f"{s}: holds a negative value")
+    if not covers(w, grid):
+        raise chk.error(where, f"{s}: covers {w.min():g}-{w.max():g} nm, not the working "
+                        f"grid {grid[0]:g}-{grid[-1]:g} nm",
+                        fix="extend the CSV or choose [output] grid_nm")
+    if not same_grid(w, grid):
+        from .. import log
+
+        log.warn(f"{path}: light spectrum resampled from {w.size} wavelengths onto the "
+                 f"working grid ({grid.size} samples)")
+    spec = resample(w, v, grid)
+    ybar = cmfs(grid)[:, 1]
+    y = float(spec @ ybar)
+    if not y > 0:
+        raise chk.error(where, f"{s}: has no visible power (Σ S ȳ = 0)")
+    return spec * ybar.sum() / y

@@ -1,0 +1,32 @@
+# render: the soft proofs (seed 000 Figures 5 and 7) and the car paint under the sky
+# (seed 001). Scenes are templates in sample_data/scenes/; ${out} points them at OUT.
+# Included by the top Makefile after the other pipelines (GONIO, OUT, STAMP, INKS,
+# RGBINK, CARPAINT, LOBES, SKY).
+
+RENDER := $(OUT)/render
+SCENES := sample_data/scenes
+RENDER_VARS := --var out=$(abspath $(OUT))
+RENDER_TARGETS := $(RENDER)/figure5.png $(RENDER)/print-D65.png $(RENDER)/print-A.png \
+                  $(RENDER)/paint_env.png
+
+.PHONY: render
+render: $(RENDER_TARGETS)
+
+# Figure 5: each ink as measured (reference), fitted by eq. 5 and by the standard model.
+$(RENDER)/figure5.png: $(SCENES)/figure5.toml \
+  $(foreach i,$(INKS),$(RGBINK)/$(i).measurement.json $(RGBINK)/$(i).material.json \
+                      $(RGBINK)/$(i).torrance-sparrow.material.json)
+	$(GONIO) render $< -o $@ --exr $(RENDER)/figure5.exr --report $(RENDER)/figure5.json \
+	  $(RENDER_VARS)
+
+# Figure 7: the halftoned print on a curved sheet under D65 and under A.
+$(RENDER)/print-%.png: $(SCENES)/print.toml $(SCENES)/sheet.obj $(RGBINK)/print.png \
+  $(foreach i,$(INKS),$(RGBINK)/$(i).material.json)
+	$(GONIO) render $< -o $@ --exr $(RENDER)/print-$*.exr --report $(RENDER)/print-$*.json \
+	  $(RENDER_VARS) --var illuminant=$*
+
+# The car paint under the prefiltered sky with its lobe weights (seed 001 eqs. 7–9).
+$(RENDER)/paint_env.png: $(SCENES)/paint_env.toml $(CARPAINT)/paint.material.json \
+  $(LOBES)/paint.lobes.json $(SKY)/index.json
+	$(GONIO) render $< -o $@ --exr $(RENDER)/paint_env.exr --report $(RENDER)/paint_env.json \
+	  $(RENDER_VARS)

@@ -1,0 +1,219 @@
+"""``gonio render`` from the command line: PNG 8-bit, EXR linear with metadata, the run
+report, options, and input errors (one stderr line, exit 2, nothing written)."""
+
+from __future__ import annotations
+
+import json
+import textwrap
+
+import numpy as np
+import pytest
+
+from gonio_cli.imageio import read_image
+from gonio_cli.schemas import Material, write_material
+from gonio_cli.spectra import parse_grid
+
+GRID = parse_grid()
+
+SCENE = """
+[camera]
+eye = [0.0, 0.0, 4.0]
+target = [0.0, 0.0, 0.0]
+up = [0.0, 1.0, 0.0]
+fov_deg = 35.0
+width = 48
+height = 32
+
+[[object]]
+mesh = "builtin:sphere?segments=48"
+material = "red.json"
+
+[[light]]
+type = "directional"
+direction = [1.0, 1.0, 1.0]
+irradiance = 3.0
+spectrum = "D65"
+
+[[light]]
+type = "point"
+position = [-2.0, 0.0, 2.0]
+intensity = 8.0
+spectrum = "A"
+
+[output]
+ssaa = 2
+tonemap = "reinhard"
+exposure = 1.0
+"""
+
+
+@pytest.fixture
+def scene(tmp_path):
+    n = GRID.size
+    write_material(tmp_path / "red.json", Material(
+        "goniochromatic", GRID, {"alpha": 0.2, "rho": np.linspace(0.02, 0.3, n),
+                                 "c": np.linspace(5.0, 0.4, n)}))
+    path = tmp_path / "scene.toml"
+    path.write_text(textwrap.dedent(SCENE))
+    return path
+
+
+def test_png_exr_and_report(run_gonio, scene, tmp_path):
+    png, exr, rep = tmp_path / "o.png", tmp_path / "o.exr", tmp_path / "run.json"
+    r = run_gonio("render", scene, "-o", png, "--exr", exr, "--report", rep)
+    assert r.exit_code == 0, r.stderr
+    assert r.stdout == ""
+    # PNG: 8-bit sRGB, the camera's size
+    img = read_image(png)
+    assert img.format == "uint8" and img.pixels.shape == (32, 48, 3)
+    # EXR: float32 scene-linear sRGB, before exposure; settings and time in metadata
+    lin = read_image(exr)
+    assert lin.format == "float" and lin.pixels.shape == (32, 48, 3)
+    assert lin.pixels.max() > 0 and np.all(np.isfinite(lin.pixels))
+    meta = lin.metadata
+    assert meta["schema"] == "gonio.render" and float(meta["render_time_s"]) > 0
+    settings = json.loads(meta["settings"])
+    assert settings["ssaa"] == 2 and settings["spectral"] == "table"
+    assert settings["exposure"] == 1.0 and settings["tonemap"] == "reinhard"
+    assert settings["camera"]["width"] == 48 and settings["camera"]["fov_deg"] == 35.0
+    # the PNG is the EXR after +1 stop, Reinhard and sRGB encoding (same pixels)
+    from gonio_cli.render.tonemap import display
+
+    expected = display(lin.pixels, 1.0, "reinhard")
+    assert np.abs(np.round(img.pixels * 255).astype(int) - expected).max() <= 1
+    # report: each stage that ran, with time_s; the total covers them
+    doc = json.loads(rep.read_text())
+    assert doc["schema"] == "gonio.render-report" and doc["schema_version"] == 1
+    stages = [s["stage"] for s in doc["stages"]]
+    assert stages == ["scene", "meshes", "materials", "rasterize", "shade", "downsample",
+                      "tonemap", "write_exr", "write_png"]
+    assert "textures" not in stages and "environment" not in stages  # not needed here
+    assert all(s["time_s"] >= 0 for s in doc["stages"])
+    assert doc["time_s"] >= sum(s["time_s"] for s in doc["stages"])
+    assert doc["frame_time_s"] == pytest.approx(sum(
+        s["time_s"] for s in doc["stages"] if s["stage"] in doc["frame_stages"]))
+    assert {i["path"] for i in doc["inputs"]} == {str(scene), str(tmp_path / "red.json")}
+    assert all(len(i["sha256"]) == 64 for i in doc["inputs"])
+    assert doc["counts"]["shade"]["spectral"] == "table"
+    assert doc["outputs"] == {"png": str(png), "exr": str(exr)}
+    assert "frame" in r.stderr and "total" in r.stderr
+
+
+def test_overrides_size_ssaa_spectral(run_gonio, scene, tmp_path):
+    png, exr, rep = tmp_path / "o.png", tmp_path / "o.exr", tmp_path / "run.json"
+    r = run_gonio("render", scene, "-o", png, "--exr", exr, "--report", rep, "--width", 20,
+                  "--height", 10, "--ssaa", 1, "--spectral", "exact", "--tonemap", "clip",
+                  "--exposure", 0)
+    assert r.exit_code == 0, r.stderr
+    assert read_image(png).pixels.shape == (10, 20, 3)
+    doc = json.loads(rep.read_text())
+    assert doc["parameters"]["ssaa"] == 1 and doc["parameters"]["spectral"] == "exact"
+    assert doc["counts"]["shade"]["spectral"] == "exact"
+    assert not any(n.startswith(".") for n in (p.name for p in tmp_path.iterdir()))
+
+
+def test_table_and_exact_paths_agree(run_gonio, scene, tmp_path):
+    """The tabulated spectral sum is an interpolation of the exact one (1e-5 relative)."""
+    for mode in ("table", "exact"):
+        r = run_gonio("render", scene, "-o", tmp_path / f"{mode}.png", "--exr",
+                      tmp_path / f"{mode}.exr", "--spectral", mode)
+        assert r.exit_code == 0, r.stderr
+    a = read_image(tmp_path / "table.exr").pixels
+    b = read_image(tmp_path / "exact.exr").pixels
+    # table interpolation 1e-5 relative; float32 storage 6e-8
+    np.testing.assert_allclose(a, b, rtol=1e-4, atol=1e-7)
+
+
+def test_mask_on_a_mesh_without_uvs_is_one_line(run_gonio, scene, tmp_path):
+    obj = tmp_path / "tri.obj"
+    obj.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    (tmp_path / "mask.png").write_bytes(b"")
+    text = textwrap.dedent(SCENE).replace(
+        'mesh = "builtin:sphere?segments=48"\nmaterial = "red.json"',
+        'mesh = "tri.obj"\ninks = ["red.json", "red.json", "red.json"]\nmask = "mask.png"')
+    bad = tmp_path / "print.toml"
+    bad.write_text(text)
+    before = set(tmp_path.iterdir())
+    r = run_gonio("render", bad, "-o", tmp_path / "o.png", "--exr", tmp_path / "o.exr",
+                  "--report", tmp_path / "r.json")
+    assert r.exit_code == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "texture coordinates" in lines[0] and "mask" in lines[0]
+    assert set(tmp_path.iterdir()) == before
+
+
+def test_broken_material_file_is_one_line(run_gonio, scene, tmp_path):
+    (tmp_path / "red.json").write_text("{not json")
+    r = run_gonio("render", scene, "-o", tmp_path / "o.png")
+    assert r.exit_code == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "red.json" in lines[0] and "JSON" in lines[0]
+    assert not (tmp_path / "o.png").exists()
+
+
+def test_nan_in_a_material_is_refused(run_gonio, scene, tmp_path):
+    doc = json.loads((tmp_path / "red.json").read_text())
+    doc["rho"][3] = "NaN"
+    (tmp_path / "red.json").write_text(json.dumps(doc).replace('"NaN"', "NaN"))
+    r = run_gonio("render", scene, "-o", tmp_path / "o.png")
+    assert r.exit_code == 2 and "red.json" in r.stderr and "NaN" in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1
+
+
+def test_environment_without_lobes_is_one_line(run_gonio, scene, tmp_path):
+    from gonio_cli.artifact import write_artifact
+    from gonio_cli.imageio import write_exr
+
+    sky = tmp_path / "sky"
+    sky.mkdir()
+    write_exr(sky / "e1.exr", np.ones((4, 8, 3), np.float32))
+    write_artifact(sky / "index.json", "gonio.prefilter", 1,
+                   {"diffuse": "e1.exr", "maps": [{"exponent": 1.0, "path": "e1.exr",
+                                                   "width": 8, "height": 4}]})
+    scene.write_text(scene.read_text() + '\n[environment]\nprefiltered = "sky/index.json"\n')
+    r = run_gonio("render", scene, "-o", tmp_path / "o.png")
+    assert r.exit_code == 2, r.stderr
+    line = r.stderr.strip()
+    assert "\n" not in line and "lobes" in line and "[[object]] 1" in line
+    assert not (tmp_path / "o.png").exists()
+
+
+def test_help_and_tonemap_names_match_the_registry(run_gonio):
+    from gonio_cli.commands import render as shell
+    from gonio_cli.render.shade import SPECTRAL_PATHS
+    from gonio_cli.render.tonemap import TONEMAPS
+
+    assert shell.TONEMAP_NAMES == tuple(TONEMAPS) and shell.SPECTRAL == SPECTRAL_PATHS
+    r = run_gonio("render", "--help")
+    assert r.exit_code == 0 and "--exr" in r.stdout and "--report" in r.stdout
+
+
+def test_other_grid_resamples_the_material_with_a_warning(run_gonio, scene, tmp_path):
+    scene.write_text(scene.read_text().replace('exposure = 1.0',
+                                               'exposure = 1.0\ngrid_nm = "400:700:5"'))
+    r = run_gonio("render", scene, "-o", tmp_path / "o.png", "--report", tmp_path / "r.json")
+    assert r.exit_code == 0, r.stderr
+    assert "red.json: material resampled from 41 wavelengths" in r.stderr
+    assert json.loads((tmp_path / "r.json").read_text())["parameters"]["grid_nm"] == "400:700:5"
+
+
+def test_nan_samples_from_shading_are_counted_and_blacked(run_gonio, scene, tmp_path,
+                                                          monkeypatch):
+    """A shading NaN (a bug upstream, or a degenerate input that slipped through) never
+    reaches the files: it is set to black with one warning that counts it."""
+    from gonio_cli.render import shade as shade_module
+
+    real = shade_module.shade
+
+    def nan_shade(*args, **kwargs):
+        out = real(*args, **kwargs)
+        out[3, 5:9] = np.nan
+        return out
+
+    monkeypatch.setattr(shade_module, "shade", nan_shade)
+    rep, exr = tmp_path / "r.json", tmp_path / "o.exr"
+    r = run_gonio("render", scene, "-o", tmp_path / "o.png", "--exr", exr, "--report", rep)
+    assert r.exit_code == 0, r.stderr
+    assert "4 sample(s) shaded to NaN or inf were set to black" in r.stderr
+    assert json.loads(rep.read_text())["counts"]["nonfinite_samples"] == 4
+    assert np.all(np.isfinite(read_image(exr).pixels))

@@ -1,0 +1,315 @@
+"""The batched z-buffer rasterizer against closed forms (silhouettes, ray–plane hits)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from gonio_cli.render import Camera, Mesh
+from gonio_cli.render import mesh as M
+from gonio_cli.render import raster as R
+
+
+def camera(eye=(0, 0, 4.0), target=(0, 0, 0), up=(0, 1, 0), fov=35.0, w=96, h=96):
+    return Camera(np.asarray(eye, float), np.asarray(target, float), np.asarray(up, float),
+                  fov, w, h)
+
+
+def sphere_silhouette_area_px(cam, centre, radius=1.0, ssaa=1):
+    """Exact image area (px²) of a sphere's perspective silhouette: an ellipse.
+
+    The silhouette is the cone from the eye with half-angle α = asin(ρ / L) around the
+    direction to the centre, at angle β to the optical axis; its section by the image
+    plane at focal distance F has semi-axes F sinα cosα / (cos²β − sin²α) and
+    F sinα / √(cos²β − sin²α).
+    """
+    eye, r, u, f = R.camera_basis(cam)
+    to_c = np.asarray(centre, float) - eye
+    L = np.linalg.norm(to_c)
+    sin_a = radius / L
+    cos_a = np.sqrt(1 - sin_a**2)
+    cos_b = to_c @ f / L
+    k = cos_b**2 - sin_a**2
+    F = R.focal_px(cam, ssaa)
+    return np.pi * F**2 * (sin_a * cos_a / k) * (sin_a / np.sqrt(k))
+
+
+def ray_plane_hits(cam, ssaa, point, normal):
+    """World hit points (H, W, 3) of every pixel's ray with a plane, and ray lengths t."""
+    eye = np.asarray(cam.eye, float)
+    d = R.pixel_rays(cam, ssaa)
+    t = ((np.asarray(point) - eye) @ normal) / (d @ normal)
+    return eye + t[..., None] * d, t
+
+
+# ----------------------------------------------------------------------------- coverage
+
+@pytest.mark.parametrize("centre", [(0, 0, 0), (0.5, -0.3, 0.3)])
+def test_sphere_silhouette_area_matches_the_projected_ellipse(centre):
+    cam = camera(w=240, h=160, fov=50.0)
+    rings = 128
+    sphere = M.transform(M.uv_sphere(2 * rings, rings), translate=centre)
+    gb = R.rasterize(cam, [sphere])
+    border = np.r_[gb.covered[[0, -1]].ravel(), gb.covered[:, [0, -1]].ravel()]
+    assert not border.any()                               # the whole outline is in frame
+    exact = sphere_silhouette_area_px(cam, centre)
+    # an inscribed polygonal silhouette loses ≤ 2(1 − cos(π / rings)) of the area
+    # (6e-4 here); pixel counting along a ~400 px outline adds ~√400 px of noise
+    tessellation = 2 * (1 - np.cos(np.pi / rings))
+    pixels = 3 * np.sqrt(2 * np.sqrt(np.pi * exact)) / exact
+    assert abs(gb.covered.sum() / exact - 1) < tessellation + pixels
+
+
+def test_sphere_has_no_holes_inside_its_silhouette():
+    cam = camera(w=128, h=128)
+    gb = R.rasterize(cam, [M.uv_sphere(64, 32)])
+    F = R.focal_px(cam)
+    radius = F * np.tan(np.arcsin(1 / 4.0)) * np.cos(np.pi / 32)   # inscribed polygon
+    yy, xx = np.mgrid[0:128, 0:128] + 0.5
+    inner = np.hypot(xx - 64, yy - 64) < radius - 1.0
+    assert gb.covered[inner].all()
+    assert not gb.covered[np.hypot(xx - 64, yy - 64) > F * np.tan(np.arcsin(0.25)) + 1].any()
+
+
+def test_background_is_minus_one_and_zeros():
+    gb = R.rasterize(camera(w=40, h=30), [M.transform(M.uv_sphere(16, 8), scale=0.5)])
+    bg = ~gb.covered
+    assert bg.any() and gb.covered.any()
+    assert np.all(gb.object_id[bg] == -1)
+    for a in (gb.position, gb.normal, gb.view, gb.uv):
+        assert np.all(a[bg] == 0) and np.isfinite(a).all()
+    assert np.all(gb.uv_footprint[bg] == 0)
+    assert gb.object_id.shape == (30, 40) and gb.position.shape == (30, 40, 3)
+
+
+def test_nothing_to_draw_gives_an_empty_buffer():
+    cam = camera(w=8, h=6)
+    behind = M.transform(M.uv_sphere(8, 4), translate=(0, 0, 10))   # behind the eye
+    for meshes in ([], [behind]):
+        gb = R.rasterize(cam, meshes, ssaa=2)
+        assert gb.object_id.shape == (12, 16) and not gb.covered.any()
+
+
+# ----------------------------------------------------------------------------- depth
+
+def triangle(z, colour_id=0):
+    """A big triangle facing +z at height z (front towards a camera on +z)."""
+    v = np.array([[-2.0, -2.0, z], [2.0, -2.0, z], [0.0, 2.0, z]])
+    return Mesh(v, np.array([[0, 1, 2]]), np.tile([0.0, 0.0, 1.0], (3, 1)))
+
+
+@pytest.mark.parametrize("order", [(0, 1), (1, 0)])
+def test_nearer_triangle_wins_whatever_the_order(order):
+    near, far = triangle(0.5), Mesh(*(lambda t: (t.vertices * [1, -1, 1] + [0, 0, -1.0],
+                                                t.faces[:, ::-1], t.normals))(triangle(0.0)))
+    meshes = [near, far]
+    gb = R.rasterize(camera(w=64, h=64), [meshes[i] for i in order])
+    both = gb.covered
+    z = gb.position[..., 2]
+    # where both cover a pixel the one at z = 0.5 is seen; elsewhere the far one at z = −1
+    near_id = order.index(0)
+    seen_near = gb.object_id == near_id
+    assert seen_near.sum() > 100 and (both & ~seen_near).sum() > 100
+    np.testing.assert_allclose(z[seen_near], 0.5, atol=1e-12)
+    np.testing.assert_allclose(z[both & ~seen_near], -1.0, atol=1e-12)
+    # every pixel the near triangle covers on its own shows it
+    alone = R.rasterize(camera(w=64, h=64), [near]).covered
+    assert np.array_equal(alone, seen_near)
+
+
+# ----------------------------------------------------------------------------- interpolation
+
+def tilted_plane():
+    """builtin:plane turned 60° about x and moved back: seen at a steep angle."""
+    return M.transform(M.load_mesh("builtin:plane?segments=2"), translate=(0.2, -0.3, -1.0),
+                       rotate_deg=(-60.0, 10.0, 0.0), scale=(1.5, 1.0, 1.0))
+
+
+def plane_frame():
+    r = M.rotation_matrix((-60.0, 10.0, 0.0))
+    origin = np.array([0.2, -0.3, -1.0])
+    return origin, r, np.array([1.5, 1.0, 1.0])
+
+
+@pytest.mark.parametrize("ssaa", [1, 2])
+def test_perspective_correct_uv_and_position_on_a_tilted_plane(ssaa):
+    cam = camera(eye=(0.3, 0.8, 3.0), target=(0, -0.2, -1), w=64, h=48, fov=50.0)
+    gb = R.rasterize(cam, [tilted_plane()], ssaa=ssaa)
+    origin, rot, scale = plane_frame()
+    hit, t = ray_plane_hits(cam, ssaa, origin, rot[:, 2])
+    local = ((hit - origin) @ rot) / scale                 # plane coordinates in [−1, 1]²
+    inside = (np.abs(local[..., 0]) <= 1) & (np.abs(local[..., 1]) <= 1) & (t > 0)
+    cov = gb.covered
+    assert cov.sum() > 500 * ssaa**2
+    # coverage equals the exact ray–square test except on the outline's pixels
+    assert (cov != inside).sum() <= 2 * (gb.object_id.shape[0] + gb.object_id.shape[1])
+    both = cov & inside
+    np.testing.assert_allclose(gb.position[both], hit[both], atol=1e-9)
+    np.testing.assert_allclose(gb.uv[both], (local[both][:, :2] + 1) / 2, atol=1e-9)
+    np.testing.assert_allclose(gb.normal[both], np.broadcast_to(rot[:, 2], (both.sum(), 3)),
+                               atol=1e-12)
+    to_eye = cam.eye - hit[both]
+    np.testing.assert_allclose(gb.view[both],
+                               to_eye / np.linalg.norm(to_eye, axis=-1, keepdims=True),
+                               atol=1e-12)
+
+
+def test_uv_footprint_matches_finite_differences_of_exact_uvs():
+    cam = camera(eye=(0.3, 0.8, 3.0), target=(0, -0.2, -1), w=64, h=48, fov=50.0)
+    gb = R.rasterize(cam, [tilted_plane()])
+    origin, rot, scale = plane_frame()
+    hit, _ = ray_plane_hits(cam, 1, origin, rot[:, 2])
+    uv = (((hit - origin) @ rot) / scale)[..., :2] / 2
+    # central differences of the exact uv along rows and columns (second-order accurate)
+    du_x = (uv[1:-1, 2:] - uv[1:-1, :-2]) / 2
+    du_y = (uv[2:, 1:-1] - uv[:-2, 1:-1]) / 2
+    expect = np.maximum(np.linalg.norm(du_x, axis=-1), np.linalg.norm(du_y, axis=-1))
+    inner = gb.covered[1:-1, 1:-1] & gb.covered[2:, 1:-1] & gb.covered[:-2, 1:-1] \
+        & gb.covered[1:-1, 2:] & gb.covered[1:-1, :-2]
+    got = gb.uv_footprint[1:-1, 1:-1][inner]
+    # the perspective map's curvature over one pixel: relative error ~ (pixel / depth)²
+    np.testing.assert_allclose(got, expect[inner], rtol=2e-3)
+    assert got.min() > 0
+
+
+def test_sphere_normals_and_positions_match_the_analytic_sphere():
+    centre = np.array([0.2, -0.1, 0.5])
+    cam = camera(w=80, h=80)
+    S = 48
+    sphere = M.transform(M.uv_sphere(S, S // 2), translate=centre)
+    gb = R.rasterize(cam, [sphere])
+    cov = gb.covered
+    rel = gb.position[cov] - centre
+    radius = np.linalg.norm(rel, axis=-1)
+    # points lie on the inscribed polyhedron: between the sphere and its chords' depth
+    assert radius.max() <= 1 + 1e-12 and radius.min() >= np.cos(2 * np.pi / S) - 1e-12
+    # linear interpolation of vertex normals n_k = p_k − c gives exactly p − c, so the
+    # normalised normal is the radial direction up to round-off
+    np.testing.assert_allclose(gb.normal[cov], rel / radius[:, None], atol=1e-9)
+    assert np.all(np.einsum("ij,ij->i", gb.normal[cov], gb.view[cov]) > -1e-9)
+
+
+def test_ellipsoid_normals_within_tessellation_tolerance():
+    cam = camera(w=80, h=80, eye=(0, 0, 6.0))
+    S = 96
+    e = M.transform(M.uv_sphere(S, S // 2), scale=(2.0, 1.0, 1.0), rotate_deg=(0, 30, 0))
+    gb = R.rasterize(cam, [e])
+    cov = gb.covered
+    r = M.rotation_matrix((0, 30, 0))
+    local = gb.position[cov] @ r
+    grad = (local / np.array([4.0, 1.0, 1.0])) @ r.T
+    grad /= np.linalg.norm(grad, axis=-1, keepdims=True)
+    angle = np.arccos(np.clip(np.einsum("ij,ij->i", grad, gb.normal[cov]), -1, 1))
+    # the normal turns by ≤ 2 · 2π / S across a triangle on this 2:1 ellipsoid, and the
+    # interpolated normal errs by a fraction of that
+    assert angle.max() < 2 * 2 * np.pi / S
+
+
+def test_back_faces_are_flipped_towards_the_viewer():
+    plane = M.load_mesh("builtin:plane")
+    front = R.rasterize(camera(eye=(0.1, 0.2, 3.0), w=32, h=32), [plane])
+    back = R.rasterize(camera(eye=(0.1, 0.2, -3.0), w=32, h=32), [plane])
+    assert front.covered.sum() > 200 and back.covered.sum() > 200
+    np.testing.assert_allclose(front.normal[front.covered], [[0, 0, 1]] * front.covered.sum())
+    np.testing.assert_allclose(back.normal[back.covered], [[0, 0, -1]] * back.covered.sum())
+    assert np.all(np.einsum("...j,...j->...", back.normal, back.view)[back.covered] > 0)
+
+
+def test_ground_plane_through_the_near_plane_is_exact():
+    """A large floor extends behind the eye: crossing triangles are ray cast, not lost."""
+    floor = M.transform(M.load_mesh("builtin:plane?segments=4"), rotate_deg=(-90, 0, 0),
+                        scale=50.0)                       # y = 0, facing +y, |x|, |z| ≤ 50
+    cam = camera(eye=(0.0, 1.0, 0.0), target=(0.0, 0.7, -3.0), w=64, h=48, fov=70.0)
+    gb = R.rasterize(cam, [floor])
+    hit, t = ray_plane_hits(cam, 1, np.zeros(3), np.array([0.0, 1.0, 0.0]))
+    inside = (t > 0) & (np.abs(hit[..., 0]) <= 50) & (np.abs(hit[..., 2]) <= 50)
+    assert inside.sum() > 1000
+    assert (gb.covered != inside).sum() <= 2 * 64            # the far edge's pixels at most
+    both = gb.covered & inside
+    np.testing.assert_allclose(gb.position[both], hit[both], atol=1e-6 * 50)
+
+
+# ----------------------------------------------------------------------------- SSAA
+
+def test_ssaa_buffer_size_and_downsample_of_a_constant():
+    cam = camera(w=20, h=10)
+    gb = R.rasterize(cam, [M.uv_sphere(16, 8)], ssaa=3)
+    assert gb.object_id.shape == (30, 60) and gb.ssaa == 3
+    const = np.full((30, 60, 3), 0.37)
+    np.testing.assert_allclose(R.downsample(const, 3), np.full((10, 20, 3), 0.37), rtol=1e-15)
+    # a box filter: the downsampled coverage is the fraction of covered subpixels
+    frac = R.downsample(gb.covered.astype(float), 3)
+    assert frac.shape == (10, 20) and set(np.unique(frac * 9).round(9)) <= set(range(10))
+    with pytest.raises(ValueError):
+        R.downsample(np.zeros((7, 9)), 2)
+
+
+def test_ssaa_converges_on_the_silhouette_area():
+    cam = camera(w=48, h=48)
+    sphere = M.uv_sphere(128, 64)
+    exact = sphere_silhouette_area_px(cam, (0, 0, 0))
+    err = [abs(R.downsample(R.rasterize(cam, [sphere], s).covered.astype(float), s).sum()
+               / exact - 1) for s in (1, 4)]
+    assert err[1] < 5e-3                                  # tessellation 1.2e-3 + 4× finer edge
+
+
+# ----------------------------------------------------------------------------- scenes
+
+def test_several_meshes_object_ids_and_uvs_only_where_given():
+    no_uv = M.transform(M.uv_sphere(24, 12), translate=(-1.2, 0, 0), scale=0.8)
+    no_uv.uvs = None
+    with_uv = M.transform(M.uv_sphere(24, 12), translate=(1.2, 0, 0), scale=0.8)
+    gb = R.rasterize(camera(w=96, h=48, eye=(0, 0, 6.0)), [no_uv, with_uv])
+    left, right = gb.object_id[:, :48], gb.object_id[:, 48:]
+    assert set(np.unique(left)) == {-1, 0} and set(np.unique(right)) == {-1, 1}
+    assert np.all(gb.uv[gb.object_id == 0] == 0) and np.all(gb.uv_footprint[gb.object_id == 0] == 0)
+    assert np.all(gb.uv_footprint[gb.object_id == 1] > 0)
+    assert R.rasterize(camera(w=8, h=8), [no_uv]).uv is None
+    # a scene that needs no texture skips uv work; the rest is unchanged
+    lean = R.rasterize(camera(w=96, h=48, eye=(0, 0, 6.0)), [no_uv, with_uv], uv=False)
+    assert lean.uv is None and lean.uv_footprint is None
+    assert np.array_equal(lean.object_id, gb.object_id)
+    np.testing.assert_array_equal(lean.normal, gb.normal)
+
+
+@pytest.mark.parametrize("kw", [{"target": (0, 0, 4.0)}, {"up": (0, 0, 1.0)}])
+def test_degenerate_cameras_are_input_errors(kw):
+    from gonio_cli.errors import InputError
+
+    with pytest.raises(InputError, match="camera"):
+        R.rasterize(camera(**kw), [M.uv_sphere(8, 4)])
+
+
+def test_halftone_on_a_receding_plane_shows_no_moire():
+    """End to end with the mask pyramid: a one-texel R/G checker on a plane seen at 70°
+    from its normal, ≥ 4 texels per pixel everywhere, reads as an even mix at every pixel
+    (point sampling would show 0/1 bands)."""
+    from gonio_cli.render.texture import MaskPyramid
+
+    yy, xx = np.mgrid[0:1024, 0:1024]
+    checker = (xx + yy) % 2 == 0
+    pyr = MaskPyramid(np.stack([checker, ~checker, np.zeros_like(checker)], -1).astype(float))
+    plane = M.transform(M.load_mesh("builtin:plane"), rotate_deg=(-70, 0, 0))
+    cam = camera(eye=(0, 0.2, 4.0), target=(0, 0, 0), w=64, h=64, fov=30.0)
+    gb = R.rasterize(cam, [plane])
+    cov = gb.covered
+    texels = gb.uv_footprint[cov] * 1024
+    assert texels.min() > 4
+    got = pyr.coverage(gb.uv[cov], gb.uv_footprint[cov])
+    np.testing.assert_allclose(got, np.broadcast_to([0.5, 0.5, 0.0], got.shape), atol=1e-5)
+    point = pyr.coverage(gb.uv[cov], np.zeros(cov.sum()))     # level 0, bilinear only
+    assert point[:, 0].std() > 0.1 and np.abs(point[:, 0] - 0.5).max() > 0.3
+
+
+@pytest.mark.parametrize("tilt", [90.0, 89.999, 89.9])
+def test_grazing_and_edge_on_planes_give_finite_buffers(tilt):
+    """Edge-on (culled) and nearly edge-on planes: no NaN/inf, unit normals, uv in range."""
+    plane = M.transform(M.load_mesh("builtin:plane?segments=3"), rotate_deg=(-tilt, 0, 0))
+    gb = R.rasterize(camera(eye=(0, 0, 3.0), w=48, h=48), [plane], ssaa=2)
+    for a in (gb.position, gb.normal, gb.view, gb.uv, gb.uv_footprint):
+        assert np.isfinite(a).all()
+    cov = gb.covered
+    np.testing.assert_allclose(np.linalg.norm(gb.normal[cov], axis=-1), 1.0, atol=1e-9)
+    assert np.all((gb.uv[cov] > -1e-6) & (gb.uv[cov] < 1 + 1e-6))
+    if tilt == 90.0:
+        assert not cov.any()

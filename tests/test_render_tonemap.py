@@ -1,0 +1,79 @@
+"""Tone maps and the XYZ → 8-bit display chain (``gonio_cli.render.tonemap``)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from gonio_cli.errors import InputError
+from gonio_cli.render import tonemap
+from gonio_cli.spectra import srgb_encode, xyz_to_linear_srgb
+
+X = np.concatenate([[0.0], np.geomspace(1e-6, 1e4, 400)])
+
+
+def test_registry_names():
+    assert list(tonemap.TONEMAPS) == ["clip", "reinhard", "filmic"]
+    with pytest.raises(InputError, match="clip, reinhard, filmic"):
+        tonemap.get_tonemap("aces")
+
+
+def test_clip_is_identity_below_one_and_one_above():
+    np.testing.assert_array_equal(tonemap.clip(X), np.minimum(X, 1.0))
+
+
+def test_reinhard_closed_form():
+    np.testing.assert_allclose(tonemap.reinhard(X), X / (1.0 + X), rtol=1e-15)
+    assert tonemap.reinhard(np.array(1.0)) == 0.5
+
+
+def test_filmic_is_narkowicz_2015():
+    # values of x(2.51x+0.03)/(x(2.43x+0.59)+0.14) computed by hand
+    x = np.array([0.18, 1.0])
+    expected = np.array([0.18 * (2.51 * 0.18 + 0.03) / (0.18 * (2.43 * 0.18 + 0.59) + 0.14),
+                         2.54 / 3.16])
+    np.testing.assert_allclose(tonemap.filmic(x), expected, rtol=1e-12)
+    assert tonemap.filmic(np.array(7.3)) == 1.0  # the curve crosses 1 at x ≈ 7.24
+
+
+@pytest.mark.parametrize("name", list(tonemap.TONEMAPS))
+def test_every_tonemap_zero_to_zero_monotone_bounded(name):
+    op = tonemap.TONEMAPS[name]
+    y = op(X)
+    assert y[0] == 0.0
+    assert np.all(np.diff(y) >= 0.0)
+    assert np.all((y >= 0.0) & (y <= 1.0))
+    # negative (out-of-gamut) linear values become 0, NaN never comes out for finite input
+    assert op(np.array([-1.0, -1e6])).tolist() == [0.0, 0.0]
+    # broadcasts over leading axes (STYLE 6)
+    np.testing.assert_array_equal(op(np.tile(X[:6], (2, 1))), np.tile(y[:6], (2, 1)))
+
+
+def test_display_chain_and_exposure():
+    xyz = np.array([[[0.2, 0.3, 0.1], [0.95047, 1.0, 1.08883]]])
+    lin = tonemap.xyz_to_linear(xyz)
+    assert lin.dtype == np.float32
+    np.testing.assert_allclose(lin, xyz_to_linear_srgb(xyz), rtol=1e-6)
+    # D65 white (Y = 1) is linear sRGB (1, 1, 1) (IEC matrix, no adaptation)
+    np.testing.assert_allclose(lin[0, 1], 1.0, atol=1e-3)
+    out = tonemap.xyz_to_display(xyz, exposure=0.0, tonemap="clip")
+    assert out.dtype == np.uint8 and out.shape == (1, 2, 3)
+    np.testing.assert_array_equal(out, np.round(srgb_encode(np.clip(lin, 0, 1)) * 255))
+    # +1 stop doubles the linear value before the tone map
+    half = tonemap.display(np.full((1, 1, 3), 0.1), exposure=1.0, tonemap="reinhard")
+    assert half[0, 0, 0] == np.round(srgb_encode(0.2 / 1.2) * 255)
+    # white at 0 stops under clip is 255; black is 0
+    assert tonemap.display(np.ones((1, 1, 3)), 0.0, "clip").tolist() == [[[255] * 3]]
+    assert tonemap.display(np.zeros((1, 1, 3)), 5.0, "filmic").tolist() == [[[0] * 3]]
+
+
+@pytest.mark.parametrize("name", list(tonemap.TONEMAPS))
+def test_display_table_is_within_one_code_of_the_exact_encoding(name):
+    """The 2^16-entry encoding table (tonemap.ENCODE_TABLE_SIZE) against the IEC transfer
+    function evaluated in float64: at most one code off, and rarely (< 1 % of values)."""
+    x = np.concatenate([[0.0], np.geomspace(1e-7, 50.0, 300000)])
+    exact = np.round(srgb_encode(tonemap.TONEMAPS[name](x)) * 255).astype(int)
+    got = tonemap.display(np.repeat(x[:, None], 3, axis=1), 0.0, name)[:, 0].astype(int)
+    diff = np.abs(got - exact)
+    assert diff.max() <= 1 and np.mean(diff > 0) < 0.01
+    assert got[0] == 0 and np.all(np.diff(got) >= 0)  # monotone, black stays black
