@@ -154,18 +154,6 @@ def test_only_degenerate_triangles_is_an_error(tmp_path):
         M.load_mesh(str(tmp_path / "line.obj"))
 
 
-def test_real_mesh_loads_if_present():
-    """The shared spot mesh (not needed by the project; skipped when absent)."""
-    from pathlib import Path
-
-    path = Path("/work/shared/data/mesh/spot_triangulated.obj")
-    if not path.is_file():
-        pytest.skip("shared spot mesh not available")
-    m = M.load_mesh(str(path))
-    assert m.uvs is not None and len(m.faces) == 5856
-    np.testing.assert_allclose(np.linalg.norm(m.normals, axis=1), 1.0, atol=1e-9)
-
-
 # ----------------------------------------------------------------------------- transforms
 
 def test_rotation_is_xyz_euler_right_handed():
