@@ -7,6 +7,7 @@ in the run report only if it ran ("leave out what the scene does not need"):
 ``meshes``       built-ins and OBJ files, placed by each object's transform
 ``materials``    gonio.material / gonio.measurement files, each read once
 ``textures``     mask pyramids: printed objects only
+``sparkles``     sparkle textures (seed 004 §6): only for objects with ``sparkle``
 ``lobes``        lobe weights: only with an environment
 ``environment``  prefiltered maps: only if the scene has an ``[environment]``
 ``rasterize``    the batched z-buffer at ssaa × the image size
@@ -90,6 +91,9 @@ def load_meshes(scene: Scene) -> list:
         if o.mask is not None:
             require_uvs(mesh, f"the mask of [[object]] {o.index + 1} ({o.name}) in "
                               f"{scene.path.name}")
+        if o.sparkle is not None:
+            require_uvs(mesh, f"the sparkle texture of [[object]] {o.index + 1} ({o.name}) "
+                              f"in {scene.path.name}")
         meshes.append(mesh)
     return meshes
 
@@ -154,6 +158,11 @@ def build_surfaces(scene: Scene, stats: Stats) -> list:
                 if o.mask not in pyramids:
                     pyramids[o.mask] = load_mask_pyramid(o.mask)
                 s.coverage = pyramids[o.mask].coverage
+    sparkling = [(o, s) for o, s in zip(scene.objects, surfaces) if o.sparkle is not None]
+    if sparkling:
+        with _Stage(stats, "sparkles"):
+            for o, s in sparkling:
+                s.sparkle = load_sparkle(o)
     if scene.environment is not None:
         with _Stage(stats, "lobes"):
             lobes: dict[Path, Any] = {}
@@ -196,6 +205,18 @@ def load_measured(path: Path, grid_nm: np.ndarray):
     return measured_material(m, name=str(path))
 
 
+def load_sparkle(o):
+    """The :class:`gonio_cli.sparkle.SparkleTexture` of a scene object with ``sparkle``:
+    the 8-bit packed texture (eq. 16) and the θh of each bit from its metadata."""
+    from ..imageio import read_image
+    from ..sparkle import SparkleTexture, texture_from_image
+
+    img = read_image(o.sparkle)
+    texture, theta_h = texture_from_image(img.pixels, img.metadata, str(o.sparkle))
+    return SparkleTexture(texture, theta_h, o.sparkle_exponent, o.sparkle_scale,
+                          np.asarray(o.sparkle_color, float), str(o.sparkle))
+
+
 def load_mask_pyramid(path: Path):
     """The area-filtered coverage pyramid of a halftone mask image (:mod:`.texture`),
     which validates the mask and names the file in its errors."""
@@ -223,7 +244,9 @@ def render_scene(scene: Scene, stats: Stats | None = None) -> Frame:
 
     ssaa = scene.output.ssaa
     with _Stage(stats, "rasterize"):
-        gbuffer = rasterize(scene.camera, meshes, ssaa)
+        # texture coordinates only when a mask or a sparkle texture will read them
+        needs_uv = any(o.mask is not None or o.sparkle is not None for o in scene.objects)
+        gbuffer = rasterize(scene.camera, meshes, ssaa, uv=needs_uv)
     t0 = time.perf_counter()
     xyz = shade(gbuffer, surfaces, scene.lights, scene.grid_nm, environment=environment,
                 spectral=scene.output.spectral, stats=stats)
@@ -301,7 +324,7 @@ def write_report(path, scene: Scene, stats: Stats, *, total_s: float, png, exr=N
     written), counters, settings and the inputs with their sha256."""
     from ..artifact import make_document, write_json
 
-    order = ["scene", "meshes", "materials", "textures", "lobes", "environment",
+    order = ["scene", "meshes", "materials", "textures", "sparkles", "lobes", "environment",
              "rasterize", "shade", "downsample", "tonemap", "write_exr", "write_png"]
     names = [k for k in order if k in stats.time_s]
     names += [k for k in stats.time_s if k not in names and "." not in k]

@@ -18,6 +18,7 @@ Sections (see ``docs/render.md``)::
     [camera]       eye, target, up, fov_deg, width, height
     [[object]]     mesh, translate, rotate_deg, scale, name and one of
                    material (+ lobes) | inks + mask (+ substrate, lobes) | measured
+                   (+ sparkle, sparkle_color, sparkle_exponent, sparkle_scale)
     [[light]]      type = "directional" (direction, irradiance) | "point" (position,
                    intensity); spectrum = CIE name or CSV; name
     [environment]  prefiltered (a gonio prefilter index.json)            (optional)
@@ -58,7 +59,10 @@ MIN_VECTOR_NORM = 1e-12
 
 CAMERA_KEYS = ("eye", "target", "up", "fov_deg", "width", "height")
 OBJECT_KEYS = ("name", "mesh", "translate", "rotate_deg", "scale", "material", "inks",
-               "mask", "substrate", "lobes", "measured")
+               "mask", "substrate", "lobes", "measured", "sparkle", "sparkle_color",
+               "sparkle_exponent", "sparkle_scale")
+#: Keys that belong to an object with a ``sparkle`` texture (seed 004 §6).
+SPARKLE_KEYS = ("sparkle_color", "sparkle_exponent", "sparkle_scale")
 SUBSTRATE_KEYS = ("kd", "ks", "shininess")
 LIGHT_KEYS = ("type", "name", "direction", "irradiance", "position", "intensity", "spectrum")
 ENVIRONMENT_KEYS = ("prefiltered",)
@@ -94,6 +98,9 @@ class SceneObject:
     ``measured`` (a gonio.measurement, interpolated: the reference of seed 000 Figure 5).
     ``lobes``: gonio.lobes weights for environment light (one path for ``material``,
     three for ``inks``), or None. ``mesh`` is ``builtin:NAME`` or an absolute OBJ path.
+    ``sparkle``: a packed sparkle texture (``gonio sparkle``, seed 004 §6) or None, with
+    ``sparkle_color`` (linear sRGB reflectance colour C_s), ``sparkle_exponent`` (e of
+    eq. 17) and ``sparkle_scale`` (texture repeats over uv); material or measured only.
     """
 
     index: int
@@ -108,6 +115,10 @@ class SceneObject:
     substrate: Substrate | None = None
     lobes: Path | list[Path] | None = None
     measured: Path | None = None
+    sparkle: Path | None = None
+    sparkle_color: np.ndarray = field(default_factory=lambda: np.ones(3))
+    sparkle_exponent: float = 24.0
+    sparkle_scale: float = 1.0
 
     @property
     def kind(self) -> str:
@@ -160,7 +171,7 @@ class Scene:
 
     @property
     def needs_uvs(self) -> bool:
-        return any(o.mask is not None for o in self.objects)
+        return any(o.mask is not None or o.sparkle is not None for o in self.objects)
 
 
 # ---------------------------------------------------------------------------- checker --
@@ -338,7 +349,7 @@ def load_scene(path: str | os.PathLike, *, variables: Mapping[str, str] | None =
     for o in objects:
         if not o.is_builtin:
             inputs.append(Path(o.mesh))
-        for p in (o.material, o.mask, o.measured, *(o.inks or [])):
+        for p in (o.material, o.mask, o.measured, o.sparkle, *(o.inks or [])):
             if p is not None:
                 inputs.append(p)
         if o.lobes is not None:
@@ -458,6 +469,25 @@ def _object(chk: _Checker, raw, number: int) -> SceneObject:
             obj.lobes = chk.file(lobes, f"{where} lobes")
         else:
             raise chk.error(f"{where} lobes", "a measured object has no lobes")
+    if "sparkle" in o:
+        if obj.inks is not None:
+            raise chk.error(f"{where} sparkle", "belongs to a material or measured object, "
+                            "not a print", fix="sparkles are for metallic paint")
+        obj.sparkle = chk.file(o["sparkle"], f"{where} sparkle")
+        if "sparkle_color" in o:
+            obj.sparkle_color = chk.vector(o["sparkle_color"], f"{where} sparkle_color")
+            if np.any(obj.sparkle_color < 0):
+                raise chk.error(f"{where} sparkle_color",
+                                f"{obj.sparkle_color.tolist()} has a negative channel")
+        obj.sparkle_exponent = chk.number(o.get("sparkle_exponent", 24.0),
+                                          f"{where} sparkle_exponent", lo=0.0, lo_open=True)
+        obj.sparkle_scale = chk.number(o.get("sparkle_scale", 1.0), f"{where} sparkle_scale",
+                                       lo=0.0, lo_open=True)
+    else:
+        for key in SPARKLE_KEYS:
+            if key in o:
+                raise chk.error(f"{where} {key}", "needs a sparkle texture",
+                                fix='add sparkle = "SPARKLE.png" (gonio sparkle)')
     return obj
 
 

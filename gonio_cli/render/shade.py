@@ -45,9 +45,25 @@ everywhere (counted in ``stats.counts["shade"]["inks_skipped"]``). The substrate
 
 with R_L the mirror direction of the light and n the ``shininess``.
 
+Sparkles (seed 004 §6.1, eq. 17; :mod:`gonio_cli.sparkle`): an object with a sparkle
+texture gets an added lobe per light, only at the samples whose texel has a bit set,
+
+    f_sparkle(λ) = C_s(λ) · f_mirror · (cos(α − θh))^e,    α = arccos(N·H),
+
+    L_o += f_sparkle · E · S(λ) · cos θi    (CONVENTIONS: a BRDF, times E cos θi).
+
+Seed 004 adds an intensity I_r = C_s (cos(α − θh))^e to the display colour; here it is a
+BRDF-like lobe so that it follows the light's spectrum, irradiance and cos θi like the
+paint. Its scale f_mirror is the ȳ-weighted mean of the object's own BRDF at the mirror
+configuration at normal incidence (θi = θo = 0: the peak of the paint's highlight), so a
+fully lit sparkle (α = θh) is about as bright as the mirror highlight.
+C_s(λ) = Σc rgb_c B_c(λ) is ``sparkle_color`` as a reflectance through the Mallett–Yuksel
+basis (CONVENTIONS, without the D65 factor: (1, 1, 1) is 1 at every λ). No environment
+light on sparkles (a glint of the sky would need the texture in the lobe sums).
+
 Only what reaches the picture is computed: the pixels of each object, lit pixels per
 light, inks with coverage, and no environment work without an environment
-(:mod:`.environment`).
+(:mod:`.environment`), no sparkle work without a sparkle texture.
 """
 
 from __future__ import annotations
@@ -113,6 +129,8 @@ class Surface:
     lobes : a :class:`~gonio_cli.schemas.Lobes` (or one per ink for a printed object),
         needed only under environment light (seed 001 eqs. 7-9).
     name : for messages.
+    sparkle : a :class:`gonio_cli.sparkle.SparkleTexture` or None (seed 004 eq. 17; a
+        material or measured object only).
     """
 
     material: Any = None
@@ -121,6 +139,7 @@ class Surface:
     substrate: dict | None = None
     lobes: Any = None
     name: str = ""
+    sparkle: Any = None
 
     @property
     def printed(self) -> bool:
@@ -142,6 +161,9 @@ def check_surface(surface: Surface, index: int, wavelength_nm: np.ndarray) -> No
         if surface.material is None:
             raise InputError(f"{where} has neither a material nor inks")
         materials = [surface.material]
+    if surface.sparkle is not None and surface.printed:
+        raise InputError(f"{where} is printed: sparkles need a material",
+                         fix="give the sparkle texture to a material object")
     for m in materials:
         wl = getattr(m, "wavelength_nm", None)
         if wl is not None and not _same_grid(wl, wavelength_nm):
@@ -477,6 +499,7 @@ def shade(gbuffer: GBuffer, surfaces: Sequence[Surface], lights: Sequence[Light]
                               "ink_pixels": {}, "inks_skipped": 0, "table_sizes": [],
                               "environment_pixels": 0}
     env_time = 0.0
+    sparkle_time = 0.0
     weights_of: dict[bytes, np.ndarray] = {}
 
     def light_weights(light: Light) -> np.ndarray:
@@ -554,6 +577,15 @@ def shade(gbuffer: GBuffer, surfaces: Sequence[Surface], lights: Sequence[Light]
             else:
                 obj_xyz[tp.sel] += acc
 
+        if surface.sparkle is not None:
+            t0 = time.perf_counter()
+            if "sparkle_pixels" not in counts:
+                counts.update(sparkle_pixels=0, sparkle_lit_pixel_lights=0,
+                              sparkle_minified_pixels=0)
+            obj_xyz += _sparkle_term(surface, k, gbuffer, index, flat, lights,
+                                     light_weights, wl, counts)
+            sparkle_time += time.perf_counter() - t0
+
         if environment is not None:
             t0 = time.perf_counter()
             obj_xyz += _environment_term(environment, surface, k, px, cov, wl)
@@ -568,6 +600,8 @@ def shade(gbuffer: GBuffer, surfaces: Sequence[Surface], lights: Sequence[Light]
         stats.time_s["shade"] = time.perf_counter() - start
         if environment is not None:
             stats.time_s["shade.environment"] = env_time
+        if "sparkle_pixels" in counts:
+            stats.time_s["shade.sparkle"] = sparkle_time
         stats.counts["shade"] = counts
     return out.reshape(h, w, 3)
 
@@ -610,6 +644,80 @@ def _direct(material, is_substrate: bool, tp: _Pixels, lights: Sequence[Light],
                 acc[b][lit] += kernel(Cosines(*(a[lit] for a in cos)), scale[lit],
                                       lambda lit=lit, d=directions: d(lit))
     return acc
+
+
+def mirror_peak(material, wavelength_nm: np.ndarray) -> float:
+    """f_mirror: the ȳ-weighted mean over λ of ``material``'s BRDF (sr⁻¹) at the mirror
+    configuration at normal incidence (θi = θo = 0), the scale of the sparkle lobe."""
+    from ..spectra import cmfs
+
+    if isinstance(material, Material):
+        one = np.ones(1)
+        f = material.evaluate(Cosines(one, one, one, one))
+    else:
+        n = np.array([[0.0, 0.0, 1.0]])
+        f = material.evaluate_directions(n, n, n)
+    ybar = cmfs(wavelength_nm)[:, 1]
+    value = float(np.asarray(f, dtype=float).reshape(-1, ybar.size)[0] @ ybar / ybar.sum())
+    return value if np.isfinite(value) and value > 0 else 0.0
+
+
+def sparkle_reflectance(rgb: np.ndarray, wavelength_nm: np.ndarray) -> np.ndarray:
+    """C_s(λ) (n_λ,): a linear-sRGB reflectance colour through the Mallett–Yuksel basis
+    (CONVENTIONS' RGB → spectrum without its D65 factor; (1, 1, 1) → 1)."""
+    from ..spectra import illuminant, rgb_spectral_basis
+
+    basis = rgb_spectral_basis(wavelength_nm) / illuminant("D65", wavelength_nm)[:, None]
+    return basis @ np.asarray(rgb, dtype=float)
+
+
+def _sparkle_term(surface: Surface, k: int, gbuffer: GBuffer, index: np.ndarray,
+                  flat: dict, lights: Sequence[Light], light_weights, wl: np.ndarray,
+                  counts: dict) -> np.ndarray:
+    """XYZ (n, 3) of the sparkle lobe of one object's pixels (module docstring): work
+    only at samples whose texel has a bit set, and per light only where it is lit."""
+    from ..sparkle import sample_texture
+
+    sp = surface.sparkle
+    out = np.zeros((index.size, 3))
+    if gbuffer.uv is None:
+        raise InputError(f"object {k} has sparkles but the GBuffer has no uv",
+                         fix="give the mesh texture coordinates")
+    uv = gbuffer.uv.reshape(-1, 2)[index]
+    t = sample_texture(sp.texture, uv, sp.scale)
+    sel = np.flatnonzero(t)
+    counts["sparkle_pixels"] += int(sel.size)
+    if gbuffer.uv_footprint is not None:
+        texels = gbuffer.uv_footprint.reshape(-1)[index] * sp.scale * max(sp.texture.shape)
+        counts["sparkle_minified_pixels"] += int(np.count_nonzero(texels > 1.0))
+    peak = mirror_peak(surface.material, wl)
+    if sel.size == 0 or peak == 0.0 or not lights:
+        return out
+    rows = index[sel]
+    n, v, p = flat["normal"][rows], flat["view"][rows], flat["position"][rows]
+    cos_o = _dot(n, v)
+    reflectance = sparkle_reflectance(sp.color, wl)
+    cos_nh = np.zeros((sel.size, len(lights)))
+    scale = np.zeros((sel.size, len(lights)))
+    for j, light in enumerate(lights):
+        wi, e = incident(light, p)
+        cos_i = _dot(n, wi)
+        h = wi + v
+        norm = np.sqrt(_dot(h, h))
+        safe = norm > np.sqrt(HALF_SQ_EPS)
+        cos_nh[:, j] = np.where(safe, _dot(n, h) / np.where(safe, norm, 1.0), 1.0)
+        scale[:, j] = np.where((cos_i > 0) & (cos_o > 0), cos_i * e, 0.0)
+    lit = scale > 0
+    counts["sparkle_lit_pixel_lights"] += int(np.count_nonzero(lit))
+    term = sp.table(t[sel], cos_nh)                               # (n_sel, n_lights)
+    acc = np.zeros((sel.size, 3))
+    for j, light in enumerate(lights):
+        if not lit[:, j].any():
+            continue
+        xyz = reflectance @ light_weights(light)                  # (3,) C_s S cmf / Σ ȳ
+        acc += (peak * term[:, j] * scale[:, j])[:, None] * xyz
+    out[sel] = acc
+    return out
 
 
 def _environment_term(environment, surface: Surface, k: int, px: _Pixels,
