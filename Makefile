@@ -1,7 +1,16 @@
 # gonio — two commands do all the set-up on a fresh machine with Python 3.11:
 #   make demo   create .venv, install gonio, run the demo pipeline on sample_data/
 #   make test   create .venv, install gonio, run the whole test suite
-# Others: make bench (error against run time), make clean.
+# Others: make bench (error against run time), make clean. One stage: make rgbink, make
+# carpaint, make lobes, make sky, make render, or one file (make out/render/figure5.png).
+# The file graph and how to write a batch Makefile of your own: docs/pipelines.md.
+#
+# Variables, set on the command line (make demo OUT=/tmp/run):
+#   OUT    where the pipelines write (default out)
+#   VENV   the virtual environment gonio runs from (default .venv, created on first use)
+#   STAMP  the file marking VENV as installed (reinstalled when pyproject.toml is newer);
+#          STAMP= (empty) uses VENV as it is: no venv creation, no install step
+#   make demo VENV=/opt/gonio-env STAMP= OUT=/tmp/run   runs an installed gonio elsewhere
 
 PYTHON ?= $(shell command -v python3.11 || command -v python3)
 VENV   := .venv
@@ -17,12 +26,15 @@ export PATH := $(abspath $(BIN)):$(PATH)
 
 setup: $(STAMP)
 
-# Reinstall when the dependency list changes; the package itself is editable.
+# Reinstall when the dependency list changes; the package itself is editable. Pipeline
+# stages take the stamp as an order-only prerequisite: a reinstall reruns nothing.
+ifneq ($(STAMP),)
 $(STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e .
 	@touch $@
+endif
 
 include pipelines/rgbink.mk
 include pipelines/carpaint.mk
@@ -30,10 +42,19 @@ include pipelines/lobes.mk
 include pipelines/sky.mk
 include pipelines/render.mk
 
-demo: $(STAMP) rgbink carpaint lobes sky render
-	@echo
-	@echo "Demo outputs (measurements, materials and their plots, the print, lobes, the prefiltered sky):"
-	@for d in rgbink carpaint lobes sky render; do echo "  $(OUT)/$$d/"; ls -1 $(OUT)/$$d | sed 's/^/    /'; done
+DEMO_TARGETS := $(RGBINK_TARGETS) $(CARPAINT_TARGETS) $(LOBES_TARGETS) $(SKY_TARGETS) \
+                $(RENDER_TARGETS)
+
+# demo has no recipe of its own, so `make -q demo` exits 0 once everything is built. The
+# list of outputs is a file, rewritten and printed whenever an output was remade.
+demo: $(STAMP) $(OUT)/demo.txt
+
+$(OUT)/demo.txt: $(DEMO_TARGETS)
+	@{ echo "Demo outputs (measurements, materials and their plots, the print, lobes," \
+	    "the prefiltered sky, renders):"; \
+	  for d in rgbink carpaint lobes sky render; do echo "  $(OUT)/$$d/"; \
+	    ls -1 $(OUT)/$$d | sed 's/^/    /'; done; } > $@
+	@echo; cat $@; echo "(this list: $@)"
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q

@@ -14,6 +14,8 @@ carpaint: $(CARPAINT_TARGETS)
 $(CARPAINT)/paint.measurement.json: sample_data/carpaint_multiangle.csv | $(STAMP)
 	$(GONIO) ingest $^ -o $@ --quantity reflectance-factor
 
-$(CARPAINT)/paint.material.json $(CARPAINT)/paint.fit.png &: $(CARPAINT)/paint.measurement.json
-	$(GONIO) fit $< -o $(CARPAINT)/paint.material.json --model cook-torrance \
-	  --plot $(CARPAINT)/paint.fit.png
+# One run writes the material and its plot: a pattern rule with two targets (make's
+# grouped targets, `&:`, need make 4.3 and hide their dependents from `make -n`).
+$(CARPAINT)/%.material.json $(CARPAINT)/%.fit.png: $(CARPAINT)/%.measurement.json
+	$(GONIO) fit $< -o $(CARPAINT)/$*.material.json --model cook-torrance \
+	  --plot $(CARPAINT)/$*.fit.png

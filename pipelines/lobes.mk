@@ -11,8 +11,10 @@ LOBES_TARGETS := $(LOBES)/basis.json $(LOBES)/basis.png \
 .PHONY: lobes
 lobes: $(LOBES_TARGETS)
 
-# Exponents for 1…11 lobes chosen over all four materials (seed 001 eq. 4).
-$(LOBES)/basis.json $(LOBES)/basis.png &: $(LOBE_MATERIALS)
+# Exponents for 1…11 lobes chosen over all four materials (seed 001 eq. 4). One run
+# writes both files: a two-target pattern rule (the stem is the dot), which make -n and
+# every GNU make version handle; the file the lobe fits read comes first.
+$(LOBES)/basis%json $(LOBES)/basis%png: $(LOBE_MATERIALS)
 	$(GONIO) lobes basis $^ --max-lobes 11 -o $(LOBES)/basis.json --plot $(LOBES)/basis.png
 
 # Weights per view angle with LOBE_COUNT lobes of that basis (seed 001 eqs. 5–6, §5.2).

@@ -3,9 +3,10 @@
 # the top Makefile after lobes.mk (GONIO, OUT, STAMP, LOBES).
 
 SKY := $(OUT)/sky
+SKY_TARGETS := $(SKY)/index.json
 
 .PHONY: sky
-sky: $(SKY)/index.json
+sky: $(SKY_TARGETS)
 
 $(SKY)/index.json: sample_data/sky.exr $(LOBES)/paint.lobes.json | $(STAMP)
 	$(GONIO) prefilter $< --lobes $(LOBES)/paint.lobes.json -o $(SKY)
