@@ -3,6 +3,7 @@
 #   make test   create .venv, install gonio, run the whole test suite
 # Others: make bench (error against run time), make clean. One stage: make rgbink, make
 # carpaint, make lobes, make sky, make render, or one file (make out/render/figure5.png).
+# make report: error against run time of every stage and seed 000's Table 1 (~1 min).
 # The file graph and how to write a batch Makefile of your own: docs/pipelines.md.
 #
 # Variables, set on the command line (make demo OUT=/tmp/run):
@@ -41,6 +42,7 @@ include pipelines/carpaint.mk
 include pipelines/lobes.mk
 include pipelines/sky.mk
 include pipelines/render.mk
+include pipelines/report.mk
 
 DEMO_TARGETS := $(RGBINK_TARGETS) $(CARPAINT_TARGETS) $(LOBES_TARGETS) $(SKY_TARGETS) \
                 $(RENDER_TARGETS)

@@ -18,35 +18,10 @@ import time
 import numpy as np
 
 from gonio_cli import lobes as L
-from gonio_cli.schemas import Material
-from gonio_cli.synthetic import ink_spectra
+from gonio_cli.report.sweeps import lobe_test_materials, median_time
 
-WL = np.arange(380.0, 781.0, 10.0)
-
-
-def materials() -> dict[str, Material]:
-    out = {}
-    for ink in ("red", "green", "blue"):
-        rho, c = ink_spectra(ink, WL)
-        out[f"{ink} ink"] = Material("goniochromatic", WL, {"alpha": 0.18, "rho": rho, "c": c})
-    flat = np.ones_like(WL)
-    out["TS glossy (α 0.05)"] = Material("torrance-sparrow", WL, {"alpha": 0.05, "f0": 0.04 * flat})
-    out["TS rough (α 0.4)"] = Material("torrance-sparrow", WL, {"alpha": 0.4, "f0": 0.9 * flat})
-    blue = np.exp(-0.5 * ((WL - 470.0) / 50.0) ** 2)
-    out["CT paint"] = Material("cook-torrance", WL, {"kd": 0.05 + 0.3 * blue, "ks": 0.6 * flat,
-                                                     "m": 0.25 * flat, "f0": 0.2 + 0.5 * blue})
-    out["Lambertian"] = Material("cook-torrance", WL, {"kd": 0.8 * flat, "ks": 0 * flat,
-                                                       "m": 0.3 * flat, "f0": 0 * flat})
-    return out
-
-
-def median_time(fn, repeats: int) -> float:
-    times = []
-    for _ in range(repeats):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return float(np.median(times))
+#: The materials and the timer are shared with ``gonio report`` (gonio_cli.report.sweeps).
+materials = lobe_test_materials
 
 
 def main() -> None:

@@ -22,7 +22,6 @@ texels. Smaller maps are made from it by area (gonio_cli.envmap.downsample).
 from __future__ import annotations
 
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +29,8 @@ import numpy as np
 from gonio_cli import envmap
 from gonio_cli import prefilter as pf
 from gonio_cli.imageio import read_image
+from gonio_cli.report import sweeps
+from gonio_cli.report.sweeps import prefilter_errors as errors, timed
 
 ROOT = Path(__file__).resolve().parent.parent
 #: The bundled sky by default; a real one with --map (e.g. a 1024 × 512 Poly Haven sky with
@@ -49,11 +50,6 @@ def load_map(argv) -> tuple[np.ndarray, str]:
     return big, path.name
 
 
-def errors(out, truth) -> tuple[float, float]:
-    e = pf.relative_errors(np.asarray(out, float), truth)
-    return float(np.percentile(e, 99)), float(e.max())
-
-
 def table(header: list[str], rows: list[list[str]]) -> None:
     """Print a Markdown table (first column and numbers right-aligned)."""
     print("| " + " | ".join(header) + " |")
@@ -61,13 +57,6 @@ def table(header: list[str], rows: list[list[str]]) -> None:
                          for h in header) + "|")
     for row in rows:
         print("| " + " | ".join(row) + " |")
-
-
-def timed(fn, *args, **kw):
-    """(result, seconds) of fn(*args, **kw)."""
-    t = time.perf_counter()
-    out = fn(*args, **kw)
-    return out, time.perf_counter() - t
 
 
 def target_run(big, exponents) -> None:
@@ -83,38 +72,19 @@ def target_run(big, exponents) -> None:
 
 
 def brute_beside(small, exponents) -> None:
-    h, w = small.shape[:2]
-    prepared = pf.RingInputs(small)
-    rows = []
-    for e in exponents:
-        levels = pf.output_levels(h, w, e)
-        (fast, _), t_fast = timed(pf.prefilter_ring, small, e, levels, prepared)
-        (truth, _), t_brute = timed(pf.prefilter_brute, small, e, levels)
-        p99, mx = errors(fast, truth)
-        rows.append([f"{e:.4g}", f"{w >> levels}×{h >> levels}", f"{t_fast:.3f}",
-                     f"{t_brute:.2f}", f"{p99:.1e}", f"{mx:.1e}"])
-    table(["E", "output", "auto (s)", "brute (s)", "auto vs brute p99", "max"], rows)
+    table(["E", "output", "auto (s)", "brute (s)", "auto vs brute p99", "max"],
+          [[f"{r['exponent']:.4g}", r["output"], f"{r['ring_s']:.3f}", f"{r['brute_s']:.2f}",
+            f"{r['p99_error']:.1e}", f"{r['max_error']:.1e}"]
+           for r in sweeps.prefilter_brute_rows(small, exponents)])
 
 
 def error_time(mid, exponents) -> None:
     prepared = pf.RingInputs(mid)
     table(["E", "output", "working map", "time (s)", "p99 error", "max error"],
-          [row for e in exponents for row in _error_rows(mid, prepared, e)])
-
-
-def _error_rows(mid, prepared, e):
-    """Rows for one exponent: auto's output level and one finer, every working level."""
-    h, w = mid.shape[:2]
-    auto = pf.output_levels(h, w, e)
-    for levels in sorted({auto, max(0, auto - 1)}, reverse=True):
-        ref, _ = pf.prefilter_ring(mid, e, levels, prepared, working_levels=99)
-        for wl in range(0, min(levels, 3) + 1):
-            (out, ws), dt = timed(pf.prefilter_ring, mid, e, levels, prepared,
-                                  working_levels=wl)
-            p99, mx = errors(out, ref)
-            mark = " (auto)" if levels == auto and wl == min(levels, pf.WORKING_LEVELS) else ""
-            yield [f"{e:.4g}", f"{w >> levels}×{h >> levels}{mark}", f"{ws[1]}×{ws[0]}",
-                   f"{dt:.3f}", f"{p99:.1e}", f"{mx:.1e}"]
+          [[f"{r['exponent']:.4g}", r["output"] + (" (auto)" if r["auto"] else ""),
+            r["working"], f"{r['time_s']:.3f}", f"{r['p99_error']:.1e}",
+            f"{r['max_error']:.1e}"]
+           for e in exponents for r in sweeps.prefilter_ring_rows(mid, e, prepared)])
 
 
 def lookup_error(m, exponents) -> None:

@@ -18,7 +18,8 @@ from . import __version__, log
 from .errors import EXIT_USAGE, GonioError
 
 #: Stage shells in pipeline order; each module has ``register(app)`` and ``EXAMPLE``.
-COMMAND_MODULES = ("ingest", "fit", "lobes", "halftone", "prefilter", "sparkle", "render")
+COMMAND_MODULES = ("ingest", "fit", "lobes", "halftone", "prefilter", "sparkle", "render",
+                   "report")
 
 
 def _modules():

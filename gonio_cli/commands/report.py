@@ -1,0 +1,107 @@
+"""``gonio report``: the thin shell over :mod:`gonio_cli.report` (issue 7).
+
+Writes ``REPORT_DIR/report.md``, ``report.json`` (schema ``gonio.report`` v1) and one PNG
+per plot. Atomic as a whole: everything is written into a temporary folder beside
+``REPORT_DIR`` and moved into place at the end; a failed run leaves ``REPORT_DIR`` as it
+was.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import List, Optional
+
+import typer
+
+SECTION_NAMES = ("fit", "lobes", "prefilter", "render", "table1", "sheets")  # report.SECTION_NAMES
+
+
+def report(
+    inputs: Optional[List[Path]] = typer.Argument(
+        None, metavar="[MEASUREMENT/MATERIAL.json ...]", show_default=False,
+        help="gonio.measurement files (Table 1, paired with NAME.material.json and "
+             "NAME.torrance-sparrow.material.json when given, else fitted in memory) and "
+             "gonio.material files (sheets). None: the bundled sample inks."),
+    output: Path = typer.Option(..., "--output", "-o", metavar="REPORT_DIR",
+                                help="Folder for report.md, report.json and the plots "
+                                     "(replaced as a whole)."),
+    quick: bool = typer.Option(False, "--quick",
+                               help="Small sizes and one repeat: under a minute."),
+    sections: Optional[str] = typer.Option(
+        None, "--sections", metavar="LIST",
+        help=f"Comma-separated subset of {','.join(SECTION_NAMES)} (default: all)."),
+) -> None:
+    """Error against run time for every stage's settings, seed 000 Table 1 beside the
+    paper's numbers, and material sheets, as Markdown with PNG plots.
+
+    \b
+    Example:
+      gonio report --quick -o report/
+      gonio report out/rgbink/*.measurement.json out/rgbink/*.material.json -o report/
+    """
+    import os
+    import shutil
+    import tempfile
+    import time
+
+    from .. import log
+    from ..artifact import atomic_path, make_document, write_json
+    from ..errors import InputError
+    from ..report import SCHEMA, SCHEMA_VERSION, parse_sections, run_report
+
+    start = time.perf_counter()
+    names = parse_sections(sections)  # before anything is written
+    paths = list(inputs or [])
+    for p in paths:
+        if not p.is_file():
+            raise InputError("no such file", path=p, fix="give gonio.measurement or "
+                                                          "gonio.material JSON files")
+    if output.exists() and not output.is_dir():
+        raise InputError(f"-o {output} is a file", fix="name a folder")
+    parent = output.resolve().parent
+    parent.mkdir(parents=True, exist_ok=True)
+    stage = Path(tempfile.mkdtemp(prefix=f".{output.name}.", suffix=".tmp", dir=parent))
+    try:
+        with tempfile.TemporaryDirectory(prefix="gonio-report-") as work:
+            result = run_report(names, Path(work), paths=paths, quick=quick,
+                                progress=lambda it: log.progress(it, "report sections",
+                                                                 expected_s=10.0))
+            for section in result.sections:
+                for name, draw in section.plots.items():
+                    with atomic_path(stage / name) as tmp:
+                        draw(tmp)
+        result.time_s = time.perf_counter() - start
+        doc = make_document(SCHEMA, SCHEMA_VERSION, result.payload(), inputs=paths,
+                            parameters={"sections": names, "quick": quick},
+                            time_s=result.time_s)
+        write_json(stage / "report.json", doc)
+        with atomic_path(stage / "report.md") as tmp:  # last
+            tmp.write_text(result.markdown(), encoding="utf-8")
+        os.chmod(stage, 0o777 & ~_umask())
+        old = None
+        if output.exists():
+            old = parent / f".{output.name}.old-{os.getpid()}"
+            os.replace(output, old)
+        os.replace(stage, output)
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)
+    except BaseException:
+        shutil.rmtree(stage, ignore_errors=True)
+        raise
+    log.info(f"{output / 'report.md'}: {len(result.sections)} sections "
+             f"({', '.join(names)}), {result.time_s:.1f} s")
+
+
+def _umask() -> int:
+    import os
+
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+EXAMPLE = "gonio report --quick -o report/"
+
+
+def register(app: typer.Typer) -> None:
+    app.command("report")(report)

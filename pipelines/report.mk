@@ -1,0 +1,15 @@
+# report: error against run time of every stage and seed 000's Table 1 on the demo's inks
+# (gonio report, docs/report.md). Not part of `make demo` (it measures, ~1 min); run
+# `make report`, or `make report REPORT_FLAGS=--quick` for the short version (~20 s).
+# Included by the top Makefile (GONIO, OUT, STAMP, INKS, RGBINK).
+
+REPORT := $(OUT)/report
+REPORT_FLAGS ?=
+REPORT_INPUTS := $(foreach i,$(INKS),$(RGBINK)/$(i).measurement.json $(RGBINK)/$(i).material.json \
+                                     $(RGBINK)/$(i).torrance-sparrow.material.json)
+
+.PHONY: report
+report: $(REPORT)/report.md
+
+$(REPORT)/report.md: $(REPORT_INPUTS) | $(STAMP)
+	$(GONIO) report $^ -o $(REPORT) $(REPORT_FLAGS)
