@@ -3,7 +3,8 @@
 #   make test   create .venv, install gonio, run the whole test suite
 # Others: make bench (error against run time), make clean. One stage: make rgbink, make
 # carpaint, make lobes, make sky, make render, or one file (make out/render/figure5.png).
-# make report: error against run time of every stage and seed 000's Table 1 (~1 min).
+# make report: error against run time of every stage and seed 000's Table 1 (quick in the
+# demo; the full sweeps, ~1 min: make report REPORT_FLAGS= -B).
 # The file graph and how to write a batch Makefile of your own: docs/pipelines.md.
 #
 # Variables, set on the command line (make demo OUT=/tmp/run):
@@ -45,7 +46,7 @@ include pipelines/render.mk
 include pipelines/report.mk
 
 DEMO_TARGETS := $(RGBINK_TARGETS) $(CARPAINT_TARGETS) $(LOBES_TARGETS) $(SKY_TARGETS) \
-                $(RENDER_TARGETS)
+                $(RENDER_TARGETS) $(REPORT_TARGETS)
 
 # demo has no recipe of its own, so `make -q demo` exits 0 once everything is built. The
 # list of outputs is a file, rewritten and printed whenever an output was remade.
@@ -53,8 +54,8 @@ demo: $(STAMP) $(OUT)/demo.txt
 
 $(OUT)/demo.txt: $(DEMO_TARGETS)
 	@{ echo "Demo outputs (measurements, materials and their plots, the print, lobes," \
-	    "the prefiltered sky, renders):"; \
-	  for d in rgbink carpaint lobes sky render; do echo "  $(OUT)/$$d/"; \
+	    "the prefiltered sky, renders, the report):"; \
+	  for d in rgbink carpaint lobes sky render report; do echo "  $(OUT)/$$d/"; \
 	    ls -1 $(OUT)/$$d | sed 's/^/    /'; done; } > $@
 	@echo; cat $@; echo "(this list: $@)"
 

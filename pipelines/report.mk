@@ -1,10 +1,11 @@
 # report: error against run time of every stage and seed 000's Table 1 on the demo's inks
-# (gonio report, docs/report.md). Not part of `make demo` (it measures, ~1 min); run
-# `make report`, or `make report REPORT_FLAGS=--quick` for the short version (~20 s).
+# (gonio report, docs/report.md). The demo writes the quick report (~20 s); the full
+# sweeps (~1 min): `make report REPORT_FLAGS= -B`.
 # Included by the top Makefile (GONIO, OUT, STAMP, INKS, RGBINK).
 
 REPORT := $(OUT)/report
-REPORT_FLAGS ?=
+REPORT_FLAGS ?= --quick
+REPORT_TARGETS := $(REPORT)/report.md
 REPORT_INPUTS := $(foreach i,$(INKS),$(RGBINK)/$(i).measurement.json $(RGBINK)/$(i).material.json \
                                      $(RGBINK)/$(i).torrance-sparrow.material.json)
 

@@ -42,7 +42,7 @@ ALL = frozenset(
        "carpaint/paint.fit.png",
        "lobes/basis.json", "lobes/basis.png", "lobes/paint.lobes.json",
        *(f"lobes/{i}.lobes.json" for i in INKS),
-       "sky/index.json", "render/sparkle.png", *RENDERS, "demo.txt"])
+       "sky/index.json", "render/sparkle.png", *RENDERS, "report/report.md", "demo.txt"])
 # Files written by the run that writes another target (two-target rules) and the list.
 SECONDARY = frozenset({"rgbink/red.fit.png", "rgbink/green.fit.png", "rgbink/blue.fit.png",
                        "rgbink/print.json", "carpaint/paint.fit.png", "lobes/basis.png",
@@ -107,9 +107,10 @@ def _output(argv: list[str]) -> str:
 
 
 def _made_by(tree: Tree, argv: list[str]) -> str:
-    """The target a gonio command makes, relative to OUT (prefilter writes a folder)."""
+    """The target a gonio command makes, relative to OUT (prefilter and report write a
+    folder; the target is its index file)."""
     out = tree.rel(_output(argv))
-    return out + "/index.json" if argv[0] == "prefilter" else out
+    return out + {"prefilter": "/index.json", "report": "/report.md"}.get(argv[0], "")
 
 
 def assert_remakes(tree: Tree, expected: set[str]) -> list[list[str]]:
@@ -202,16 +203,16 @@ def test_measurement_edit_reruns_everything_downstream(tree):
     materials) → every material's lobe weights → the sky, prefiltered per exponent of the
     paint's lobes → every render reading red, its lobes or the sky. Not: the other inks'
     ingest and fits, the halftone, the car paint's ingest and fit, the sparkle texture, the
-    sparkle render (paint material and lights only)."""
+    sparkle render (paint material and lights only). And the report (it reads the inks)."""
     tree.touch("sample_data/ink_red.csv")
     cmds = assert_remakes(tree, {
         "rgbink/red.measurement.json", "rgbink/red.material.json", "rgbink/red.fit.png",
         "rgbink/red.torrance-sparrow.material.json", *ALL_LOBES, "sky/index.json",
         "render/figure5.png", "render/print-D65.png", "render/print-A.png",
-        "render/paint_env.png"})
+        "render/paint_env.png", "report/report.md"})
     kinds = Counter(" ".join(c[:2]) if c[0] == "lobes" else c[0] for c in cmds)
     assert kinds == {"ingest": 1, "fit": 2, "lobes basis": 1, "lobes fit": 4,
-                     "prefilter": 1, "render": 4}
+                     "prefilter": 1, "render": 4, "report": 1}
     ingest_fit = [c for c in cmds if c[0] in ("ingest", "fit")]
     assert all("red" in Path(_output(c)).name for c in ingest_fit)
 
@@ -233,7 +234,7 @@ def test_paint_measurement_edit(tree):
         "rgbink/blue.measurement.json", "rgbink/blue.material.json", "rgbink/blue.fit.png",
         "rgbink/blue.torrance-sparrow.material.json", *ALL_LOBES, "sky/index.json",
         "render/figure5.png", "render/print-D65.png", "render/print-A.png",
-        "render/paint_env.png"}),
+        "render/paint_env.png", "report/report.md"}),
 ])
 def test_other_sources(tree, source, remade):
     tree.touch(source)
