@@ -23,7 +23,7 @@ GONIO  := $(BIN)/gonio
 
 export PATH := $(abspath $(BIN)):$(PATH)
 
-.PHONY: demo test bench clean setup
+.PHONY: demo test bench clean setup refresh-references
 .DEFAULT_GOAL := demo
 
 setup: $(STAMP)
@@ -64,6 +64,11 @@ test: $(STAMP)
 
 bench: $(STAMP)
 	@for b in benchmarks/bench_*.py; do echo; echo "### $$b"; $(BIN)/python $$b || exit 1; done
+
+# Rewrite tests/regression/references on purpose (tests/regression/README.md);
+# one or more: make refresh-references NAMES="fit-red-goniochromatic render-print-small"
+refresh-references: $(STAMP)
+	$(BIN)/python tests/regression/refresh.py $(NAMES)
 
 clean:
 	rm -rf $(OUT)
