@@ -175,3 +175,12 @@ def test_sheets_from_a_material_file(run_gonio, tmp_path):
     # green ink: the mirror colour at θi = 15° is green-dominant
     r, g, b = sheet["mirror_srgb"][0]
     assert g == pytest.approx(1.0) and g > r and g > b
+
+
+def test_lobes_section_times_the_environment_render_per_lobe_count(quick_report):
+    # Issue 7: "lobes: lobe count: BRDF approximation error, weight-fit time, render time".
+    _, _, doc = quick_report
+    lobes = doc["sections"]["lobes"]
+    counts = [b["lobes"] for b in lobes["basis"]]
+    assert [r["lobes"] for r in lobes["render"]] == counts
+    assert all(r["render_ms"] > 0 and r["pixels"] > 1000 for r in lobes["render"])

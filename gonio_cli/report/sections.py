@@ -216,8 +216,17 @@ def fit_section(inputs: Inputs, workdir: Path, quick: bool) -> Section:
 # --------------------------------------------------------------------------------- lobes --
 
 def lobes_section(inputs: Inputs, workdir: Path, quick: bool) -> Section:
+    from .. import envmap
+    from ..imageio import read_image
+
     res = sweeps.lobe_sweep(max_lobes=4 if quick else 8, repeats=3 if quick else 15)
     rows = res["rows"]
+    sky = read_image(SAMPLE_DATA / "sky.exr").pixels[:, :, :3].astype(np.float64)
+    sky = envmap.downsample(sky, max(1, sky.shape[0] // 64))
+    ink = inputs.inks[0].materials.get("goniochromatic") if inputs.inks else None
+    render = sweeps.lobe_render_times(res["basis"], ink, sky, size=96 if quick else 256) \
+        if ink is not None else []
+    res["render"] = render
 
     def plot(path):
         series: dict[str, tuple[list, list]] = {}
@@ -240,6 +249,14 @@ def lobes_section(inputs: Inputs, workdir: Path, quick: bool) -> Section:
                        "time ms"],
                       [[str(r["lobes"]), str(r["weights"]), r["solver"], f"{r['l1_sum']:.4g}",
                         f"{r['rel_rms_worst']:.4g}", f"{r['time_ms']:.3f}"] for r in rows])
+          + ("\n\nEnvironment light per lobe count (seed 001 eqs. 7–9, what `gonio render` "
+             f"runs): {inputs.inks[0].name if inputs.inks else ''} ink's eq. 5 weights fitted "
+             "over the hemisphere, the bundled sky "
+             f"prefiltered at the basis's exponents, the environment term over the "
+             f"{render[0]['pixels']} pixels of a sphere:\n\n"
+             + _md_table(["lobes", "render ms (median)"],
+                         [[str(r["lobes"]), f"{r['render_ms']:.1f}"] for r in render])
+             if render else "")
           + "\n\n![lobes](lobes.png)")
     return Section("lobes", "Lobes: lobe count and weight solver", res, md,
                    {"lobes.png": plot})

@@ -97,6 +97,45 @@ def lobe_sweep(max_lobes: int = 6, repeats: int = 5, materials: dict | None = No
             "materials": list(mats), "samples": int(one.n_samples)}
 
 
+def lobe_render_times(basis: list[dict], material, sky: np.ndarray, size: int = 128,
+                      repeats: int = 3) -> list[dict]:
+    """Render time of environment light per lobe count (seed 001 eqs. 7–9).
+
+    For each basis row: the sky prefiltered at its exponents, the material's weights fitted
+    over the hemisphere (``--samples hemisphere``, NNLS, spectral), then the median time of
+    the environment term over the ``size`` × ``size`` pixels of an orthographic sphere
+    (``gonio_cli.render.environment.environment_xyz``, what ``gonio render`` runs).
+    """
+    from .. import lobes as L
+    from ..prefilter import prefilter
+    from ..render.environment import Environment, environment_xyz
+    from ..schemas import Lobes
+
+    y, x = np.mgrid[1:-1:size * 1j, -1:1:size * 1j]
+    inside = x * x + y * y < 1.0
+    normals = np.stack([x[inside], y[inside], np.sqrt(1.0 - x[inside] ** 2 - y[inside] ** 2)],
+                       axis=-1)
+    views = np.broadcast_to([0.0, 0.0, 1.0], normals.shape)
+    wl = material.wavelength_nm
+    rows = []
+    for b in basis:
+        maps = prefilter(sky, b["exponents"], check=False)
+        env = Environment("memory", np.array([r.exponent for r in maps]), [""] * len(maps),
+                          [r.pixels.shape[:2] for r in maps],
+                          {float(r.exponent): r.pixels for r in maps})
+        table = L.fit_weight_table(material, b["exponents"],
+                                   L.sample_set("hemisphere", np.arange(0.0, 90.0, 10.0)),
+                                   solver="nnls", compare=())
+        lobes = Lobes(table.exponents, "spectral", table.channels, table.view_angle_deg,
+                      table.diffuse, table.directional_diffuse, table.gloss, {},
+                      table.solver, "hemisphere", table.n_samples)
+        environment_xyz(env, lobes, normals, views, wl)                 # warm (map stacks)
+        t = median_time(lambda: environment_xyz(env, lobes, normals, views, wl), repeats)
+        rows.append({"lobes": b["lobes"], "pixels": int(normals.shape[0]),
+                     "render_ms": 1e3 * t})
+    return rows
+
+
 # --------------------------------------------------------------------------- prefilter --
 
 def prefilter_errors(out, truth) -> tuple[float, float]:
