@@ -23,7 +23,6 @@ from __future__ import annotations
 import statistics
 import sys
 import tempfile
-import textwrap
 import time
 from pathlib import Path
 
@@ -39,40 +38,22 @@ FRAME_TARGET_S, TOTAL_TARGET_S = 0.100, 0.5
 
 
 def make_scene(folder: Path, spectral: str) -> Path:
-    from test_render_reference import EYE, FOV_DEG, LIGHTS
+    """The analytic reference's sphere scene (one definition, in the tests) at SIZE, with
+    the demo's red ink if it exists, else a synthetic one."""
+    import shutil
 
+    from gonio_cli.schemas import write_material
+    from test_render_reference import ink, sphere_scene
+
+    sub = folder / spectral
+    sub.mkdir(parents=True, exist_ok=True)
+    material = sub / "ink.json"
     demo = ROOT / "out/rgbink/red.material.json"
-    material = demo if demo.is_file() else folder / "ink.json"
-    if not demo.is_file():
-        from gonio_cli.schemas import write_material
-        from test_render_reference import ink
-
+    if demo.is_file():
+        shutil.copy(demo, material)
+    else:
         write_material(material, ink(620.0, 0.18))
-    lights = "".join(f"""
-        [[light]]
-        type = "directional"
-        direction = {d.tolist()}
-        irradiance = {e}
-        spectrum = "D65"
-        """ for d, e in LIGHTS)
-    path = folder / f"bench-{spectral}.toml"
-    path.write_text(textwrap.dedent(f"""
-        [camera]
-        eye = {EYE.tolist()}
-        target = [0.0, 0.0, 0.0]
-        up = [0.0, 1.0, 0.0]
-        fov_deg = {FOV_DEG}
-        width = {SIZE}
-        height = {SIZE}
-        [[object]]
-        mesh = "builtin:sphere"
-        material = "{material}"
-        [output]
-        ssaa = 1
-        spectral = "{spectral}"
-        tonemap = "clip"
-        """) + textwrap.dedent(lights))
-    return path
+    return sphere_scene(sub, material, SIZE, spectral)
 
 
 def render_once(scene_path: Path, out: Path):
