@@ -34,12 +34,12 @@ $(RENDER)/paint_env.png: $(SCENES)/paint_env.toml $(CARPAINT)/paint.material.jso
 SPARKLE_PHOTOS := $(sort $(wildcard sample_data/sparkle/photo_ti*.png))
 
 # Sparkles (seed 004 §6): the texture from the sample flake photos (eqs. 15–16), then
-# the car paint with sparkles under two directional lights (eq. 17).
+# the car paint under the sky and a sun, with sparkles (eq. 17).
 $(RENDER)/sparkle.png: $(SPARKLE_PHOTOS) | $(STAMP)
 	$(GONIO) sparkle $^ -o $@ --theta-i 10,20,30,40,50,60,70
 
 $(RENDER)/paint_sparkle.png: $(SCENES)/paint_sparkle.toml $(CARPAINT)/paint.material.json \
-  $(RENDER)/sparkle.png
+  $(LOBES)/paint.lobes.json $(SKY)/index.json $(RENDER)/sparkle.png
 	$(GONIO) render $< -o $@ --exr $(RENDER)/paint_sparkle.exr \
 	  --report $(RENDER)/paint_sparkle.json $(RENDER_VARS) \
 	  --var sparkles=$(abspath $(RENDER)/sparkle.png)

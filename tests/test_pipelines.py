@@ -202,17 +202,17 @@ def test_measurement_edit_reruns_everything_downstream(tree):
     """red's CSV → red's ingest and both fits → the lobe basis (chosen over all four
     materials) → every material's lobe weights → the sky, prefiltered per exponent of the
     paint's lobes → every render reading red, its lobes or the sky. Not: the other inks'
-    ingest and fits, the halftone, the car paint's ingest and fit, the sparkle texture, the
-    sparkle render (paint material and lights only). And the report (it reads the inks)."""
+    ingest and fits, the halftone, the car paint's ingest and fit, the sparkle texture.
+    And the report (it reads the inks)."""
     tree.touch("sample_data/ink_red.csv")
     cmds = assert_remakes(tree, {
         "rgbink/red.measurement.json", "rgbink/red.material.json", "rgbink/red.fit.png",
         "rgbink/red.torrance-sparrow.material.json", *ALL_LOBES, "sky/index.json",
         "render/figure5.png", "render/print-D65.png", "render/print-A.png",
-        "render/paint_env.png", "report/report.md"})
+        "render/paint_env.png", "render/paint_sparkle.png", "report/report.md"})
     kinds = Counter(" ".join(c[:2]) if c[0] == "lobes" else c[0] for c in cmds)
     assert kinds == {"ingest": 1, "fit": 2, "lobes basis": 1, "lobes fit": 4,
-                     "prefilter": 1, "render": 4, "report": 1}
+                     "prefilter": 1, "render": 5, "report": 1}
     ingest_fit = [c for c in cmds if c[0] in ("ingest", "fit")]
     assert all("red" in Path(_output(c)).name for c in ingest_fit)
 
@@ -226,7 +226,8 @@ def test_paint_measurement_edit(tree):
 
 
 @pytest.mark.parametrize("source, remade", [
-    ("sample_data/sky.exr", {"sky/index.json", "render/paint_env.png"}),
+    ("sample_data/sky.exr", {"sky/index.json", "render/paint_env.png",
+                             "render/paint_sparkle.png"}),
     ("sample_data/sparkle/photo_ti40.png", {"render/sparkle.png", "render/paint_sparkle.png"}),
     ("sample_data/print_image.png", {"rgbink/print.png", "rgbink/print.json",
                                      "render/print-D65.png", "render/print-A.png"}),
@@ -234,7 +235,7 @@ def test_paint_measurement_edit(tree):
         "rgbink/blue.measurement.json", "rgbink/blue.material.json", "rgbink/blue.fit.png",
         "rgbink/blue.torrance-sparrow.material.json", *ALL_LOBES, "sky/index.json",
         "render/figure5.png", "render/print-D65.png", "render/print-A.png",
-        "render/paint_env.png", "report/report.md"}),
+        "render/paint_env.png", "render/paint_sparkle.png", "report/report.md"}),
 ])
 def test_other_sources(tree, source, remade):
     tree.touch(source)
@@ -276,8 +277,7 @@ def test_renders_depend_on_every_file_they_read(tree):
 
 def test_environment_only_for_scenes_that_need_one(tree):
     """Building a render alone from scratch (``make -n -B``) prefilters the sky (and fits
-    lobes) only when its scene has an [environment]: not for figure5, the print or the
-    sparkle render."""
+    lobes) only when its scene has an [environment]: not for figure5 or the prints."""
     needs = {}
     for target, scene in _render_scenes(tree):
         kinds = {c[0] for c in tree.commands("-B", target)}
@@ -286,9 +286,9 @@ def test_environment_only_for_scenes_that_need_one(tree):
         assert ("prefilter" in kinds) == needs[tree.rel(target)], tree.rel(target)
         assert ("lobes" in kinds) == needs[tree.rel(target)], tree.rel(target)
     assert needs["render/figure5.png"] is False and needs["render/paint_env.png"] is True
-    # An edit of the prefiltered sky reaches only the render under it.
+    # An edit of the prefiltered sky reaches only the renders under it.
     tree.touch("out/sky/index.json")
-    assert_remakes(tree, {"render/paint_env.png"})
+    assert_remakes(tree, {"render/paint_env.png", "render/paint_sparkle.png"})
 
 
 def test_stamp_is_order_only(tree):
