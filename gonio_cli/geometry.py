@@ -55,6 +55,35 @@ def half_vector(wi: np.ndarray, wo: np.ndarray) -> np.ndarray:
     return np.where(safe, s / np.where(safe, norm, 1.0), n)
 
 
+#: ‖ωi + ωo‖² = 2 + 2 ωi·ωo below this is treated as ωo = −ωi, where the half vector is
+#: undefined and the normal stands in for it (cos θh = 1, cos θd = cos θi). ωi·ωo carries
+#: ~1e-16 round-off, so the square means nothing below ~1e-12 (|ωi + ωo| < 1e-6); such a
+#: pair has cos θi ≈ −cos θo, so it is never lit and seen at once and its value is unused.
+HALF_SQ_EPS = 1e-12
+
+
+def cosines_from_dots(cos_i, cos_o, cos_io) -> Cosines:
+    """:class:`Cosines` from the three dot products N·ωi, N·ωo and ωi·ωo (each (...,)).
+
+    With the half vector of seed 000 eq. (1), ωh = (ωi + ωo)/‖ωi + ωo‖ and
+    ‖ωi + ωo‖² = 2 + 2 ωi·ωo: N·ωh = (N·ωi + N·ωo)/‖ωi + ωo‖ and
+    ωi·ωh = (1 + ωi·ωo)/‖ωi + ωo‖. The renderer calls it with one light direction per
+    light (two matrix–vector products instead of (n, 3) arrays). :func:`cosines` forms the
+    half vector instead: at the mirror configuration it gives cos θh = 1 exactly, where
+    this form is off by ~1e-16, which a near-mirror GGX lobe (α ~ 1e-3) in a fit amplifies.
+    NaN inputs give NaN, never a finite value.
+    """
+    cos_i = np.asarray(cos_i, dtype=float)
+    cos_o = np.asarray(cos_o, dtype=float)
+    sq = 2.0 + 2.0 * np.asarray(cos_io, dtype=float)
+    safe = ~(sq <= HALF_SQ_EPS)                       # NaN stays NaN
+    inv = 1.0 / np.sqrt(np.where(safe, sq, 1.0))
+    cos_h = np.where(safe, (cos_i + cos_o) * inv, 1.0)
+    cos_d = np.where(safe, (1.0 + cos_io) * inv, cos_i)
+    clip = lambda v: np.clip(v, 0.0, 1.0)  # noqa: E731
+    return Cosines(clip(cos_i), clip(cos_o), clip(cos_h), clip(cos_d))
+
+
 def cosines(wi: np.ndarray, wo: np.ndarray, normal=(0.0, 0.0, 1.0)) -> Cosines:
     """The :class:`Cosines` of direction pairs (..., 3) about ``normal`` (..., 3)."""
     wi = np.asarray(wi, dtype=float)

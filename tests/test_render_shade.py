@@ -8,7 +8,8 @@ import pytest
 from gonio_cli.errors import InputError
 from gonio_cli.geometry import cosines
 from gonio_cli.render import GBuffer, Light, Stats
-from gonio_cli.render.shade import (Surface, goniochromatic_table, light_cosines, shade,
+from gonio_cli.geometry import cosines_from_dots
+from gonio_cli.render.shade import (Surface, goniochromatic_table, shade,
                                     table_lookup, xyz_weights, TABLE_REL_TOL)
 from gonio_cli.schemas import Material
 from gonio_cli.spectra import illuminant, parse_grid
@@ -171,7 +172,7 @@ def test_light_cosines_equal_geometry():
     n, wi, wo = (a / np.linalg.norm(a, axis=1, keepdims=True) for a in (n, wi, wo))
     wo[0] = -wi[0]                                              # the undefined half vector
     ref = cosines(wi, wo, n)
-    got = light_cosines(np.sum(n * wi, 1), np.sum(n * wo, 1), np.sum(wi * wo, 1))
+    got = cosines_from_dots(np.sum(n * wi, 1), np.sum(n * wo, 1), np.sum(wi * wo, 1))
     for a, b in zip(got, ref):
         np.testing.assert_allclose(a[1:], b[1:], atol=1e-12)
     # ωo = −ωi: never lit and seen at once; the half vector is the normal (cos θh = 1;

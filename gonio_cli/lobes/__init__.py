@@ -127,8 +127,7 @@ def design_matrix(cos_theta_i, cos_rv, exponents) -> np.ndarray:
 def split_weights(x: np.ndarray, n_lobes: int) -> dict[str, np.ndarray]:
     """Weights (1 + 2m, ...) → {"diffuse": (...), "directional_diffuse": (m, ...),
     "gloss": (m, ...)} in the column order of :func:`design_matrix`."""
-    return {"diffuse": x[0], "directional_diffuse": x[1:1 + n_lobes],
-            "gloss": x[1 + n_lobes:1 + 2 * n_lobes]}
+    return dict(zip(COMPONENTS, (x[0], x[1:1 + n_lobes], x[1 + n_lobes:1 + 2 * n_lobes])))
 
 
 def check_exponents(exponents, where: str = "basis") -> np.ndarray:
@@ -282,7 +281,6 @@ SAMPLE_SETS: dict[str, SamplePattern | HemispherePattern] = {
         description="lights over the whole hemisphere (half by symmetry) per view: lobes "
                     "that also hold across the plane of incidence, for environment light"),
 }
-DEFAULT_SAMPLE_SET = "seed001"
 
 
 def read_sample_csv(path) -> tuple[np.ndarray, np.ndarray]:

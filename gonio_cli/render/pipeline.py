@@ -245,8 +245,7 @@ def render_scene(scene: Scene, stats: Stats | None = None) -> Frame:
     ssaa = scene.output.ssaa
     with _Stage(stats, "rasterize"):
         # texture coordinates only when a mask or a sparkle texture will read them
-        needs_uv = any(o.mask is not None or o.sparkle is not None for o in scene.objects)
-        gbuffer = rasterize(scene.camera, meshes, ssaa, uv=needs_uv)
+        gbuffer = rasterize(scene.camera, meshes, ssaa, uv=scene.needs_uvs)
     t0 = time.perf_counter()
     xyz = shade(gbuffer, surfaces, scene.lights, scene.grid_nm, environment=environment,
                 spectral=scene.output.spectral, stats=stats)

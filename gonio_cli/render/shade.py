@@ -77,7 +77,7 @@ import numpy as np
 from ..brdf import (cook_torrance_specular_geometry, ggx_d, goniochromatic_exponent_arg,
                     schlick_fresnel, torrance_sparrow)
 from ..errors import InputError
-from ..geometry import Cosines, reflect
+from ..geometry import Cosines, cosines_from_dots, reflect
 from ..schemas import Lobes, Material
 from . import GBuffer, Light, Stats
 
@@ -408,32 +408,6 @@ def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1] + a[:, 2] * b[:, 2]
 
 
-#: ‖ωi + ωo‖² = 2 + 2 ωi·ωo below this is treated as ωo = −ωi, where the half vector is
-#: undefined and :func:`gonio_cli.geometry.half_vector` returns the normal: the same here.
-#: Larger than geometry's HALF_VECTOR_EPS² because ωi·ωo carries ~1e-16 round-off, so the
-#: square is meaningless below ~1e-12 (|ωi + ωo| < 1e-6); such a pair has
-#: cos θi ≈ −cos θo, so it is never lit and seen at once and its value is never used.
-HALF_SQ_EPS = 1e-12
-
-
-def light_cosines(cos_i: np.ndarray, cos_o: np.ndarray, cos_io: np.ndarray) -> Cosines:
-    """:class:`Cosines` from the three dot products N·ωi, N·ωo and ωi·ωo, (n,) each.
-
-    The same values as :func:`gonio_cli.geometry.cosines` (tested to round-off) from the
-    half vector of seed 000 eq. (1), ωh = (ωi + ωo)/‖ωi + ωo‖ with ‖ωi + ωo‖² = 2 + 2 ωi·ωo:
-    N·ωh = (N·ωi + N·ωo)/‖ωi + ωo‖ and ωi·ωh = (1 + ωi·ωo)/‖ωi + ωo‖, without forming
-    (n, 3) arrays per light (a directional light's ωi is one vector: two matrix-vector
-    products per light instead of four row-wise reductions).
-    """
-    sq = 2.0 + 2.0 * cos_io
-    safe = sq > HALF_SQ_EPS
-    inv = 1.0 / np.sqrt(np.where(safe, sq, 1.0))
-    cos_h = np.where(safe, (cos_i + cos_o) * inv, 1.0)
-    cos_d = np.where(safe, (1.0 + cos_io) * inv, cos_i)
-    clip = lambda v: np.clip(v, 0.0, 1.0)  # noqa: E731
-    return Cosines(clip(cos_i), clip(cos_o), clip(cos_h), clip(cos_d))
-
-
 # --------------------------------------------------------------------------------- shade --
 
 class _Pixels:
@@ -630,7 +604,7 @@ def _direct(material, is_substrate: bool, tp: _Pixels, lights: Sequence[Light],
             if n_lit == 0:
                 continue
             kernel = kernel_of(material, light, is_substrate)
-            cos = light_cosines(cos_i, co_b, _dot(v_b, wi))
+            cos = cosines_from_dots(cos_i, co_b, _dot(v_b, wi))
 
             def directions(sel=None, wi=wi, n_b=n_b, v_b=v_b):
                 w = np.broadcast_to(wi, n_b.shape)
@@ -702,10 +676,7 @@ def _sparkle_term(surface: Surface, k: int, gbuffer: GBuffer, index: np.ndarray,
     for j, light in enumerate(lights):
         wi, e = incident(light, p)
         cos_i = _dot(n, wi)
-        h = wi + v
-        norm = np.sqrt(_dot(h, h))
-        safe = norm > np.sqrt(HALF_SQ_EPS)
-        cos_nh[:, j] = np.where(safe, _dot(n, h) / np.where(safe, norm, 1.0), 1.0)
+        cos_nh[:, j] = cosines_from_dots(cos_i, cos_o, _dot(v, wi)).cos_theta_h
         scale[:, j] = np.where((cos_i > 0) & (cos_o > 0), cos_i * e, 0.0)
     lit = scale > 0
     counts["sparkle_lit_pixel_lights"] += int(np.count_nonzero(lit))
