@@ -2,7 +2,7 @@
 
 Prints a Markdown table: parameter errors against the synthetic truth, the data's log-RMSE
 and the median time of the whole fit (one ink: ~130 configurations × 41 wavelengths).
-Targets (issue 3): refined fit < 50 ms, the paper's two steps < 10 ms. The time of the
+Targets: refined fit < 50 ms, the paper's two steps < 10 ms. The time of the
 refined method is the whole default fit (the two steps run first and are reported too).
 ``--quick`` runs one case.
 """

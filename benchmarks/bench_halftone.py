@@ -1,4 +1,4 @@
-"""Halftone speed against tone error, per method (issue 5: 4096² in < 2 s with error
+"""Halftone speed against tone error, per method (4096² in < 2 s with error
 diffusion).
 
 Prints a Markdown table: for each method the core time on the synthetic print test image
@@ -24,7 +24,7 @@ from gonio_cli.halftone import METHODS, halftone, ink_coverage, prepare, tone_er
 from gonio_cli.halftone import diffusion, screens
 from gonio_cli.halftone.testimage import print_test_image
 
-#: Issue 5's target for error diffusion at 4096² (s).
+#: The target for error diffusion at 4096² (s).
 TARGET_S = 2.0
 
 

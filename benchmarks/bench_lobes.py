@@ -6,7 +6,7 @@ comparison materials (Torrance–Sparrow glossy and rough, a Cook–Torrance met
 a Lambertian white). Basis search: seed 001 §4's set at 10°, 40° and 70° view (58
 samples), XYZ. One weight fit: the dense set at one view angle (58 samples) × (1 + 2m)
 weights × 3 channels (XYZ).
-Targets (issue 4): one fit (8 lobes) under 2 ms; the basis search under a minute.
+Targets: one fit (8 lobes) under 2 ms; the basis search under a minute.
 Prints Markdown tables; ``--quick`` runs fewer repeats and lobe counts.
 """
 

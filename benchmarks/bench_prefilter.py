@@ -3,7 +3,7 @@ against time per method and resolution.
 
     .venv/bin/python benchmarks/bench_prefilter.py [--quick] [--map SKY.hdr]
 
-1. The issue's target: a 2048 × 1024 map, 8 exponents from 1 to 1e4, ``auto`` (with its
+1. The target: a 2048 × 1024 map, 8 exponents from 1 to 1e4, ``auto`` (with its
    spot checks), under 5 s in total.
 2. ``brute`` beside ``auto`` on a 128 × 64 map (where brute is feasible): time and the
    relative error of ``auto`` against it (99th percentile and maximum over texels).

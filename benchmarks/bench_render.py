@@ -1,4 +1,4 @@
-"""Benchmark of ``gonio render``: the issue's 512 × 512 sphere frame and whole render.
+"""Benchmark of ``gonio render``: the target's 512 × 512 sphere frame and whole render.
 
     .venv/bin/python benchmarks/bench_render.py [--quick]
 
@@ -9,7 +9,7 @@ if ``make demo`` has run, else a synthetic ink like it), clip tone map.
 1. Per-stage times of the render, as the run report records them: a cold ``gonio render
    --report`` in a fresh process (which pays numpy's first-use costs; colour-science's
    tables come from gonio's on-disk cache after the first run), then the median of N warm renders in
-   one process. Issue 8's targets: the frame
+   one process. The targets: the frame
    (rasterize + shade + downsample + tone map) under 100 ms, the whole render (scene load
    to files written) under 0.5 s.
 2. The ``exact`` spectral path (41 wavelengths per pixel and light) beside ``table``: shade
@@ -124,7 +124,7 @@ def main() -> None:
               f"{1e3 * warm['exact']:.1f} |")
     frame_w = statistics.median(frame_s(r[0]) for r in results["table"][2])
     total_w = statistics.median(r[1] for r in results["table"][2])
-    print(f"\nTargets (issue 8, warm process): frame < {1e3 * FRAME_TARGET_S:.0f} ms: "
+    print(f"\nTargets (warm process): frame < {1e3 * FRAME_TARGET_S:.0f} ms: "
           f"{'met' if frame_w < FRAME_TARGET_S else 'NOT met'} ({1e3 * frame_w:.0f} ms); "
           f"whole render < {TOTAL_TARGET_S} s: "
           f"{'met' if total_w < TOTAL_TARGET_S else 'NOT met'} ({total_w:.3f} s). "

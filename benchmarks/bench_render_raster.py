@@ -1,4 +1,4 @@
-"""Benchmark of the rasterizer of ``gonio render`` (issue 8): the 512 × 512 frame of a
+"""Benchmark of the rasterizer of ``gonio render``: the 512 × 512 frame of a
 ~20 000-triangle sphere, time of each pass beside the covered-area error.
 
     .venv/bin/python benchmarks/bench_render_raster.py [--quick] [--repeat N]
@@ -8,7 +8,7 @@ per-triangle set-up, the batched visibility pass (size-classed candidate arrays,
 scatter-min depth test) and the interpolation of the G-buffer (position, normal, view, uv
 and its footprint), and the relative error of the covered area (downsampled to the output
 size) against the exact area of the sphere's perspective silhouette, π F² tan² asin(1/D)
-for a unit sphere at distance D on the optical axis. The issue measured about 10 ms for
+for a unit sphere at distance D on the optical axis. The target assumed about 10 ms for
 a batched visibility pass on its machine (the brief: 10–20 ms), inside a 100 ms frame.
 Timings are the minimum over repeats: this machine is shared, so the median is noisy.
 """
@@ -24,7 +24,7 @@ from gonio_cli.render import Camera
 from gonio_cli.render import mesh as M
 from gonio_cli.render import raster as R
 
-#: The brief's range for the visibility pass (the issue measured ~10 ms on its machine).
+#: The brief's range for the visibility pass (the target assumed ~10 ms on its machine).
 VISIBILITY_TARGET_S = (0.010, 0.020)
 SIZE = 512
 DISTANCE = 4.0

@@ -1,5 +1,5 @@
 """Shading speed: the tabulated spectral path against the exact 41-wavelength sum
-(issue 8: "the tabulated spectral sum about 6 ms per light", "the naive 41-wavelength sum
+("the tabulated spectral sum about 6 ms per light", "the naive 41-wavelength sum
 75 ms").
 
 A synthetic GBuffer of a sphere built analytically (orthographic view from +z, radius
@@ -32,7 +32,7 @@ from gonio_cli.spectra import illuminant, parse_grid
 #: The demo's prefiltered sky and lobe weights (``make demo``), for the environment line.
 ENV_INDEX, ENV_LOBES = "out/sky/index.json", "out/lobes/red.lobes.json"
 
-#: The issue's target for the tabulated path, per light, at 512 × 512 (s).
+#: The target for the tabulated path, per light, at 512 × 512 (s).
 TARGET_PER_LIGHT_S = 0.006
 
 
@@ -115,7 +115,7 @@ def main() -> None:
                   + (f"{rel:.1e} | {de.mean():.1e} | {de.max():.1e} |" if path == "table"
                      else "— | — | — |"))
     print(f"\nTarget: tabulated path ≤ {TARGET_PER_LIGHT_S * 1e3:.0f} ms per light "
-          "(issue 8), on an idle machine.")
+          "(target), on an idle machine.")
     if os.path.exists(ENV_INDEX) and os.path.exists(ENV_LOBES):
         from gonio_cli.render.environment import load_environment
         from gonio_cli.schemas import read_lobes

@@ -1,6 +1,6 @@
 """Every reflectance model of gonio, each equation once (STYLE 2).
 
-All models are BRDFs in sr⁻¹ **without** the cosine of incidence (CONVENTIONS): outgoing
+All models are BRDFs in sr⁻¹ **without** the cosine of incidence (docs/conventions.md): outgoing
 radiance is L_o = f · E · cos θi. They take :class:`gonio_cli.geometry.Cosines` of shape
 (...,) and spectral parameters of shape (..., n_λ) (wavelength last, STYLE 6), and return
 (..., n_λ): geometry broadcasts against the parameters' leading axes, so a single

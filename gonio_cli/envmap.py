@@ -1,6 +1,6 @@
 """Lat-long (equirectangular) environment-map geometry, shared by prefilter and renderer.
 
-The layout is Mitsuba 3's ``envmap`` (CONVENTIONS, "Images, maps"): the pixel centre
+The layout is Mitsuba 3's ``envmap`` (docs/conventions.md, "Images, maps"): the pixel centre
 (row, col) of an H × W map has
 
     θ = π (row + ½) / H,   φ = 2π (col + ½) / W,
@@ -42,7 +42,7 @@ def pixel_phi(width: int) -> np.ndarray:
 
 
 def spherical_to_direction(theta: np.ndarray, phi: np.ndarray) -> np.ndarray:
-    """Unit direction of polar angle θ and azimuth φ (CONVENTIONS, Mitsuba ``envmap``).
+    """Unit direction of polar angle θ and azimuth φ (docs/conventions.md, Mitsuba ``envmap``).
 
     Parameters
     ----------

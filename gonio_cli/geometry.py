@@ -1,6 +1,6 @@
 """Geometry shared by every stage: directions, half vector and the cosines BRDFs use.
 
-Conventions (``CONVENTIONS.md``): the sample normal is +z; the light is at polar angle
+Conventions (``docs/conventions.md``): the sample normal is +z; the light is at polar angle
 θi on the −x side, ωi = (−sin θi, 0, cos θi); the detector is at a signed in-plane angle
 θo, ωo = (sin θo, 0, cos θo), so θo = θi is the mirror configuration and θo < 0 is the
 light's side. Angles are degrees at the boundary, radians and cosines in here.
@@ -35,7 +35,7 @@ class Cosines(NamedTuple):
 
 
 def in_plane_directions(theta_i_deg, theta_o_deg) -> tuple[np.ndarray, np.ndarray]:
-    """ωi and ωo (..., 3) of in-plane goniometer configurations (CONVENTIONS)."""
+    """ωi and ωo (..., 3) of in-plane goniometer configurations (docs/conventions.md)."""
     ti = np.radians(np.asarray(theta_i_deg, dtype=float))
     to = np.radians(np.asarray(theta_o_deg, dtype=float))
     ti, to = np.broadcast_arrays(ti, to)
@@ -95,7 +95,7 @@ def cosines(wi: np.ndarray, wo: np.ndarray, normal=(0.0, 0.0, 1.0)) -> Cosines:
 
 
 def in_plane_cosines(theta_i_deg, theta_o_deg) -> Cosines:
-    """:class:`Cosines` of in-plane configurations given in degrees (CONVENTIONS)."""
+    """:class:`Cosines` of in-plane configurations given in degrees (docs/conventions.md)."""
     return cosines(*in_plane_directions(theta_i_deg, theta_o_deg))
 
 

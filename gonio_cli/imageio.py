@@ -1,6 +1,6 @@
 """Image files through OpenImageIO: read any format it knows, write PNG/EXR atomically.
 
-Arrays are (row, column, channel), row 0 the top (CONVENTIONS). Reading returns float32
+Arrays are (row, column, channel), row 0 the top (docs/conventions.md). Reading returns float32
 values as stored (8/16-bit integers scaled to [0, 1]; no colour decoding: the caller
 decides what the numbers mean, e.g. sRGB-encoded PNG vs linear EXR). EXR outputs carry
 gonio metadata (schema, version, parameters, time) as string attributes, as pbrt writes
@@ -127,5 +127,5 @@ def write_png_1bit(path: str | os.PathLike, mask: np.ndarray,
 
 def write_exr(path: str | os.PathLike, pixels: np.ndarray,
               metadata: Mapping[str, Any] | None = None) -> None:
-    """Write float32 EXR atomically (scene-referred linear values, CONVENTIONS)."""
+    """Write float32 EXR atomically (scene-referred linear values, docs/conventions.md)."""
     _write(path, np.asarray(pixels, dtype=np.float32), "float", metadata)

@@ -67,7 +67,7 @@ NEGATIVE_NOISE_FRACTION = 0.01
 RADIAN_LIMIT = math.pi / 2
 
 #: Reflectance of the white standard when ``--white-reflectance`` is not given: the 99 %
-#: Spectralon of seed 000 ("Preparation and measurement"), CONVENTIONS.
+#: Spectralon of seed 000 ("Preparation and measurement"), docs/conventions.md.
 DEFAULT_WHITE_REFLECTANCE = 0.99
 
 #: Header names of the angle columns (degrees) and of the multi-angle geometry label.
@@ -132,7 +132,7 @@ class Spectra:
     path : str, the file (``"a.csv, b.csv"`` after merging).
     layout : str, a key of :data:`LAYOUTS`.
     wavelength_nm : (n_λ,) float, strictly increasing.
-    theta_i_deg, theta_o_deg : (n,) float, degrees, signed as in CONVENTIONS.
+    theta_i_deg, theta_o_deg : (n,) float, degrees, signed as in docs/conventions.md.
     values : (n, n_λ) float, in the units of the file's quantity.
     lines : (n, n_λ) int, 1-based line of each value in its file (for messages).
     columns : (n_λ,) list of str, the column each wavelength was read from.
@@ -333,7 +333,7 @@ def _check_header(table: Table, layout: Layout) -> None:
 
 
 def _check_angles(theta_i, theta_o, lines, path, labels=None) -> None:
-    """θi in [0, 90), θo in (−90, 90) (CONVENTIONS), and not radians. (n,) each.
+    """θi in [0, 90), θo in (−90, 90) (docs/conventions.md), and not radians. (n,) each.
 
     ``labels`` (n,) are the multi-angle geometry labels the angles came from, if any.
     """
@@ -676,12 +676,12 @@ def _from_flux_ratio(values, *, theta_o_deg, solid_angle_sr, **_):
 
 #: Measured quantities and their conversion to BRDF in sr⁻¹ (STYLE 3).
 QUANTITIES: dict[str, Quantity] = {
-    "brdf": Quantity("brdf", "f = value", "CONVENTIONS", (), _from_brdf),
+    "brdf": Quantity("brdf", "f = value", "docs/conventions.md", (), _from_brdf),
     "ratio-to-white": Quantity(
         "ratio-to-white", "f = ratio · R_white(λ) / π",
         "seed 004 eq. 8 with a Lambertian standard f_rs = R_white/π; seed 000 "
         "'Preparation and measurement'", ("white_reflectance",), _from_ratio_to_white),
-    "reflectance-factor": Quantity("reflectance-factor", "f = R / π", "CONVENTIONS", (),
+    "reflectance-factor": Quantity("reflectance-factor", "f = R / π", "docs/conventions.md", (),
                                    _from_reflectance_factor),
     "flux-ratio": Quantity(
         "flux-ratio", "f = (ΔΦr/ΔΦi) / (cos θo · Δω), Δω = π w² / (4 d²)",
@@ -935,7 +935,7 @@ def _convert(spectra: Spectra, params: dict[str, Any]) -> np.ndarray:
 
 
 def _grid_notes(parts, grids, grid, grid_spec) -> list[str]:
-    """The resampling (or trimming) warning per file (CONVENTIONS: never silent)."""
+    """The resampling (or trimming) warning per file (docs/conventions.md: never silent)."""
     notes = []
     for part, read in zip(parts, grids):
         if same_grid(read, grid):

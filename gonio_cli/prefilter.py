@@ -1,6 +1,6 @@
 """Prefiltered environment maps, one per cosine-lobe exponent (seed 001 §5.1, eqs. 7–9).
 
-For every exponent E the output is the normalised lobe average (CONVENTIONS)
+For every exponent E the output is the normalised lobe average (docs/conventions.md)
 
     P_E(r) = ∫ L(ω) max(0, r·ω)^E dω / ∫ max(0, r·ω)^E dω,
 

@@ -45,7 +45,7 @@ class Measurement:
     ----------
     wavelength_nm : (n_λ,) float, increasing.
     theta_i_deg : (n_cfg,) float in [0, 90); theta_o_deg : (n_cfg,) float in (−90, 90),
-        signed as in CONVENTIONS (θo = θi is the mirror configuration).
+        signed as in docs/conventions.md (θo = θi is the mirror configuration).
     brdf : (n_cfg, n_λ) float, sr⁻¹, the mean of the repeats (no cosine factor).
     brdf_std : (n_cfg, n_λ) float or None, sample standard deviation of the repeats
         (0 where a configuration was read once); None if no configuration repeated.

@@ -1,7 +1,7 @@
 """The working spectral grid, resampling onto it, and colour helpers (colour-science).
 
 Wavelengths are nanometres (``wavelength_nm``) and always the last array axis. The default
-grid is 380–780 nm in 10 nm steps (41 samples, seed 000). Colour follows CONVENTIONS:
+grid is 380–780 nm in 10 nm steps (41 samples, seed 000). Colour follows docs/conventions.md:
 XYZ = Σλ L(λ) cmf(λ) / Σλ ȳ(λ) with the CIE 1931 2° observer sampled on the working grid,
 light spectra scaled so that Σ S ȳ / Σ ȳ = 1, linear sRGB by the IEC 61966-2-1 matrix.
 
@@ -149,7 +149,7 @@ def cmfs(grid_nm) -> np.ndarray:
 
 
 def spectrum_to_xyz(radiance, grid_nm) -> np.ndarray:
-    """XYZ of spectra (..., n_λ): Σλ L cmf / Σλ ȳ (CONVENTIONS). Returns (..., 3)."""
+    """XYZ of spectra (..., n_λ): Σλ L cmf / Σλ ȳ (docs/conventions.md). Returns (..., 3)."""
     cm = cmfs(grid_nm)
     return np.asarray(radiance, dtype=float) @ cm / cm[:, 1].sum()
 
@@ -160,7 +160,7 @@ def xyz_to_linear_srgb_matrix() -> np.ndarray:
 
 
 def xyz_to_linear_srgb(xyz) -> np.ndarray:
-    """XYZ (..., 3) → linear sRGB (..., 3), no chromatic adaptation (CONVENTIONS)."""
+    """XYZ (..., 3) → linear sRGB (..., 3), no chromatic adaptation (docs/conventions.md)."""
     return np.asarray(xyz, dtype=float) @ xyz_to_linear_srgb_matrix().T
 
 
@@ -195,7 +195,7 @@ def illuminant_names() -> list[str]:
 
 def illuminant(name: str, grid_nm) -> np.ndarray:
     """A CIE illuminant by name (``D65``, ``A``, ``FL2`` …) on the grid, scaled so that
-    Σ S ȳ / Σ ȳ = 1 (CONVENTIONS). (n_λ,)."""
+    Σ S ȳ / Σ ȳ = 1 (docs/conventions.md). (n_λ,)."""
     t = colour_tables()
     names = illuminant_names()
     if name not in names:
@@ -211,7 +211,7 @@ def illuminant(name: str, grid_nm) -> np.ndarray:
 def rgb_spectral_basis(grid_nm) -> np.ndarray:
     """(n_λ, 3): a linear-sRGB radiance ``rgb`` is the spectrum ``basis @ rgb``.
 
-    CONVENTIONS: D65(λ) · Σc rgb_c B_c(λ), with B_c the Mallett–Yuksel 2019 sRGB basis and
+    docs/conventions.md: D65(λ) · Σc rgb_c B_c(λ), with B_c the Mallett–Yuksel 2019 sRGB basis and
     D65 scaled to Y = 1, so (1, 1, 1) is D65 with Y = 1 and each channel is carried alone.
     """
     t = colour_tables()

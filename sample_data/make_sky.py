@@ -1,6 +1,6 @@
 """Make ``sample_data/sky.exr``: a small, deterministic, physically plausible HDR sky.
 
-256 × 128 lat-long map (CONVENTIONS: Mitsuba 3 ``envmap`` layout, +y up, row 0 the zenith),
+256 × 128 lat-long map (docs/conventions.md: Mitsuba 3 ``envmap`` layout, +y up, row 0 the zenith),
 linear sRGB radiance:
 
 - sky: blue zenith brightening towards a whiter horizon (a Perez-like gradient), with a
@@ -26,7 +26,7 @@ from gonio_cli import envmap
 from gonio_cli.imageio import write_exr
 
 WIDTH, HEIGHT = 256, 128
-#: Sun radiance over the mean sky radiance (the issue's "about 1e5").
+#: Sun radiance over the mean sky radiance (the target's "about 1e5").
 SUN_TO_SKY = 1.0e5
 SUN_RADIUS_DEG = 0.6
 SUN_ELEVATION_DEG = 35.0

@@ -1,4 +1,4 @@
-"""Lat-long geometry (CONVENTIONS: Mitsuba 3 ``envmap``) against closed forms and inverses."""
+"""Lat-long geometry (docs/conventions.md: Mitsuba 3 ``envmap``) against closed forms and inverses."""
 
 from __future__ import annotations
 

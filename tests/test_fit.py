@@ -31,12 +31,12 @@ def errors(params, alpha, rho, c):
             float(np.sqrt(np.mean((params["c"] - c) ** 2))))
 
 
-# ------------------------------------------------------------------ the issue's criteria --
+# ------------------------------------------------------------ acceptance criteria --
 
 @pytest.mark.parametrize("alpha", [0.03, 0.08, 0.19, 0.4, 0.85])
 @pytest.mark.parametrize("ink", ["red", "blue"])
 def test_default_fit_recovers_parameters_at_2_percent_noise(alpha, ink):
-    # Done-when of issue 3: α within 1 %, ρ within 2 % (relative RMSE), c within 0.05 RMSE.
+    # Acceptance criteria: α within 1 %, ρ within 2 % (relative RMSE), c within 0.05 RMSE.
     # With 2 % noise on ~150 configurations, the estimator's own spread is about
     # 0.02/sqrt(150/2) ≈ 0.25 % for ρ per wavelength, so these bounds hold with margin.
     m, rho, c = gonio_measurement(alpha, ink, seed=int(alpha * 100))
@@ -57,7 +57,7 @@ def test_noise_free_data_is_recovered_to_near_machine_precision():
 
 
 def test_paper_two_step_shows_the_bias_refinement_removes():
-    # Issue 3: with 2 % noise the paper's step 1 spreads α per θi by ~±20 % and gives ρ
+    # with 2 % noise the paper's step 1 spreads α per θi by ~±20 % and gives ρ
     # errors near 10 %, because the exponential term changes along each θo sweep.
     m, rho, c = gonio_measurement(0.19, seed=3)
     result = fit(prepare(m), "goniochromatic", FitOptions())
@@ -334,7 +334,7 @@ def test_material_round_trip_keeps_parameters(tmp_path):
 @pytest.mark.parametrize("residuals", ["log", "linear"])
 def test_sample_inks_fit_back_to_their_truth(ink, files, options, residuals):
     # The demo's inputs: 2 % noise with θi = 70° excluded (8 % noise and a +10 % bias
-    # there), as seed 000 does; the issue's tolerances hold. Red has 3 repeats per
+    # there), as seed 000 does; the target's tolerances hold. Red has 3 repeats per
     # configuration, so its weights come from brdf_std in both residual modes.
     from pathlib import Path
 

@@ -96,7 +96,7 @@ def assert_finite_report(report):
 
 @pytest.mark.parametrize("alpha", [0.03, 0.19, 0.6])
 def test_ts_recovers_alpha_and_f0_at_2_percent_noise(alpha):
-    # Issue 3's criteria for the default model, applied to this one: α within 1 %, F0
+    # The criteria for the default model, applied to this one: α within 1 %, F0
     # within 2 % relative RMSE. With 2 % noise on 154 configurations F0's own scatter is
     # ~0.02/√154 ≈ 0.16 % per wavelength and α's ~0.05 % (measured), so both hold with
     # a margin of 10 or more; a wrong factor or exponent anywhere would not.

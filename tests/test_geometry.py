@@ -1,4 +1,4 @@
-"""gonio_cli.geometry against closed forms of the in-plane goniometer (CONVENTIONS).
+"""gonio_cli.geometry against closed forms of the in-plane goniometer (docs/conventions.md).
 
 In the plane y = 0 the light is at −θi and the detector at +θo (signed, about +z), so the
 angle between ωi and ωo is θi + θo and the half vector sits at (θo − θi)/2:

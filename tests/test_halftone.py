@@ -1,4 +1,4 @@
-"""The halftone core against independent truth (issue 5, "Done when").
+"""The halftone core against independent truth.
 
 - exclusivity: no pixel ever has two inks, over random images and every method;
 - flat patches: mean coverage per ink within 0.5 % (absolute) of the target for error
@@ -32,7 +32,7 @@ from gonio_cli.spectra import srgb_decode, srgb_encode
 ROOT = Path(__file__).resolve().parent.parent
 ERROR_DIFFUSION = ("floyd-steinberg", "jarvis", "stucki")
 
-#: Issue 5: the mean coverage per ink of a flat patch is within 0.5 % of the target. Read
+#: the mean coverage per ink of a flat patch is within 0.5 % of the target. Read
 #: as an absolute 0.005 of full coverage: a 256² patch of error diffusion loses at most
 #: the error that falls off its edges (≈ (H + W)/(H W) ≈ 0.8 % in the worst case, measured
 #: ≤ 0.3 %); a 64² blue-noise tile is exact to 1/4096 ≈ 0.02 %.

@@ -158,7 +158,7 @@ def test_reflectance_factor_is_pi_times_brdf(tmp_path):
 def test_ratio_to_white_default_099(tmp_path):
     ti, to, v = table()
     m = ingest(write(tmp_path, "a.csv", wide_text(ti, to, v)), quantity="ratio-to-white")
-    # CONVENTIONS: BRDF = ratio × R_white / π with R_white = 0.99 unless given.
+    # docs/conventions.md: BRDF = ratio × R_white / π with R_white = 0.99 unless given.
     np.testing.assert_allclose(m.brdf, v * 0.99 / np.pi, rtol=EXACT)
 
 

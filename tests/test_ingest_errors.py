@@ -1,4 +1,4 @@
-"""gonio ingest on bad input (issue 2, "Bad input"): every case gets exit status 2, ONE
+"""gonio ingest on bad input: every case gets exit status 2, ONE
 line on stderr naming the file and the row or column and saying what to do, no
 traceback, and no output file (not even a temporary one)."""
 

@@ -190,7 +190,7 @@ def test_lambertian_puts_all_weight_on_kd(solver, channels):
     want = 0.6 / np.pi if channels == "spectral" else None
     if want is not None:
         np.testing.assert_allclose(kd, want, rtol=HIGHS_TOL)
-    else:   # XYZ of a flat 0.6/π: Y = 0.6/π exactly (CONVENTIONS' normalisation)
+    else:   # XYZ of a flat 0.6/π: Y = 0.6/π exactly (the conventions' normalisation)
         np.testing.assert_allclose(kd[:, 1], 0.6 / np.pi, rtol=HIGHS_TOL)
     lobes = np.concatenate([table.directional_diffuse.ravel(), table.gloss.ravel()])
     assert np.all(lobes >= 0) and lobes.max() <= HIGHS_TOL * kd.max()

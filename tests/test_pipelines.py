@@ -1,4 +1,4 @@
-"""The Makefile pipelines as a file graph (issue 7, "Pipelines"; docs/pipelines.md).
+"""The Makefile pipelines as a file graph ("Pipelines"; docs/pipelines.md).
 
 Every test drives GNU make on a copy of the Makefile, ``pipelines/``, ``sample_data/`` and
 ``pyproject.toml`` in a temporary folder, with ``OUT`` there too. No gonio stage runs: the

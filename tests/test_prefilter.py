@@ -1,8 +1,8 @@
 """The prefilter core (seed 001 §5.1) against closed forms and the brute-force quadrature.
 
-Truths: a constant map stays constant for every E (CONVENTIONS: normalised averages);
+Truths: a constant map stays constant for every E (docs/conventions.md: normalised averages);
 ∫ max(0, cos)^E dω = 2π/(E+1); a single bright texel gives the lobe itself; ``brute`` is
-the exact quadrature that the fast methods must reproduce (issue 6, "Done when").
+the exact quadrature that the fast methods must reproduce.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from gonio_cli.errors import InputError
 
 #: float32 output and float32 FFTs of ``ring``: ~1e-7 relative round-off, with margin.
 FLOAT32_RTOL = 1e-5
-#: The issue's accuracy target: 1 % at the 99th percentile of texels.
+#: The accuracy target: 1 % at the 99th percentile of texels.
 P99_TARGET = 0.01
 #: Quadrature of a lobe of width σ = 1/√E on texels of Δ ≤ σ/5: error O((Δ/σ)²) ≲ 0.5 %.
 QUADRATURE_RTOL = 5e-3
@@ -90,7 +90,7 @@ def test_exponents_to_1e4_and_beyond_neither_overflow_nor_underflow():
 # ------------------------------------------------------------------- against brute --
 
 def test_auto_matches_brute_on_a_128x64_sky_with_a_sun(capsys):
-    # issue 6, Done when: every exponent 1…1000 within 1 % (99th percentile of texels)
+    # acceptance: every exponent 1…1000 within 1 % (99th percentile of texels)
     img = sky_with_sun()
     results = pf.prefilter(img, ALL_EXPONENTS, check=False)
     worst = []

@@ -1,4 +1,4 @@
-"""Batch regression tests (issue 7): every stage's output on sample_data/ against stored
+"""Batch regression tests: every stage's output on sample_data/ against stored
 references, within the tolerances stated (and defended) in tests/regression/.
 
 One test per artifact, named after it (``fit-red-goniochromatic``, ``render-print-small``

@@ -53,7 +53,7 @@ def xyz_of_spectrum(s):
 
 
 def env_spectrum(rgb=RGB):
-    """CONVENTIONS: linear sRGB radiance → D65(λ) Σ_c rgb_c B_c(λ)."""
+    """docs/conventions.md: linear sRGB radiance → D65(λ) Σ_c rgb_c B_c(λ)."""
     return np.asarray(rgb, float) @ rgb_basis(WL)
 
 
@@ -232,7 +232,7 @@ def test_environment_matches_brute_force(material, sky_case):
     grazing). What is left is seed 001's own approximations: circular lobes about R,
     (R·N) for L·N in eq. 7, and the prefilter integrating each lobe over the whole sphere,
     light from below the horizon included, which the wide lobes (E = 3, 8) of a matte ink
-    feel most; plus the bilinear lookup of 64-row maps. Asserted: the issue's mean < 2,
+    feel most; plus the bilinear lookup of 64-row maps. Asserted: the target's mean < 2,
     and p99 < 5 (the measured 4.5 with a margin; the computation is deterministic).
     """
     env, normals, views = sky_case[:3]
@@ -246,7 +246,7 @@ def test_environment_matches_brute_force(material, sky_case):
 @pytest.mark.xfail(strict=True, reason="gonio lobes fit samples only the plane of incidence "
                    "(seed 001 §4): its circular lobes are ~2x too wide out of the plane at "
                    "oblique views (mean CIEDE2000 ~6-8 against brute force); --samples "
-                   "hemisphere (test above) meets the issue's < 2")
+                   "hemisphere (test above) meets the target's < 2")
 @pytest.mark.parametrize("material", [MATTE, GLOSSY], ids=["matte", "glossy"])
 def test_in_plane_lobe_fit_matches_brute_force(material, sky_case):
     env, normals, views = sky_case[:3]

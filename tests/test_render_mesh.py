@@ -39,7 +39,7 @@ def write_obj(path, vertices, faces, uvs=None, normals=None):
 
 def test_default_sphere_is_the_benchmark_size():
     m = M.load_mesh("builtin:sphere")
-    assert 19_000 <= len(m.faces) <= 21_000            # the issue's ~20 000 triangles
+    assert 19_000 <= len(m.faces) <= 21_000            # the target's ~20 000 triangles
     assert len(m.faces) == 2 * M.SPHERE_SEGMENTS * (M.SPHERE_SEGMENTS // 2 - 1)
 
 

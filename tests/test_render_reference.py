@@ -5,7 +5,7 @@
    pixel a ray–sphere intersection, the exact normal, seed 000 eq. 5
    (:func:`gonio_cli.brdf.goniochromatic`) and the full 41-wavelength sum with
    colour-science's CMFs and illuminant, no rasterizer or shading code of gonio involved.
-   Issue 8: interior pixels to a mean CIEDE2000 below 0.5 and a 99th percentile below 2.
+   interior pixels to a mean CIEDE2000 below 0.5 and a 99th percentile below 2.
 2. A printed plane with a fine random mask (each texel one ink, coverage 1/3 each) renders
    like the average of the three inks: area filtering, no moiré.
 """
@@ -79,7 +79,7 @@ def sphere_scene(folder, material_path, size=SIZE, spectral="table", ssaa=1) -> 
 def reference_xyz(material: Material, size: int = SIZE):
     """Analytic ray tracing of the unit sphere: XYZ (size, size, 3) and the interior mask.
 
-    Camera (CONVENTIONS): full vertical fov, pixel centres at (col + ½, row + ½), row 0
+    Camera (docs/conventions.md): full vertical fov, pixel centres at (col + ½, row + ½), row 0
     the top. XYZ = Σλ L cmf / Σλ ȳ with L = Σ_lights f E S cos θi, S scaled to
     Σ S ȳ / Σ ȳ = 1 — all from colour-science's tables, not gonio's spectra module.
     """
@@ -148,7 +148,7 @@ def test_sphere_matches_analytic_ray_tracing(run_gonio, tmp_path, spectral, peak
     truth, interior = reference_xyz(material)
     assert interior.sum() > 0.6 * np.pi * (SIZE * 0.2) ** 2  # the test sees the sphere
     de = delta_e_2000(rendered[interior], truth[interior])
-    # issue 8 "Done when": mean < 0.5, 99th percentile < 2 (tessellation of the
+    # acceptance: mean < 0.5, 99th percentile < 2 (tessellation of the
     # 144-segment sphere and float32 EXR storage are the remaining differences)
     assert de.mean() < 0.5, de.mean()
     assert np.percentile(de, 99) < 2.0, np.percentile(de, 99)

@@ -72,7 +72,7 @@ def test_example_of_the_issue_loads(scene_dir):
     (light,) = sc.lights
     assert light.kind == "directional" and light.irradiance == 3.0
     np.testing.assert_allclose(light.direction, np.ones(3) / np.sqrt(3))
-    # CONVENTIONS: Σ S ȳ / Σ ȳ = 1 on the working grid
+    # docs/conventions.md: Σ S ȳ / Σ ȳ = 1 on the working grid
     ybar = cmfs(GRID)[:, 1]
     assert light.spectrum.shape == GRID.shape
     assert light.spectrum @ ybar / ybar.sum() == pytest.approx(1.0)

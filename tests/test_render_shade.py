@@ -88,7 +88,7 @@ def delta_e(a, b, white_y):
 # ------------------------------------------------------------------------------ units --
 
 def test_white_lambertian_gives_y_one():
-    """CONVENTIONS: f = 1/π lit at normal incidence by E = π under equal energy: Y = 1."""
+    """docs/conventions.md: f = 1/π lit at normal incidence by E = π under equal energy: Y = 1."""
     g = sphere_gbuffer(3)                       # the centre pixel faces +z exactly
     light = Light("directional", np.ones(WL.size), direction=np.array([0.0, 0.0, 1.0]),
                   irradiance=np.pi)

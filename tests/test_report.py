@@ -1,4 +1,4 @@
-"""``gonio report`` (issue 7): the quick report runs once per module and is checked for
+"""``gonio report``: the quick report runs once per module and is checked for
 every section's table and plot, finite numbers, Table 1 beside the paper, and error and
 time in every error-against-time row; bad options write nothing. Timings are not asserted
 (STYLE 12): the report measures them, the tests only check that they are there."""
@@ -178,7 +178,7 @@ def test_sheets_from_a_material_file(run_gonio, tmp_path):
 
 
 def test_lobes_section_times_the_environment_render_per_lobe_count(quick_report):
-    # Issue 7: "lobes: lobe count: BRDF approximation error, weight-fit time, render time".
+    # "lobes: lobe count: BRDF approximation error, weight-fit time, render time".
     _, _, doc = quick_report
     lobes = doc["sections"]["lobes"]
     counts = [b["lobes"] for b in lobes["basis"]]

@@ -2,7 +2,7 @@
 
 Resampling is checked on functions whose resampled values are known in closed form
 (straight lines, a Gaussian with error bounds from its second derivative); colour on
-CONVENTIONS' own normalisations and on published CIE / IEC 61966-2-1 numbers.
+the conventions' own normalisations and on published CIE / IEC 61966-2-1 numbers.
 """
 
 from __future__ import annotations
@@ -132,7 +132,7 @@ def test_covers(wavelength_in, expected):
 # ------------------------------------------------------------------------- colour --
 
 def test_white_lambertian_at_normal_incidence_under_equal_energy_has_y_one():
-    # CONVENTIONS: f = 1/π, E = π, S = 1, cos θi = 1 → L = f E S cos θi = 1, Y = 1.
+    # docs/conventions.md: f = 1/π, E = π, S = 1, cos θi = 1 → L = f E S cos θi = 1, Y = 1.
     f, e, s, cos_i = 1.0 / np.pi, np.pi, np.ones(GRID.size), 1.0
     xyz = sp.spectrum_to_xyz(f * e * s * cos_i, GRID)
     assert xyz[1] == pytest.approx(1.0, abs=1e-12)

@@ -159,7 +159,7 @@ def _write(output: Path, envmap_path: Path, lobes, shape, results, names, parame
         for r, name in zip(results, names):
             meta = {"schema": INDEX_SCHEMA, "exponent": r.exponent, "method": r.method,
                     "error_estimate": r.error_estimate, "time_s": r.time_s,
-                    "layout": "lat-long, Mitsuba 3 envmap (CONVENTIONS)"}
+                    "layout": "lat-long, Mitsuba 3 envmap (docs/conventions.md)"}
             write_exr(tmp / name, r.pixels, meta)
             entries.append({"exponent": r.exponent, "path": name, "width": r.width,
                             "height": r.height, "method": r.method,

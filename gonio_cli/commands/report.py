@@ -1,4 +1,4 @@
-"""``gonio report``: the thin shell over :mod:`gonio_cli.report` (issue 7).
+"""``gonio report``: the thin shell over :mod:`gonio_cli.report`.
 
 Writes ``REPORT_DIR/report.md``, ``report.json`` (schema ``gonio.report`` v1) and one PNG
 per plot. Atomic as a whole: everything is written into a temporary folder beside

@@ -4,7 +4,7 @@
 Structural-colour reflective inks are printed side by side on black substrate, at most
 one ink per position. A halftone is therefore a *label image* (H, W) uint8 — 0 bare
 substrate, 1 R, 2 G, 3 B — shown as an RGB mask whose channels are 0 or 1 with at most
-one set per pixel (CONVENTIONS). Pipeline (pure numpy; the shell in
+one set per pixel (docs/conventions.md). Pipeline (pure numpy; the shell in
 :mod:`gonio_cli.commands.halftone` reads and writes the files):
 
 1. :func:`prepare`: linear light (:mod:`.coverage`), gamut mapping into the simplex
@@ -31,7 +31,7 @@ from . import diffusion, screens
 #: Ink names in channel order (label k is ink k − 1).
 INKS = ("red", "green", "blue")
 
-#: σ (pixels) of the Gaussian that stands for the eye when judging tone (issue 5: "a
+#: σ (pixels) of the Gaussian that stands for the eye when judging tone ("a
 #: viewer at reading distance"); blurring by 2 px averages ~25 pixels, enough to fuse
 #: dispersed dots.
 TONE_SIGMA_PX = 2.0

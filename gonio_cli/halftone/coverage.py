@@ -3,7 +3,7 @@
 The ink coverage of a channel is its *linear* level (seed 000, "Printing application": a
 level of 0.3 of R is 3 of 9 pixels inked): encoded 8/16-bit images are decoded from sRGB
 first, float images (EXR) are linear already. Inks are exclusive (at most one per
-position, CONVENTIONS), so a coverage must lie in the simplex r, g, b ≥ 0, r + g + b ≤ 1;
+position, docs/conventions.md), so a coverage must lie in the simplex r, g, b ≥ 0, r + g + b ≤ 1;
 :data:`GAMUT_MAPPERS` bring every pixel into it.
 """
 

@@ -9,7 +9,7 @@ incident radiance and solid angle is
              + Σ_i K_G,i (R·V)^E_i                         (eq. 2, gloss)
 
 so every weight is in sr⁻¹ and the quantity fitted is the **cosine-weighted** BRDF
-f · cos θi of the target (the BRDF itself never includes cos θi, CONVENTIONS; the
+f · cos θi of the target (the BRDF itself never includes cos θi, docs/conventions.md; the
 seed's equations are written for reflected light, which does). A pure Lambertian
 f = ρ/π is exactly K_D = ρ/π with every lobe weight 0. Negative dot products are clamped
 to zero, as seed 001 notes under eq. 1: (R·V) ≤ 0 gives a lobe value of exactly 0.
@@ -19,7 +19,7 @@ Choosing exponents (seed 001 §3.2, eq. 4): :func:`select_basis`. Fitting weight
 Samples (seed 001 §4): :data:`SAMPLE_SETS`. Angle-dependent weights (seed 001 §5.2):
 :func:`fit_weight_table`, one fit per view angle, a table the renderer interpolates.
 
-Rendering with prefiltered maps (CONVENTIONS: P_E is the *normalised* average
+Rendering with prefiltered maps (docs/conventions.md: P_E is the *normalised* average
 ∫ L max(0, r·ω)^E dω / ∫ max(0, r·ω)^E dω, and ∫_sphere max(0, r·ω)^E dω = 2π/(E+1)):
 
     L_o = K_D π P_1(N) + (R·N) Σ K_DD,i 2π/(E_i+1) P_Ei(R) + Σ K_G,i 2π/(E_i+1) P_Ei(R)
@@ -152,8 +152,8 @@ class Samples:
     Attributes
     ----------
     light_deg : (N,) float, the light's signed in-plane angle φ: ωi = (−sin φ, 0, cos φ),
-        so φ ≥ 0 is CONVENTIONS' θi and φ < 0 puts the light on the detector's side.
-    view_deg : (N,) float, the detector's θo (CONVENTIONS): ωo = (sin θo, 0, cos θo);
+        so φ ≥ 0 is the conventions' θi and φ < 0 puts the light on the detector's side.
+    view_deg : (N,) float, the detector's θo (docs/conventions.md): ωo = (sin θo, 0, cos θo);
         the mirror configuration is φ = θo.
     view_index : (N,) int, index of each sample's row in ``view_angle_deg``.
     view_angle_deg : (V,) float, the view angles of the weight table.
@@ -286,7 +286,7 @@ SAMPLE_SETS: dict[str, SamplePattern | HemispherePattern] = {
 def read_sample_csv(path) -> tuple[np.ndarray, np.ndarray]:
     """A custom sample set: CSV with header ``theta_i_deg,theta_o_deg`` (one row each).
 
-    θi is the light's signed angle φ (CONVENTIONS' θi when ≥ 0; < 0 on the detector's
+    θi is the light's signed angle φ (the conventions' θi when ≥ 0; < 0 on the detector's
     side), θo the detector. Returns (φ, θo) in degrees, (N,) each.
     """
     import csv
@@ -371,9 +371,9 @@ def parse_view_angles(spec: str) -> np.ndarray:
 
 # ------------------------------------------------------------------------- channels --
 
-#: Channel kinds: spectral bands of the material's grid, or CIE XYZ (CONVENTIONS).
+#: Channel kinds: spectral bands of the material's grid, or CIE XYZ (docs/conventions.md).
 CHANNELS = {"spectral": "one channel per wavelength of the working grid",
-            "xyz": "CIE 1931 XYZ = Σ f cmf / Σ ȳ (CONVENTIONS)"}
+            "xyz": "CIE 1931 XYZ = Σ f cmf / Σ ȳ (docs/conventions.md)"}
 
 
 def check_channels(kind: str) -> str:

@@ -14,13 +14,13 @@ between them are the dataclasses below, so each stage can be tested on its own:
 4. :mod:`.texture`  halftone masks → area-filtered coverage pyramid (mipmaps) and the
                     coverage of R, G, B ink and bare substrate per pixel.
 5. :mod:`.shade`    GBuffer + materials + :class:`Light` list (+ environment) → XYZ per
-                    pixel (CONVENTIONS: XYZ = Σ L cmf / Σ ȳ), via the tabulated spectral
+                    pixel (docs/conventions.md: XYZ = Σ L cmf / Σ ȳ), via the tabulated spectral
                     sum (eq. 5 depends on the angles only through x for one light
                     spectrum) or the exact 41-wavelength path.
 6. :mod:`.tonemap`  XYZ → linear sRGB → exposure → tone map → sRGB-encoded 8-bit.
 7. :mod:`gonio_cli.commands.render` the CLI: PNG and EXR out, ``--report run.json``.
 
-Conventions (``CONVENTIONS.md``): right-handed world; camera ``eye``, ``target``, ``up``,
+Conventions (``docs/conventions.md``): right-handed world; camera ``eye``, ``target``, ``up``,
 ``fov_deg`` = full vertical field of view; pixel centres at (col + ½, row + ½), row 0 the
 top; BRDFs never include cos θi; a directional light has irradiance E at normal incidence,
 a point light intensity I (E = I/d²); light spectra are scaled so Σ S ȳ / Σ ȳ = 1.

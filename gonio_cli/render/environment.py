@@ -1,6 +1,6 @@
 """Environment light from prefiltered maps and lobe weights (seed 001 §5, eqs. 7-9).
 
-With the normalised prefiltered maps P_E of ``gonio prefilter`` (CONVENTIONS,
+With the normalised prefiltered maps P_E of ``gonio prefilter`` (docs/conventions.md,
 ``docs/prefilter.md``: P_E(r) = ∫ L max(0, r·ω)^E dω / ∫ max(0, r·ω)^E dω, and
 ∫ max(0, r·ω)^E dω = 2π/(E+1)) and the lobe weights of ``gonio lobes fit``
 (``docs/lobes.md``), the reflected radiance of seed 001 eqs. 7-9 is
@@ -13,7 +13,7 @@ with R = 2 (N·V) N − V the mirrored view direction (so R·N = N·V) and N the
 weights K come as a table over view angle θv = acos(N·V) (seed 001 §5.2) and are
 interpolated linearly in θv; outside the table's range the nearest row is used.
 
-The maps hold linear sRGB. CONVENTIONS turns an RGB radiance into the spectrum
+The maps hold linear sRGB. docs/conventions.md turns an RGB radiance into the spectrum
 D65(λ) Σ_c rgb_c B_c(λ) (Mallett–Yuksel 2019 basis B_c, D65 with Y = 1). Everything is
 linear, so each term is precomputed per table row as a 3 × 3 matrix from map channel c to
 XYZ j:
@@ -62,7 +62,7 @@ class Environment:
     ----------
     path : the ``index.json`` read.
     exponents : (k,) float, the exponent of every map, increasing; 1 is the diffuse map.
-    files : (k,) paths of the maps (EXR, float linear sRGB, lat-long, CONVENTIONS).
+    files : (k,) paths of the maps (EXR, float linear sRGB, lat-long, docs/conventions.md).
     shapes : (k,) (height, width) the index promises for each map.
     maps : exponent → (H, W, 3) float32 array, filled on first use (:meth:`map`), and
         the float64 stacks of :meth:`stacked`.
@@ -190,7 +190,7 @@ def load_environment(index_json_path: str | os.PathLike) -> Environment:
 
 def rgb_basis(wavelength_nm) -> np.ndarray:
     """D65(λ) B_c(λ): (3, n_λ), the spectrum of unit linear-sRGB radiance per channel c
-    (CONVENTIONS; Mallett & Yuksel 2019 basis, D65 scaled so (1, 1, 1) has Y = 1)."""
+    (docs/conventions.md; Mallett & Yuksel 2019 basis, D65 scaled so (1, 1, 1) has Y = 1)."""
     return rgb_spectral_basis(wavelength_nm).T
 
 

@@ -7,7 +7,7 @@ that is symmetric about the projected deviation vector (as seed 000 assumes to f
 in-plane data), we use these coordinates:
 
 * frame: the normal N and the tangent x = −(ωi − (N·ωi) N)/‖·‖, so that the light sits on
-  the −x side as on the goniometer (CONVENTIONS); y = N × x. At θi = 0 (x undefined,
+  the −x side as on the goniometer (docs/conventions.md); y = N × x. At θi = 0 (x undefined,
   isotropy makes it arbitrary) x is taken along the view's tangent component.
 * ωr = 2 (N·ωi) N − ωi, the mirror direction; the **projected deviation vector** is the
   tangent-plane projection of ωo − ωr: d = (d_x, d_y) = ((ωo − ωr)·x, ωo·y).

@@ -3,8 +3,8 @@
 Mesh specs (the ``mesh`` key of a scene object):
 
 ``builtin:sphere[?segments=S[&rings=R]]``
-    The unit sphere at the origin (CONVENTIONS): a UV sphere of ``S`` segments in φ and
-    ``R`` rings in θ (default S = 144, R = S / 2: 20 448 triangles, the issue's ~20 000
+    The unit sphere at the origin (docs/conventions.md): a UV sphere of ``S`` segments in φ and
+    ``R`` rings in θ (default S = 144, R = S / 2: 20 448 triangles, the target's ~20 000
     triangle benchmark). Vertices sit at θ = π j / R, φ = 2π i / S on the environment-map
     direction (sin θ sin φ, cos θ, −sin θ cos φ) (:func:`gonio_cli.envmap.spherical_to_direction`),
     with u = φ / 2π and v = 1 − θ / π; the seam column i = S repeats column 0 with u = 1,
@@ -41,7 +41,7 @@ from ..errors import InputError
 from . import Mesh
 
 #: Default φ segments of ``builtin:sphere`` (rings = segments / 2): 2 · 144 · 71 = 20 448
-#: triangles, the issue's ~20 000-triangle benchmark sphere.
+#: triangles, the target's ~20 000-triangle benchmark sphere.
 SPHERE_SEGMENTS = 144
 #: Fewest segments / rings that still make a closed solid.
 SPHERE_MIN_SEGMENTS = 3

@@ -34,7 +34,7 @@ from ..errors import InputError
 from . import Stats
 from .scene import Scene
 
-#: Stages whose sum is the frame time (issue 8 "Done when": rasterize, shade, tone map).
+#: Stages whose sum is the frame time (acceptance: rasterize, shade, tone map).
 FRAME_STAGES = ("rasterize", "shade", "downsample", "tonemap")
 
 REPORT_SCHEMA = "gonio.render-report"
@@ -100,7 +100,7 @@ def load_meshes(scene: Scene) -> list:
 
 def on_grid(material, grid_nm: np.ndarray, path: Path):
     """A fitted material with its spectral parameters on the render's grid: resampled
-    with a warning when its grid differs (CONVENTIONS), refused when it does not cover."""
+    with a warning when its grid differs (docs/conventions.md), refused when it does not cover."""
     from ..brdf import MODELS
     from ..spectra import covers, resample, same_grid
 

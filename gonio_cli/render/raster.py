@@ -1,6 +1,6 @@
 """Batched z-buffer rasterizer: :class:`Camera` + meshes → :class:`GBuffer` (numpy only).
 
-Camera (CONVENTIONS): forward f = (target − eye)/|·|, right r = f × up / |·|, true up
+Camera (docs/conventions.md): forward f = (target − eye)/|·|, right r = f × up / |·|, true up
 u = r × f; ``fov_deg`` is the full vertical field of view. In an H × W image (already
 supersampled) the focal length in pixels is F = (H / 2) / tan(fov / 2) and the pixel
 centre (col + ½, row + ½) (row 0 the top) looks along the camera-space ray
@@ -317,7 +317,7 @@ def rasterize(camera: Camera, meshes: list[Mesh], ssaa: int = 1, uv: bool = True
         the shaded colours with :func:`downsample`.
     uv : bool
         Interpolate uv and its footprint (when some mesh has uvs). Pass False when no
-        object needs a texture (no mask): the issue's "leave out what the scene does not
+        object needs a texture (no mask): the target's "leave out what the scene does not
         need"; saves ~5 ms of a 512² frame.
 
     Returns

@@ -26,7 +26,7 @@ Sections (see ``docs/render.md``)::
 
 Light spectra are CIE illuminants by name (colour-science: ``D65``, ``A``, ``FL2`` …) or
 a CSV ``wavelength_nm,value``, resampled onto the working grid (with a warning when the
-CSV is on another grid) and scaled so that Σ S ȳ / Σ ȳ = 1 (CONVENTIONS).
+CSV is on another grid) and scaled so that Σ S ȳ / Σ ȳ = 1 (docs/conventions.md).
 """
 
 from __future__ import annotations
@@ -94,7 +94,7 @@ class SceneObject:
     """One ``[[object]]``: a mesh, its transform and what it is made of.
 
     Exactly one of: ``material`` (a gonio.material), ``inks`` (three gonio.material paths,
-    R, G, B) with ``mask`` (an RGB halftone mask image, CONVENTIONS) and ``substrate``, or
+    R, G, B) with ``mask`` (an RGB halftone mask image, docs/conventions.md) and ``substrate``, or
     ``measured`` (a gonio.measurement, interpolated: the reference of seed 000 Figure 5).
     ``lobes``: gonio.lobes weights for environment light (one path for ``material``,
     three for ``inks``), or None. ``mesh`` is ``builtin:NAME`` or an absolute OBJ path.

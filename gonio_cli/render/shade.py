@@ -1,6 +1,6 @@
 """Shading: GBuffer + surfaces + lights (+ environment) → CIE XYZ per pixel (stage 5).
 
-Direct light (point and directional) is summed per pixel as CONVENTIONS writes it,
+Direct light (point and directional) is summed per pixel as docs/conventions.md writes it,
 
     L_o(λ) = Σ_lights f(ωi, ωo, λ) · E · S(λ) · cos θi,    XYZ = Σλ L_o cmf / Σλ ȳ,
 
@@ -50,7 +50,7 @@ texture gets an added lobe per light, only at the samples whose texel has a bit 
 
     f_sparkle(λ) = C_s(λ) · f_mirror · (cos(α − θh))^e,    α = arccos(N·H),
 
-    L_o += f_sparkle · E · S(λ) · cos θi    (CONVENTIONS: a BRDF, times E cos θi).
+    L_o += f_sparkle · E · S(λ) · cos θi    (docs/conventions.md: a BRDF, times E cos θi).
 
 Seed 004 adds an intensity I_r = C_s (cos(α − θh))^e to the display colour; here it is a
 BRDF-like lobe so that it follows the light's spectrum, irradiance and cos θi like the
@@ -58,7 +58,7 @@ paint. Its scale f_mirror is the ȳ-weighted mean of the object's own BRDF at th
 configuration at normal incidence (θi = θo = 0: the peak of the paint's highlight), so a
 fully lit sparkle (α = θh) is about as bright as the mirror highlight.
 C_s(λ) = Σc rgb_c B_c(λ) is ``sparkle_color`` as a reflectance through the Mallett–Yuksel
-basis (CONVENTIONS, without the D65 factor: (1, 1, 1) is 1 at every λ). No environment
+basis (docs/conventions.md, without the D65 factor: (1, 1, 1) is 1 at every λ). No environment
 light on sparkles (a glint of the sky would need the texture in the lobe sums).
 
 Only what reaches the picture is computed: the pixels of each object, lit pixels per
@@ -380,7 +380,7 @@ def incident(light: Light, position: np.ndarray) -> tuple[np.ndarray, np.ndarray
 
     Directional: ωi (3,) the unit ``direction`` (the same for every pixel) and
     E = ``irradiance`` (a scalar array); point: ωi (n, 3) and E = I / d² (n,)
-    (CONVENTIONS), d floored at :data:`MIN_LIGHT_DISTANCE`. ``position``: (n, 3).
+    (docs/conventions.md), d floored at :data:`MIN_LIGHT_DISTANCE`. ``position``: (n, 3).
     """
     if light.kind == "directional":
         d = np.asarray(light.direction, dtype=float)
@@ -443,7 +443,7 @@ class _Pixels:
 def shade(gbuffer: GBuffer, surfaces: Sequence[Surface], lights: Sequence[Light],
           wavelength_nm, environment=None, spectral: str = "table",
           stats: Stats | None = None) -> np.ndarray:
-    """XYZ of every pixel of the GBuffer (CONVENTIONS: XYZ = Σλ L cmf / Σλ ȳ).
+    """XYZ of every pixel of the GBuffer (docs/conventions.md: XYZ = Σλ L cmf / Σλ ȳ).
 
     Parameters
     ----------
@@ -638,7 +638,7 @@ def mirror_peak(material, wavelength_nm: np.ndarray) -> float:
 
 def sparkle_reflectance(rgb: np.ndarray, wavelength_nm: np.ndarray) -> np.ndarray:
     """C_s(λ) (n_λ,): a linear-sRGB reflectance colour through the Mallett–Yuksel basis
-    (CONVENTIONS' RGB → spectrum without its D65 factor; (1, 1, 1) → 1)."""
+    (the conventions' RGB → spectrum without its D65 factor; (1, 1, 1) → 1)."""
     from ..spectra import illuminant, rgb_spectral_basis
 
     basis = rgb_spectral_basis(wavelength_nm) / illuminant("D65", wavelength_nm)[:, None]

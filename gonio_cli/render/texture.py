@@ -1,6 +1,6 @@
-"""Area-filtered halftone masks: ink coverage per pixel without moiré (issue 8).
+"""Area-filtered halftone masks: ink coverage per pixel without moiré.
 
-A halftone mask (CONVENTIONS) is an RGB image whose channels are 0 or 1, at most one set
+A halftone mask (docs/conventions.md) is an RGB image whose channels are 0 or 1, at most one set
 per pixel: channel k selects ink k, (0, 0, 0) is bare substrate. Its dots are far smaller
 than a rendered pixel, so point sampling would alias into moiré. :class:`MaskPyramid`
 keeps a mip pyramid of ink *coverage* (level 0 the mask itself, each further level the

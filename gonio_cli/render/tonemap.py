@@ -1,6 +1,6 @@
 """XYZ → display: linear sRGB, exposure, a tone map, the sRGB transfer function, 8 bits.
 
-CONVENTIONS: linear sRGB from XYZ by the IEC 61966-2-1 matrix (no chromatic adaptation);
+docs/conventions.md: linear sRGB from XYZ by the IEC 61966-2-1 matrix (no chromatic adaptation);
 the EXR holds that linear sRGB before any exposure; the PNG is 8-bit, sRGB-encoded after
 exposure and tone mapping. Tone maps act per channel on linear values ≥ 0 (negative
 linear sRGB, i.e. colours outside the sRGB gamut, are clipped to 0 first) and return
@@ -105,5 +105,5 @@ def display(linear_srgb: np.ndarray, exposure: float = 0.0, tonemap: str = "film
 
 def xyz_to_display(xyz: np.ndarray, exposure: float = 0.0, tonemap: str = "filmic"
                    ) -> np.ndarray:
-    """XYZ → linear sRGB → exposure → tone map → sRGB encode → uint8 (CONVENTIONS)."""
+    """XYZ → linear sRGB → exposure → tone map → sRGB encode → uint8 (docs/conventions.md)."""
     return display(xyz_to_linear(xyz), exposure, tonemap)

@@ -1,5 +1,5 @@
 """``gonio report``: error against run time for every setting a user chooses, seed 000
-Table 1 reproduced, and material sheets (issue 7).
+Table 1 reproduced, and material sheets.
 
 Pure core (STYLE 1): :func:`run_report` runs the chosen sections of
 :data:`~gonio_cli.report.sections.SECTIONS` in this process and returns a

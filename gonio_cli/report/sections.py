@@ -536,7 +536,7 @@ def _get(rows, ink, model, key):
 
 #: Angles of incidence of the sheets' lobe plots (deg).
 SHEET_THETA_I_DEG = (15.0, 30.0, 45.0, 60.0, 75.0)
-#: Outgoing angles (deg) of the lobe plots and swatches (in-plane, CONVENTIONS sign).
+#: Outgoing angles (deg) of the lobe plots and swatches (in-plane, docs/conventions.md sign).
 SHEET_THETA_O_DEG = np.arange(-88.0, 88.5, 1.0)
 #: A direction whose linear sRGB has no channel above this shows no colour: drawn black.
 MIN_CHANNEL = 1e-12
@@ -545,7 +545,7 @@ MIN_CHANNEL = 1e-12
 def direction_colours(material, theta_i_deg, theta_o_deg) -> tuple[np.ndarray, np.ndarray]:
     """The colour each in-plane direction shows under D65 and the BRDF's luminance.
 
-    Radiance f(ωi, ωo) · cos θi · D65(λ) (E = 1) → XYZ (CONVENTIONS) → linear sRGB,
+    Radiance f(ωi, ωo) · cos θi · D65(λ) (E = 1) → XYZ (docs/conventions.md) → linear sRGB,
     normalised per direction so the largest channel is 1 (hue and saturation only; the
     lobe plot's radius carries the magnitude), then sRGB-encoded.
     Returns (rgb (n_i, n_o, 3) in [0, 1], Y of f under D65 (n_i, n_o), sr⁻¹).

@@ -192,7 +192,7 @@ def prefilter_ring_rows(m: np.ndarray, exponent: float, prepared=None) -> list[d
 
 def delta_e_2000(xyz_a, xyz_b) -> np.ndarray:
     """CIEDE2000 between two XYZ arrays (..., 3), Lab with the D65 white at Y = 1
-    (CONVENTIONS: a white Lambertian lit by E = π shows Y = 1)."""
+    (docs/conventions.md: a white Lambertian lit by E = π shows Y = 1)."""
     import colour
 
     white = colour.CCS_ILLUMINANTS["CIE 1931 2 Degree Standard Observer"]["D65"]

@@ -3,7 +3,7 @@
 A cylinder section (axis along +y) of radius RADIUS, bulging towards +z (the camera of
 ``print.toml``): x = R sin φ, z = R (cos φ − 1), y ∈ [−1, 1], with φ ∈ [−Φ, Φ] and
 Φ = 1 / R so the arc is 2 long, as wide as it is high (the print is square). Texture
-coordinates follow OpenGL (CONVENTIONS: v = 0 is the bottom row of the image): u = (φ + Φ)
+coordinates follow OpenGL (docs/conventions.md: v = 0 is the bottom row of the image): u = (φ + Φ)
 / 2Φ left to right, v = (y + 1) / 2 bottom to top. Normals are the cylinder's
 (sin φ, 0, cos φ). SEGMENTS_X × SEGMENTS_Y quads, two counter-clockwise triangles each
 (front towards +z).
