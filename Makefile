@@ -1,17 +1,19 @@
 # gonio — two commands do all the set-up on a fresh machine with Python 3.11:
-#   make demo   create .venv, install gonio, run the demo pipeline on sample_data/
-#   make test   create .venv, install gonio, run the whole test suite
-# Others: make bench (error against run time), make clean. One stage: make rgbink, make
-# carpaint, make lobes, make sky, make render, or one file (make out/render/figure5.png).
+#   make demo   create .venv, install gonio with the pinned dependencies, run the demo pipeline
+#   make test   create .venv, install gonio with the pinned dependencies, run the test suite
+# Others: make bench (error against run time), make clean, make lock (refresh the pins in
+# requirements.lock after changing dependencies in pyproject.toml). One stage: make rgbink,
+# make carpaint, make lobes, make sky, make render, or one file (make out/render/figure5.png).
 # make report: error against run time of every stage and seed 000's Table 1 (quick in the
-# demo; the full sweeps, ~1 min: make report REPORT_FLAGS= -B).
+# demo; the full sweeps: make report REPORT_FLAGS= -B).
 # The file graph and how to write a batch Makefile of your own: docs/pipelines.md.
 #
 # Variables, set on the command line (make demo OUT=/tmp/run):
 #   OUT    where the pipelines write (default out)
 #   VENV   the virtual environment gonio runs from (default .venv, created on first use)
-#   STAMP  the file marking VENV as installed (reinstalled when pyproject.toml is newer);
-#          STAMP= (empty) uses VENV as it is: no venv creation, no install step
+#   STAMP  the file marking VENV as installed (reinstalled when pyproject.toml or
+#          requirements.lock is newer); STAMP= (empty) uses VENV as it is: no venv
+#          creation, no install step
 #   make demo VENV=/opt/gonio-env STAMP= OUT=/tmp/run   runs an installed gonio elsewhere
 
 PYTHON ?= $(shell command -v python3.11 || command -v python3)
@@ -20,23 +22,38 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.gonio-installed
 OUT    ?= out
 GONIO  := $(BIN)/gonio
+# The tested dependency set: every package pinned, pip and the build backend included.
+LOCK   := requirements.lock
+# The tool that writes LOCK (make lock), pinned like everything else.
+UV_VERSION := 0.13.9
 
 export PATH := $(abspath $(BIN)):$(PATH)
 
-.PHONY: demo test bench clean setup refresh-references
+.PHONY: demo test bench clean setup lock refresh-references
 .DEFAULT_GOAL := demo
 
 setup: $(STAMP)
 
-# Reinstall when the dependency list changes; the package itself is editable. Pipeline
-# stages take the stamp as an order-only prerequisite: a reinstall reruns nothing.
+# Install exactly the pinned set (LOCK) so a fresh machine runs what the tests were run
+# with; PIP_CONSTRAINT also pins pip's isolated build of gonio (setuptools). Reinstall when
+# the dependency list or the pins change; the package itself is editable. Pipeline stages
+# take the stamp as an order-only prerequisite: a reinstall reruns nothing.
 ifneq ($(STAMP),)
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml $(LOCK)
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e .
+	PIP_CONSTRAINT=$(abspath $(LOCK)) $(BIN)/python -m pip install --quiet pip
+	PIP_CONSTRAINT=$(abspath $(LOCK)) $(BIN)/python -m pip install --quiet -e '.[test]'
 	@touch $@
 endif
+
+# Refresh the pins: after changing dependencies in pyproject.toml (or to move to newer
+# releases), run `make lock`, then `make test`, and commit both files. The lock is
+# universal (any OS) for Python 3.11+, one version per package where one fits all.
+lock:
+	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet uv==$(UV_VERSION)
+	printf 'pip\nsetuptools\n' | $(BIN)/uv pip compile pyproject.toml - --all-extras \
+	  --universal --fork-strategy fewest --python-version 3.11 --quiet -o $(LOCK)
 
 include pipelines/rgbink.mk
 include pipelines/carpaint.mk
