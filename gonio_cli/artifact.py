@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import contextlib
 import datetime as _dt
+import errno
 import hashlib
 import json
 import os
@@ -31,7 +32,7 @@ from typing import Any, Iterable, Iterator, Mapping
 import numpy as np
 
 from . import __version__
-from .errors import ArtifactError
+from .errors import ArtifactError, GonioError, WriteError, binary_kind
 
 #: Keys every artifact carries besides its payload.
 ENVELOPE_KEYS = ("schema", "schema_version", "gonio_version", "created_utc", "inputs",
@@ -59,29 +60,100 @@ def _umask() -> int:
     return mask
 
 
+#: Files this process has moved into place (:func:`atomic_path`, :func:`note_written`),
+#: so that an interrupted run can say what it had already written.
+_written: list[Path] = []
+
+
+def note_written(path: str | os.PathLike) -> None:
+    """Record that ``path`` is complete and in place (done by :func:`atomic_path`)."""
+    _written.append(Path(path))
+
+
+def written_files() -> list[Path]:
+    """Files written by this process so far (in order; see :func:`forget_written`)."""
+    return list(_written)
+
+
+def forget_written() -> None:
+    """Start a new record of written files (the CLI does so at the start of a run)."""
+    _written.clear()
+
+
+def folder_error(folder: str | os.PathLike, exc: OSError) -> WriteError:
+    """The one-line error for an output folder that cannot take a file.
+
+    Names the folder (never a temporary file's name) and what to do.
+    """
+    folder = os.fspath(folder) or "."
+    if isinstance(exc, PermissionError):
+        return WriteError(f"cannot write to folder {folder}: permission denied",
+                          fix="choose another -o or fix the folder's permissions")
+    if isinstance(exc, (NotADirectoryError, FileExistsError)):
+        return WriteError(f"cannot write to folder {folder}: a file of that name (or of "
+                          "one of its parents) is in the way",
+                          fix="choose another -o or move that file")
+    if isinstance(exc, FileNotFoundError):
+        return WriteError(f"folder {folder} does not exist",
+                          fix="create it (mkdir -p) or choose another -o")
+    reason = exc.strerror or exc.__class__.__name__
+    return WriteError(f"cannot write to folder {folder}: {reason}",
+                      fix="choose another -o (another disk) or free some space"
+                      if exc.errno == errno.ENOSPC else "choose another -o")
+
+
+def make_folder(folder: str | os.PathLike) -> Path:
+    """Create ``folder`` (and its parents) if needed; a failure is a :class:`WriteError`."""
+    folder = Path(folder) if str(folder) else Path(".")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except PermissionError:
+        parent = next((p for p in folder.parents if os.path.isdir(p)), Path("."))
+        raise WriteError(f"cannot create folder {folder}: permission denied in {parent}",
+                         fix="choose another -o or fix the permissions of "
+                             f"{parent}") from None
+    except OSError as exc:  # a file where a folder should be, a read-only disk, ...
+        raise folder_error(folder, exc) from None
+    return folder
+
+
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     """Yield a temporary path beside ``path``; move it onto ``path`` only on success.
 
     Any writer (JSON, PNG through OpenImageIO, EXR) writes to the yielded path. If the
-    block raises, the temporary file is removed and ``path`` is untouched.
+    block raises, or the run is interrupted (Ctrl-C), the temporary file is removed and
+    ``path`` is untouched. A folder that cannot take the file is a :class:`WriteError`
+    naming the folder, not the temporary file (it is also an ``OSError``, so optional
+    writes such as caches can still ignore it).
     """
     path = Path(path)
-    folder = path.parent if str(path.parent) else Path(".")
-    folder.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=f".tmp{path.suffix}",
-                               dir=folder)
-    os.close(fd)
+    folder = make_folder(path.parent)
+    if path.is_dir():
+        raise WriteError("is a folder", path=path, fix="give a file name for the output")
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=f".tmp{path.suffix}",
+                                   dir=folder)
+    except OSError as exc:
+        raise folder_error(folder, exc) from None
     tmp_path = Path(tmp)
     try:
+        os.close(fd)
         yield tmp_path
         # mkstemp creates the file 0600; give the result the permissions of a normal file
         os.chmod(tmp_path, 0o666 & ~_umask())
         os.replace(tmp_path, path)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            tmp_path.unlink()
+    except BaseException as exc:  # KeyboardInterrupt too: never leave the temporary file
+        tmp_path.unlink(missing_ok=True)
+        if isinstance(exc, OSError) and not isinstance(exc, GonioError) and (
+                exc.errno in _FULL_OR_READ_ONLY):
+            raise folder_error(folder, exc) from None
         raise
+    note_written(path)
+
+
+#: errno values of a write that fails for the folder's disk, not for the writer.
+_FULL_OR_READ_ONLY = (errno.ENOSPC, errno.EROFS)
 
 
 def _to_jsonable(obj: Any) -> Any:
@@ -152,12 +224,26 @@ def read_artifact(path: str | os.PathLike, schema: str,
     path = Path(path)
     versions = tuple(versions)
     try:
-        text = path.read_text(encoding="utf-8")
+        data = path.read_bytes()
     except FileNotFoundError:
         raise ArtifactError("no such file", path=path,
                             fix="check the path or run the stage that makes it") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ArtifactError(f"cannot read it ({exc.__class__.__name__})", path=path) from None
+    except IsADirectoryError:
+        raise ArtifactError(f"is a folder, not a {schema} file", path=path,
+                            fix=_MAKERS.get(schema, "pass the file the command reads")) from None
+    except OSError as exc:
+        raise ArtifactError(f"cannot read it ({exc.strerror or exc.__class__.__name__})",
+                            path=path) from None
+    kind = binary_kind(data[:16])
+    if kind is not None:
+        raise ArtifactError(f"not a {schema} file (it is a {kind})", path=path,
+                            fix=_MAKERS.get(schema, "pass the file the command reads"))
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ArtifactError(f"not a {schema} file (not UTF-8 text: byte "
+                            f"0x{data[exc.start]:02x} at offset {exc.start})", path=path,
+                            fix=_MAKERS.get(schema, "pass the file the command reads")) from None
     try:
         doc = json.loads(text)
     except json.JSONDecodeError as exc:

@@ -3,7 +3,9 @@
 The shell is thin (STYLE 1): each subcommand in :mod:`gonio_cli.commands` parses options,
 reads files, calls its stage's numpy core and writes files. Errors are converted once,
 here (STYLE 8): a :class:`~gonio_cli.errors.GonioError` becomes one line
-``gonio: error: …`` on stderr and exit status 2, never a traceback.
+``gonio: error: …`` on stderr and exit status 2, never a traceback; Ctrl-C becomes one
+line saying what was (or was not) written and exit status 130; ``gonio`` alone prints
+the help and exits 0.
 """
 
 from __future__ import annotations
@@ -15,11 +17,11 @@ from typing import Optional, Sequence
 import typer
 
 from . import __version__, log
-from .errors import EXIT_USAGE, GonioError
+from .commands import STAGES, Group, apply_help_style
+from .errors import EXIT_INTERRUPTED, EXIT_USAGE, GonioError
 
 #: Stage shells in pipeline order; each module has ``register(app)`` and ``EXAMPLE``.
-COMMAND_MODULES = ("ingest", "fit", "lobes", "halftone", "prefilter", "sparkle", "render",
-                   "report")
+COMMAND_MODULES = STAGES
 
 
 def _modules():
@@ -43,6 +45,7 @@ app = typer.Typer(
     help="Goniometer spectra to fitted goniochromatic BRDFs and rendered images.",
     epilog=EPILOG,
     add_completion=False,
+    cls=Group,
     pretty_exceptions_enable=False,
     no_args_is_help=True,
     rich_markup_mode=None,
@@ -70,6 +73,7 @@ def _register() -> None:
     """Attach every stage's command (imports are cheap: cores load on first use)."""
     for module in _modules():
         module.register(app)
+    apply_help_style(app)
 
 
 _register()
@@ -78,10 +82,14 @@ _register()
 def run(argv: Sequence[str] | None = None) -> int:
     """Run the CLI and return its exit status instead of exiting (used by tests)."""
     log.set_quiet(False)
+    _forget_written()
+    apply_help_style(app)  # commands registered since import (tests) get the same help
     args = list(argv) if argv is not None else sys.argv[1:]
     try:
         code = app(args=args, prog_name="gonio", standalone_mode=False)
-        return code if isinstance(code, int) else 0
+        code = code if isinstance(code, int) else 0
+        # typer turns Ctrl-C inside a command into exit status 130 without a word
+        return _interrupted() if code == EXIT_INTERRUPTED else code
     except GonioError as exc:
         print(f"gonio: error: {exc.format()}", file=sys.stderr)
         return EXIT_USAGE
@@ -89,20 +97,22 @@ def run(argv: Sequence[str] | None = None) -> int:
         code = exc.code
         return code if isinstance(code, int) else (0 if code is None else 1)
     except KeyboardInterrupt:
-        print("gonio: interrupted; nothing was written", file=sys.stderr)
-        return 130
+        return _interrupted()
     except OSError as exc:
         where = f"{exc.filename}: " if exc.filename else ""
         print(f"gonio: error: {where}{exc.strerror or exc}", file=sys.stderr)
         return EXIT_USAGE
     except Exception as exc:
+        if _is_no_args_help(exc):  # 'gonio' or 'gonio lobes' alone: the help, status 0
+            print(exc.format_message())
+            return 0
         if _is_usage_error(exc):  # typer/click: bad option, missing argument, unknown command
             print(f"gonio: error: {exc.format_message()} (see 'gonio "
                   f"{_command(args)}--help')", file=sys.stderr)
             return int(exc.exit_code)
-        if type(exc).__name__ == "Abort":
+        if type(exc).__name__ == "Abort":  # end of input at a prompt
             print("gonio: aborted; nothing was written", file=sys.stderr)
-            return 130
+            return EXIT_INTERRUPTED
         # a bug: one line, unless the user asks for the traceback
         if os.environ.get("GONIO_DEBUG"):
             raise
@@ -110,6 +120,45 @@ def run(argv: Sequence[str] | None = None) -> int:
               "(a bug; rerun with GONIO_DEBUG=1 for the traceback and report it)",
               file=sys.stderr)
         return 1
+
+
+def _forget_written() -> None:
+    """Start this run's record of written files (if anything ever loaded the writer)."""
+    artifact = sys.modules.get(f"{__package__}.artifact")
+    if artifact is not None:
+        artifact.forget_written()
+
+
+def _outputs_written() -> list[str]:
+    """Files this run moved into place that still exist, outside gonio's cache."""
+    artifact = sys.modules.get(f"{__package__}.artifact")
+    if artifact is None:
+        return []
+    cache = sys.modules.get(f"{__package__}.cache")
+    cache_dir = os.path.abspath(cache.cache_dir()) if cache is not None else None
+    out = []
+    for path in artifact.written_files():
+        full = os.path.abspath(path)
+        if os.path.exists(full) and not (cache_dir and full.startswith(cache_dir + os.sep)) \
+                and os.fspath(path) not in out:
+            out.append(os.fspath(path))
+    return out
+
+
+def _interrupted() -> int:
+    """Ctrl-C: one line saying what was written (atomic writes leave nothing partial)."""
+    done = _outputs_written()
+    if done:
+        print(f"gonio: interrupted after writing {', '.join(done)}; nothing else was "
+              "written", file=sys.stderr)
+    else:
+        print("gonio: interrupted; nothing was written", file=sys.stderr)
+    return EXIT_INTERRUPTED
+
+
+def _is_no_args_help(exc: Exception) -> bool:
+    """click's "no arguments, so show the help" (an error with status 2 since click 8.2)."""
+    return any(c.__name__ == "NoArgsIsHelpError" for c in type(exc).__mro__)
 
 
 def _is_usage_error(exc: Exception) -> bool:

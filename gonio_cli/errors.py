@@ -16,6 +16,10 @@ import os
 #: Exit status for every error the user can fix (bad input, bad options, untrustworthy fit).
 EXIT_USAGE = 2
 
+#: Exit status of a run stopped by Ctrl-C: 128 + SIGINT (2), what a shell reports for a
+#: process the signal ended, so ``make`` and shell loops stop too.
+EXIT_INTERRUPTED = 130
+
 
 class GonioError(Exception):
     """Base class of all errors gonio reports to a user.
@@ -70,3 +74,52 @@ class ArtifactError(GonioError):
 
 class FitError(GonioError):
     """A fit that cannot be trusted (no signal, too few configurations, non-finite result)."""
+
+
+class WriteError(GonioError, OSError):
+    """An output that cannot be written: its folder is missing, not writable, not a
+    folder, or the disk is full. Also an :class:`OSError`, so code that treats a write as
+    optional (the on-disk cache) still catches it."""
+
+
+# ------------------------------------------------------- naming the real cause --
+
+#: Leading bytes of binary files users hand to gonio by mistake → what the file is.
+#: (File format signatures: PNG spec §5.2, JFIF, OpenEXR, PKWARE APPNOTE, ISO 32000,
+#: RFC 1952, TIFF 6.0, Microsoft Compound File.)
+FILE_SIGNATURES = {
+    b"\x89PNG\r\n\x1a\n": "PNG image",
+    b"\xff\xd8\xff": "JPEG image",
+    b"\x76\x2f\x31\x01": "OpenEXR image",
+    b"II*\x00": "TIFF image",
+    b"MM\x00*": "TIFF image",
+    b"PK\x03\x04": "ZIP archive, e.g. an Excel .xlsx workbook",
+    b"%PDF-": "PDF document",
+    b"\x1f\x8b": "gzip-compressed file",
+    b"\xd0\xcf\x11\xe0\xa1\xb1\x1a\xe1": "legacy Office file, e.g. an Excel .xls workbook",
+    b"#?RADIANCE": "Radiance HDR image",
+    b"#?RGBE": "Radiance HDR image",
+}
+
+
+def binary_kind(head: bytes) -> str | None:
+    """What a file is, from its first bytes, if it is one of :data:`FILE_SIGNATURES`."""
+    return next((kind for magic, kind in FILE_SIGNATURES.items() if head.startswith(magic)),
+                None)
+
+
+def num(value) -> str:
+    """A number as a message shows it: ``nan``, ``0.5``, ``95``, ``1e-20``.
+
+    numpy scalars print as their value (``str``), never as their ``repr``
+    (``np.float64(nan)``); integral floats drop their ``.0``. Anything else is ``str``.
+    """
+    if isinstance(value, bool) or type(value).__name__ in ("bool", "bool_"):
+        return str(bool(value))
+    if type(value).__module__ == "numpy" and hasattr(value, "dtype"):
+        text = str(value)  # np.float64 is also a float, whose repr names the type
+    elif isinstance(value, float):
+        text = repr(value)
+    else:
+        return str(value)
+    return text[:-2] if text.endswith(".0") else text

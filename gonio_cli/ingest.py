@@ -41,7 +41,7 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from . import log
-from .errors import InputError
+from .errors import InputError, binary_kind
 from .schemas import Measurement
 from .spectra import DEFAULT_GRID_NM, WAVELENGTH_TOL_NM, covers, parse_grid, resample, same_grid
 
@@ -184,8 +184,16 @@ def _read_lines(path: str) -> list[str]:
         data = Path(path).read_bytes()
     except FileNotFoundError:
         raise InputError("no such file", path=path, fix="check the path") from None
+    except IsADirectoryError:
+        raise InputError("is a folder, not a CSV file", path=path,
+                         fix=f"name the CSV files inside it, e.g. {path}/*.csv") from None
     except OSError as exc:
         raise InputError(f"cannot read it ({exc.strerror or exc})", path=path) from None
+    kind = binary_kind(data[:16])
+    if kind is not None:
+        raise InputError(f"not a CSV file ({kind})", path=path,
+                         fix="pass the spectra as CSV text (from a spreadsheet: save it as "
+                             "CSV UTF-8); the layouts are in docs/ingest.md")
     try:
         text = data.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
@@ -883,7 +891,7 @@ def ingest(paths: Sequence[str | os.PathLike], *, quantity: str = "brdf",
     grid = parse_grid(params["grid_nm"])
     dark_spectrum = read_spectrum(dark, "dark") if dark is not None else None
     parts, grids, negatives = [], [], 0
-    for path in paths:
+    for path in log.progress(paths, "reading CSV files", total=len(paths)):
         spectra = read_spectra(path)
         grids.append(spectra.wavelength_nm)
         spectra = crop(spectra, grid)

@@ -47,11 +47,14 @@ def progress(items: Iterable[T], description: str, total: int | None = None,
 
     The bar is drawn if not quiet, stderr is a terminal and either ``expected_s`` exceeds
     :data:`PROGRESS_MIN_S` or (when unknown) the loop is still running after that time.
+    Otherwise (``--quiet``, output redirected to a file or a pipe, as in ``make``) nothing
+    is printed and the command's one summary line at the end is all there is.
     """
     if _state["quiet"] or not sys.stderr.isatty() or (
             expected_s is not None and expected_s < PROGRESS_MIN_S):
         yield from items
         return
+    from rich.console import Console
     from rich.progress import Progress
 
     if total is None:
@@ -60,8 +63,9 @@ def progress(items: Iterable[T], description: str, total: int | None = None,
         except TypeError:
             total = None
     start = time.perf_counter()
-    with Progress(transient=True, disable=False, redirect_stdout=False,
-                  redirect_stderr=False) as bar:
+    # on stderr, like every message: stdout is kept for data (--summary, reports)
+    with Progress(console=Console(file=sys.stderr), transient=True, disable=False,
+                  redirect_stdout=False, redirect_stderr=False) as bar:
         task = None
         for done, item in enumerate(items):
             if task is None and (expected_s is not None

@@ -47,7 +47,7 @@ from typing import Callable, Iterable
 import numpy as np
 
 from . import envmap, log
-from .errors import InputError
+from .errors import InputError, num
 
 #: Kernel values below this fraction of a texel's peak weight are left out (input rows
 #: outside the band). Even a sun 10⁵ × the sky then changes a texel by < 1e-5 of the sky.
@@ -182,7 +182,7 @@ def validate_map(pixels: np.ndarray, *, fix_invalid: bool = False,
     if not fix_invalid:
         row, col = (int(v) for v in np.argwhere(bad)[0])
         value = a[row, col][bad_values[row, col]][0]
-        raise InputError(f"texel (row {row}, col {col}) is {value!r}; {count} texel"
+        raise InputError(f"texel (row {row}, col {col}) is {num(value)}; {count} texel"
                          f"{'s are' if count > 1 else ' is'} NaN, inf or negative", path=path,
                          fix="repair the map or pass --fix-invalid to replace them")
     a = a.copy()
@@ -203,7 +203,7 @@ def validate_exponents(exponents: Iterable[float], *, path=None) -> list[float]:
             raise InputError(f"exponent {e!r} is not a number", path=path,
                              fix="give numbers such as 1,8,64") from None
         if not (np.isfinite(v) and 1.0 <= v <= MAX_EXPONENT):
-            raise InputError(f"exponent {e!r} is outside [1, {MAX_EXPONENT:g}]", path=path,
+            raise InputError(f"exponent {num(e)} is outside [1, {MAX_EXPONENT:g}]", path=path,
                              fix="cosine-lobe exponents are at least 1 (the diffuse map)")
         out.add(v)
     out.add(1.0)

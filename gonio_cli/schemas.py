@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from .artifact import ENVELOPE_KEYS, check_keys, read_artifact, write_artifact
-from .errors import ArtifactError
+from .errors import ArtifactError, num
 
 
 def _array(doc, key, path, ndim, dtype=float) -> np.ndarray:
@@ -228,7 +228,7 @@ def _exponent_list(values, path, where: str) -> np.ndarray:
                             fix="choose a basis with gonio lobes basis")
     bad = e[~(np.isfinite(e) & (e > 0))]
     if bad.size:
-        raise ArtifactError(f"{where} holds the exponent {bad[0]!r}, not a positive number",
+        raise ArtifactError(f"{where} holds the exponent {num(bad[0])}, not a positive number",
                             path=path, fix="every cosine-lobe exponent must be > 0")
     return e
 

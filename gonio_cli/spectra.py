@@ -95,7 +95,7 @@ def resample(wavelength_nm_in, values, grid_nm) -> np.ndarray:
 # ----------------------------------------------------------------------------- colour --
 
 #: Version of the cached colour tables (bump when :func:`_colour_tables` changes).
-COLOUR_TABLES_VERSION = 1
+COLOUR_TABLES_VERSION = 2
 
 
 @functools.lru_cache(maxsize=1)
@@ -113,16 +113,20 @@ def colour_tables() -> dict[str, np.ndarray]:
     name = (f"colour-tables-v{COLOUR_TABLES_VERSION}-"
             f"colour-science-{version('colour-science')}.npz")
     return cached_arrays(name, _colour_tables,
-                         check=lambda d: {"cmfs_wl", "srgb_matrix", "basis_wl"} <= set(d))
+                         check=lambda d: {"cmfs_wl", "cmfs10_values", "srgb_matrix",
+                                          "basis_wl"} <= set(d))
 
 
 def _colour_tables() -> dict[str, np.ndarray]:
     import colour  # the only place gonio imports colour-science for its data
 
     cmfs = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"]
+    cmfs10 = colour.MSDS_CMFS["CIE 1964 10 Degree Standard Observer"]
     basis = colour.recovery.MSDS_BASIS_FUNCTIONS_sRGB_MALLETT2019
     out = {"cmfs_wl": np.asarray(cmfs.wavelengths, dtype=float),
            "cmfs_values": np.asarray(cmfs.values, dtype=float),
+           "cmfs10_wl": np.asarray(cmfs10.wavelengths, dtype=float),
+           "cmfs10_values": np.asarray(cmfs10.values, dtype=float),
            "srgb_matrix": np.asarray(colour.RGB_COLOURSPACES["sRGB"].matrix_XYZ_to_RGB,
                                      dtype=float),
            "basis_wl": np.asarray(basis.wavelengths, dtype=float),
@@ -136,22 +140,97 @@ def _colour_tables() -> dict[str, np.ndarray]:
     return out
 
 
+#: Standard observers by their field of view in degrees: the key of their tables.
+OBSERVERS = {2: "cmfs", 10: "cmfs10"}
+
+
 @functools.lru_cache(maxsize=8)
-def _cmfs_cached(grid_key: tuple[float, ...]) -> np.ndarray:
+def _cmfs_cached(grid_key: tuple[float, ...], observer: int) -> np.ndarray:
     t = colour_tables()
-    return np.stack([np.interp(grid_key, t["cmfs_wl"], t["cmfs_values"][:, k])
+    key = OBSERVERS[observer]
+    return np.stack([np.interp(grid_key, t[f"{key}_wl"], t[f"{key}_values"][:, k])
                      for k in range(3)], axis=-1)
 
 
-def cmfs(grid_nm) -> np.ndarray:
-    """CIE 1931 2° colour-matching functions on the grid, (n_λ, 3)."""
-    return _cmfs_cached(tuple(float(x) for x in np.asarray(grid_nm))).copy()
+def cmfs(grid_nm, observer: int = 2) -> np.ndarray:
+    """Colour-matching functions on the grid, (n_λ, 3): CIE 1931 2° (``observer=2``, the
+    renderer's, docs/conventions.md) or CIE 1964 10° (``observer=10``, what multi-angle
+    instruments report L*a*b* with)."""
+    return _cmfs_cached(tuple(float(x) for x in np.asarray(grid_nm)), observer).copy()
 
 
 def spectrum_to_xyz(radiance, grid_nm) -> np.ndarray:
     """XYZ of spectra (..., n_λ): Σλ L cmf / Σλ ȳ (docs/conventions.md). Returns (..., 3)."""
     cm = cmfs(grid_nm)
     return np.asarray(radiance, dtype=float) @ cm / cm[:, 1].sum()
+
+
+def reflectance_to_xyz(reflectance, grid_nm, illuminant_name: str = "D65",
+                       observer: int = 10) -> np.ndarray:
+    """XYZ (..., 3) of reflectance factors (..., n_λ) under an illuminant, white Y = 1.
+
+    X = Σ R S x̄ / Σ S ȳ, the way instruments compute colour (CIE 15, with the tables
+    sampled on the grid instead of ASTM E308 weights: < 0.05 CIEDE2000 apart at 10 nm).
+    A reflectance factor is R = π f for a BRDF f (docs/conventions.md).
+    """
+    g = np.asarray(grid_nm, dtype=float)
+    cm = cmfs(g, observer)
+    s = illuminant(illuminant_name, g)   # scaled, but the scale cancels in the ratio
+    return (np.asarray(reflectance, dtype=float) * s) @ cm / (s @ cm[:, 1])
+
+
+#: CIE 1976 L*a*b*: the cube root's linear segment below (6/29)³ (CIE 15:2004 §8.2.1).
+_LAB_EPS = (6.0 / 29.0) ** 3
+
+
+def xyz_to_lab(xyz, white_xyz) -> np.ndarray:
+    """CIE 1976 L*a*b* (..., 3) of XYZ (..., 3) relative to the white ``white_xyz`` (3,)."""
+    r = np.asarray(xyz, dtype=float) / np.asarray(white_xyz, dtype=float)
+    f = np.where(r > _LAB_EPS, np.cbrt(r), r / (3 * (6.0 / 29.0) ** 2) + 4.0 / 29.0)
+    return np.stack([116.0 * f[..., 1] - 16.0, 500.0 * (f[..., 0] - f[..., 1]),
+                     200.0 * (f[..., 1] - f[..., 2])], axis=-1)
+
+
+def delta_e_2000(lab_1, lab_2) -> np.ndarray:
+    """CIEDE2000 colour difference (...,) between two L*a*b* arrays (..., 3).
+
+    Sharma, Wu & Dalal (2005) with k_L = k_C = k_H = 1. Written here rather than called
+    from colour-science because ``gonio fit`` reports it on every run and importing
+    colour-science costs ~1.5 s; the tests check it against colour-science and against
+    Sharma's published test pairs.
+    """
+    L1, a1, b1 = np.moveaxis(np.asarray(lab_1, dtype=float), -1, 0)
+    L2, a2, b2 = np.moveaxis(np.asarray(lab_2, dtype=float), -1, 0)
+    c_mean = (np.hypot(a1, b1) + np.hypot(a2, b2)) / 2.0
+    c7 = c_mean ** 7
+    g = 0.5 * (1.0 - np.sqrt(c7 / (c7 + 25.0 ** 7)))
+    a1p, a2p = (1.0 + g) * a1, (1.0 + g) * a2
+    c1p, c2p = np.hypot(a1p, b1), np.hypot(a2p, b2)
+    h1p = np.degrees(np.arctan2(b1, a1p)) % 360.0
+    h2p = np.degrees(np.arctan2(b2, a2p)) % 360.0
+    d_lp, d_cp = L2 - L1, c2p - c1p
+    dh = h2p - h1p
+    dh = np.where(dh > 180.0, dh - 360.0, np.where(dh < -180.0, dh + 360.0, dh))
+    dh = np.where(c1p * c2p == 0.0, 0.0, dh)
+    d_hp = 2.0 * np.sqrt(c1p * c2p) * np.sin(np.radians(dh / 2.0))
+    l_mean, cp_mean = (L1 + L2) / 2.0, (c1p + c2p) / 2.0
+    h_sum = h1p + h2p
+    h_mean = np.where(np.abs(h1p - h2p) <= 180.0, h_sum / 2.0,
+                      np.where(h_sum < 360.0, (h_sum + 360.0) / 2.0, (h_sum - 360.0) / 2.0))
+    h_mean = np.where(c1p * c2p == 0.0, h_sum, h_mean)
+    t = (1.0 - 0.17 * np.cos(np.radians(h_mean - 30.0)) + 0.24 * np.cos(np.radians(2 * h_mean))
+         + 0.32 * np.cos(np.radians(3 * h_mean + 6.0))
+         - 0.20 * np.cos(np.radians(4 * h_mean - 63.0)))
+    d_theta = 30.0 * np.exp(-(((h_mean - 275.0) / 25.0) ** 2))
+    cp7 = cp_mean ** 7
+    r_c = 2.0 * np.sqrt(cp7 / (cp7 + 25.0 ** 7))
+    l50 = (l_mean - 50.0) ** 2
+    s_l = 1.0 + 0.015 * l50 / np.sqrt(20.0 + l50)
+    s_c = 1.0 + 0.045 * cp_mean
+    s_h = 1.0 + 0.015 * cp_mean * t
+    r_t = -np.sin(np.radians(2.0 * d_theta)) * r_c
+    return np.sqrt((d_lp / s_l) ** 2 + (d_cp / s_c) ** 2 + (d_hp / s_h) ** 2
+                   + r_t * (d_cp / s_c) * (d_hp / s_h))
 
 
 def xyz_to_linear_srgb_matrix() -> np.ndarray:

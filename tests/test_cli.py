@@ -1,4 +1,7 @@
-"""The gonio shell: version, help, and the one conversion of errors (STYLE 8), quiet mode.
+"""The gonio shell: version, help, and the one conversion of errors (STYLE 8), quiet mode,
+Ctrl-C (one line, exit 130, nothing partial), which libraries light commands import, and
+the errors a newcomer meets first (a pattern that matched nothing, an image where a file
+of gonio's was expected, an output folder that cannot be written).
 
 Commands that raise are registered for one test on a copy of the app's command list
 (monkeypatch restores it), so the real app, with its callback and settings, is exercised.
@@ -6,14 +9,24 @@ Commands that raise are registered for one test on a copy of the app's command l
 
 from __future__ import annotations
 
+import ast
+import errno
+import io
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
 
+import numpy as np
 import pytest
 import typer.main
 
 import gonio_cli
 import gonio_cli.commands
-from gonio_cli import cli, log
-from gonio_cli.errors import InputError
+from gonio_cli import artifact, cli, log
+from gonio_cli.errors import InputError, WriteError, num
 
 
 @pytest.fixture
@@ -128,3 +141,317 @@ def test_usage_errors_are_one_line_with_exit_2(run_gonio, args, needle):
     assert r.exit_code == 2
     assert r.stderr.count("\n") == 1 and r.stderr.startswith("gonio: error:")
     assert needle in r.stderr and "--help" in r.stderr
+
+
+# ----------------------------------------------------------------- progress --
+
+class _Terminal(io.StringIO):
+    """A stderr that says it is a terminal."""
+
+    def isatty(self) -> bool:
+        return True
+
+
+@pytest.mark.parametrize("stream, quiet, expected_s, drawn", [
+    (_Terminal, False, 10.0, True),   # a long loop on a terminal: the bar
+    (_Terminal, True, 10.0, False),   # --quiet
+    (io.StringIO, False, 10.0, False),  # redirected (make, a pipe, a log file)
+    (_Terminal, False, 0.5, False),   # too short to be worth a bar
+])
+def test_progress_bar_only_on_a_terminal_and_never_on_stdout(monkeypatch, capsys, stream,
+                                                             quiet, expected_s, drawn):
+    err = stream()
+    monkeypatch.setattr(sys, "stderr", err)
+    log.set_quiet(quiet)
+    try:
+        items = list(log.progress(range(3), "crunching", expected_s=expected_s))
+    finally:
+        log.set_quiet(False)
+    assert items == [0, 1, 2]
+    assert ("crunching" in err.getvalue()) is drawn
+    assert err.getvalue() == "" or drawn
+    assert capsys.readouterr().out == ""
+
+
+# ------------------------------------------------------------------- Ctrl-C --
+
+ROOT = Path(__file__).resolve().parents[1]
+SAMPLE = ROOT / "sample_data"
+
+#: How long a patched step waits for the test's SIGINT: far longer than any start-up, so
+#: the interrupt, not the wait, ends it (a run that outlives it fails the test).
+WAIT_S = 120
+
+
+def interrupt(tmp_path, patch: str, *args) -> subprocess.CompletedProcess:
+    """Run ``gonio ARGS`` in a subprocess whose ``patch`` (Python source run before the
+    CLI) makes one step print ``ready`` and wait; send SIGINT once it is ready."""
+    script = tmp_path / "interrupted_gonio.py"
+    script.write_text("import sys, time\n" + textwrap.dedent(patch) + "\n"
+                      "from gonio_cli import cli\n"
+                      f"sys.exit(cli.run({[str(a) for a in args]!r}))\n")
+    proc = subprocess.Popen([sys.executable, str(script)], cwd=tmp_path, text=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        first = proc.stdout.readline()
+        if first != "ready\n":  # it ended (or printed) before reaching the patched step
+            out, err = proc.communicate(timeout=WAIT_S)
+            pytest.fail(f"gonio never reached the patched step: {first}{out}{err}")
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=WAIT_S)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    return subprocess.CompletedProcess(proc.args, proc.returncode, out, err)
+
+
+def wait_in(module: str, name: str, after_call: bool = False) -> str:
+    """Patch source: ``module.name`` prints ``ready`` and sleeps (after running, if asked)."""
+    return f"""
+        import importlib
+        _mod = importlib.import_module({module!r})
+        _orig = getattr(_mod, {name!r})
+        def _wait(*a, **k):
+            {"_orig(*a, **k)" if after_call else "pass"}
+            print("ready", flush=True)
+            time.sleep({WAIT_S})
+        setattr(_mod, {name!r}, _wait)
+        """
+
+
+posix_only = pytest.mark.skipif(sys.platform == "win32", reason="SIGINT to a child process")
+
+
+@posix_only
+def test_ctrl_c_before_writing_says_nothing_was_written(tmp_path):
+    out = tmp_path / "out" / "red.json"
+    r = interrupt(tmp_path, wait_in("gonio_cli.ingest", "ingest", after_call=True),
+                  "ingest", SAMPLE / "ink_red.csv", "-o", out)
+    assert r.returncode == 130
+    assert r.stderr == "gonio: interrupted; nothing was written\n"
+    assert not out.exists() and not out.parent.exists()
+
+
+@posix_only
+def test_ctrl_c_while_writing_leaves_no_partial_or_temporary_file(tmp_path):
+    """The interrupt arrives with half of the JSON in the temporary file."""
+    patch = f"""
+        import pathlib
+        _orig = pathlib.Path.write_text
+        def _half(self, data, *a, **k):
+            _orig(self, data[:len(data) // 2], *a, **k)
+            print("ready", flush=True)
+            time.sleep({WAIT_S})
+        pathlib.Path.write_text = _half
+        """
+    out = tmp_path / "out" / "red.json"
+    r = interrupt(tmp_path, patch, "ingest", SAMPLE / "ink_red.csv", "-o", out)
+    assert r.returncode == 130
+    assert r.stderr == "gonio: interrupted; nothing was written\n"
+    assert list(out.parent.iterdir()) == []  # not the file, not its .tmp
+
+
+@posix_only
+def test_ctrl_c_after_one_output_names_it(run_gonio, tmp_path):
+    """fit writes the material, then draws the plot: interrupted there, it says so."""
+    measurement = tmp_path / "red.measurement.json"
+    assert run_gonio("ingest", SAMPLE / "ink_red.csv", "-o", measurement).exit_code == 0
+    patch = f"""
+        import types
+        _plot = types.ModuleType("gonio_cli.fit.plot")  # stands in for matplotlib's slow draw
+        def plot_fit(*a, **k):
+            print("ready", flush=True)
+            time.sleep({WAIT_S})
+        _plot.plot_fit = plot_fit
+        sys.modules["gonio_cli.fit.plot"] = _plot
+        """
+    r = interrupt(tmp_path, patch, "fit", measurement.name, "-o", "red.material.json",
+                  "--plot", "red.png")
+    assert r.returncode == 130
+    assert r.stderr == ("gonio: interrupted after writing red.material.json; nothing else "
+                        "was written\n")
+    assert (tmp_path / "red.material.json").is_file()
+    assert not (tmp_path / "red.png").exists()
+
+
+def test_keyboard_interrupt_inside_atomic_path_removes_the_temporary_file(tmp_path):
+    target = tmp_path / "a.json"
+    target.write_text("old")
+    with pytest.raises(KeyboardInterrupt):
+        with artifact.atomic_path(target) as tmp:
+            tmp.write_text("half")
+            raise KeyboardInterrupt
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.json"]
+    assert target.read_text() == "old"
+
+
+def test_outputs_are_recorded_for_the_interrupt_message(tmp_path):
+    artifact.forget_written()
+    artifact.write_json(tmp_path / "a.json", {"x": 1})
+    assert artifact.written_files() == [tmp_path / "a.json"]
+    artifact.forget_written()
+    assert artifact.written_files() == []
+
+
+# ------------------------------------------------------------------ imports --
+
+#: Heavy imports a command must not pay for unless it uses them.
+HEAVY = {"matplotlib", "numba", "trimesh", "colour", "scipy", "OpenImageIO", "PIL"}
+
+
+@pytest.mark.parametrize("args, forbidden", [
+    (["--version"], HEAVY | {"numpy"}),
+    (["--help"], HEAVY | {"numpy"}),
+    (["ingest", str(SAMPLE / "ink_red.csv"), "-o", "{tmp}/red.json"], HEAVY),
+])
+def test_light_commands_do_not_import_heavy_libraries(tmp_path, args, forbidden):
+    args = [a.replace("{tmp}", str(tmp_path)) for a in args]
+    code = ("import sys\nfrom gonio_cli import cli\n"
+            f"code = cli.run({args!r})\n"
+            "print(sorted({m.split('.')[0] for m in sys.modules}))\n"
+            "sys.exit(code)\n")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                       cwd=tmp_path, timeout=WAIT_S)
+    assert r.returncode == 0, r.stderr
+    loaded = set(ast.literal_eval(r.stdout.strip().splitlines()[-1]))
+    assert "gonio_cli" in loaded  # the check can see what was imported
+    assert not loaded & forbidden, f"gonio {' '.join(args)} imported {loaded & forbidden}"
+
+
+# ------------------------------------------------------- errors a newcomer meets --
+
+@pytest.mark.parametrize("make_args", [
+    lambda t: ["ingest", t / "photo_ti*.csv", "-o", t / "m.json"],
+    lambda t: ["sparkle", t / "photo_ti*.png", "-o", t / "s.png"],
+    lambda t: ["fit", t / "*.measurement.json", "-o", t / "m.json"],
+    lambda t: ["prefilter", t / "sky*.exr", "--exponents", "8", "-o", t / "sky"],
+], ids=["ingest", "sparkle", "fit", "prefilter"])
+def test_a_pattern_that_matched_nothing_is_named(run_gonio, tmp_path, make_args):
+    args = make_args(tmp_path)
+    r = run_gonio(*args)
+    assert r.exit_code == 2
+    pattern = str(args[1])
+    assert r.stderr.startswith(f"gonio: error: no files match '{pattern}'; check the folder"), \
+        r.stderr
+    assert r.stderr.count("\n") == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
+def test_a_missing_file_is_still_no_such_file(run_gonio, tmp_path):
+    r = run_gonio("sparkle", tmp_path / "photo.png", "-o", tmp_path / "s.png")
+    assert r.exit_code == 2
+    assert r.stderr == (f"gonio: error: {tmp_path / 'photo.png'}: no such image file; check "
+                        "the path\n")
+
+
+def test_a_folder_given_as_input_is_named(run_gonio, tmp_path):
+    r = run_gonio("ingest", tmp_path, "-o", tmp_path / "m.json")
+    assert r.exit_code == 2
+    assert r.stderr.startswith(f"gonio: error: {tmp_path}: is a folder, not a file; ")
+
+
+def test_an_image_given_to_fit_is_not_a_measurement(run_gonio, tmp_path):
+    r = run_gonio("fit", SAMPLE / "print_image.png", "-o", tmp_path / "m.json")
+    assert r.exit_code == 2
+    assert r.stderr == (f"gonio: error: {SAMPLE / 'print_image.png'}: not a gonio.measurement "
+                        "file (it is a PNG image); pass a measurement made by gonio ingest "
+                        "(which reads the CSVs)\n")
+
+
+def _refuse_mkstemp(monkeypatch, exc):
+    def mkstemp(*a, **k):
+        raise exc
+
+    monkeypatch.setattr(artifact.tempfile, "mkstemp", mkstemp)
+
+
+@pytest.mark.parametrize("exc, message", [
+    (PermissionError(errno.EACCES, "Permission denied"),
+     "cannot write to folder {out}: permission denied; choose another -o or fix the "
+     "folder's permissions"),
+    (OSError(errno.EROFS, "Read-only file system"),
+     "cannot write to folder {out}: Read-only file system; choose another -o"),
+    (OSError(errno.ENOSPC, "No space left on device"),
+     "cannot write to folder {out}: No space left on device; choose another -o (another "
+     "disk) or free some space"),
+])
+def test_an_unwritable_output_folder_is_named_not_the_temporary_file(
+        run_gonio, tmp_path, monkeypatch, exc, message):
+    out = tmp_path / "out"
+    _refuse_mkstemp(monkeypatch, exc)
+    r = run_gonio("ingest", SAMPLE / "ink_red.csv", "-o", out / "red.json")
+    assert r.exit_code == 2
+    assert r.stderr == "gonio: error: " + message.format(out=out) + "\n"
+    assert ".tmp" not in r.stderr
+
+
+@pytest.mark.skipif(sys.platform == "win32" or os.geteuid() == 0,
+                    reason="permission bits do not stop root (or Windows ACLs)")
+def test_a_read_only_folder_for_real(run_gonio, tmp_path):
+    out = tmp_path / "ro"
+    out.mkdir()
+    out.chmod(0o555)
+    try:
+        r = run_gonio("ingest", SAMPLE / "ink_red.csv", "-o", out / "red.json")
+        assert r.exit_code == 2
+        assert r.stderr.startswith(f"gonio: error: cannot write to folder {out}: permission "
+                                   "denied; ")
+        assert list(out.iterdir()) == []
+    finally:
+        out.chmod(0o755)
+
+
+def test_a_file_in_the_way_of_the_output_folder(run_gonio, tmp_path):
+    (tmp_path / "out").write_text("a file, not a folder")
+    r = run_gonio("ingest", SAMPLE / "ink_red.csv", "-o", tmp_path / "out" / "sub" / "r.json")
+    assert r.exit_code == 2
+    assert r.stderr.startswith(f"gonio: error: cannot write to folder {tmp_path / 'out' / 'sub'}"
+                               ": a file of that name (or of one of its parents) is in the way")
+
+
+def test_an_output_that_is_a_folder(run_gonio, tmp_path):
+    r = run_gonio("ingest", SAMPLE / "ink_red.csv", "-o", tmp_path)
+    assert r.exit_code == 2
+    assert r.stderr == (f"gonio: error: {tmp_path}: is a folder; give a file name for the "
+                        "output\n")
+
+
+def test_a_full_disk_while_writing_names_the_folder(tmp_path):
+    with pytest.raises(WriteError) as info:
+        with artifact.atomic_path(tmp_path / "a.json"):
+            raise OSError(errno.ENOSPC, "No space left on device", str(tmp_path / ".a.tmp"))
+    assert info.value.format().startswith(f"cannot write to folder {tmp_path}: No space left")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_an_unwritable_cache_is_only_slower(tmp_path, monkeypatch):
+    """WriteError is an OSError, so the cache still treats a failed write as optional."""
+    from gonio_cli import cache
+
+    monkeypatch.setenv(cache.CACHE_ENV, str(tmp_path / "cache"))
+    _refuse_mkstemp(monkeypatch, PermissionError(errno.EACCES, "Permission denied"))
+    data = cache.cached_arrays("x.npz", lambda: {"a": np.arange(3.0)})
+    assert data["a"].tolist() == [0.0, 1.0, 2.0]
+
+
+@pytest.mark.parametrize("value, text", [
+    (np.float64("nan"), "nan"), (np.float32(0.5), "0.5"), (np.float32(0.1), "0.1"),
+    (np.float64(95.0), "95"), (95.0, "95"), (0.5, "0.5"), (float("inf"), "inf"),
+    (np.int64(7), "7"), (1e-20, "1e-20"), (np.bool_(True), "True"), ("abc", "abc"),
+])
+def test_numbers_in_messages_print_as_numbers(value, text):
+    assert num(value) == text
+
+
+def test_a_numpy_value_in_a_stage_message_prints_as_a_number():
+    from gonio_cli import prefilter
+
+    sky = np.ones((4, 8, 3), dtype=np.float32)
+    sky[1, 2, 0] = np.nan
+    with pytest.raises(InputError) as info:
+        prefilter.validate_map(sky, path="sky.exr")
+    assert "texel (row 1, col 2) is nan; 1 texel is NaN" in str(info.value)
+    with pytest.raises(InputError) as info:
+        prefilter.validate_exponents(np.array([0.5]))
+    assert str(info.value).startswith("exponent 0.5 is outside")

@@ -25,6 +25,12 @@ GRID = parse_grid()  # 380..780 nm, 10 nm, 41 samples
 EXACT = 1e-12
 
 
+def only_the_summary_line(stderr: str, out) -> bool:
+    """A clean run's stderr: no warning, just the one summary line naming the output."""
+    lines = stderr.splitlines()
+    return len(lines) == 1 and lines[0].startswith(f"{out}: ") and " configuration" in lines[0]
+
+
 def write(tmp_path, name, text, encoding="utf-8"):
     path = tmp_path / name
     path.write_bytes(text.encode(encoding))
@@ -279,8 +285,10 @@ def test_resampling_warns_once_per_file(tmp_path, run_gonio):
     src = write(tmp_path, "five.csv", wide_text([30.0], [10.0], [smooth(wl)], wl=wl))
     res = run_gonio("ingest", src, "-o", tmp_path / "m.json")
     assert res.exit_code == 0
-    warnings = res.stderr.strip().splitlines()
-    assert len(warnings) == 1
+    lines = res.stderr.strip().splitlines()
+    warnings = [line for line in lines if line.startswith("gonio: warning: ")]
+    assert len(warnings) == 1 and len(lines) == 2  # the warning, then the summary line
+    assert lines[-1].startswith(f"{tmp_path / 'm.json'}: 1 configuration ")
     assert warnings[0].startswith("gonio: warning: ") and "five.csv" in warnings[0]
     assert "resampled onto the working grid 380:780:10" in warnings[0]
     quiet = run_gonio("--quiet", "ingest", src, "-o", tmp_path / "q.json")
@@ -291,7 +299,8 @@ def test_same_grid_gives_no_warning(tmp_path, run_gonio):
     ti, to, v = table()
     res = run_gonio("ingest", write(tmp_path, "a.csv", wide_text(ti, to, v)), "-o",
                     tmp_path / "m.json")
-    assert res.exit_code == 0 and res.stderr == ""
+    assert res.exit_code == 0
+    assert only_the_summary_line(res.stderr, tmp_path / "m.json")
 
 
 def test_wider_input_is_trimmed_without_changing_values(tmp_path, run_gonio):

@@ -4,6 +4,8 @@ traceback, and no output file (not even a temporary one)."""
 
 from __future__ import annotations
 
+import re
+
 import pytest
 
 from gonio_cli.spectra import parse_grid
@@ -75,6 +77,27 @@ def test_missing_file(refuse):
 def test_not_utf8(refuse):
     refuse({"b.csv": HEADER_WIDE.encode() + b"\n20,10,\xff\xfe\n"},
            expect=["b.csv:2: ", "not UTF-8"])
+
+
+@pytest.mark.parametrize("name, head, kind", [
+    ("ink.png", b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR", "PNG image"),
+    ("ink.jpg", b"\xff\xd8\xff\xe0\x00\x10JFIF\x00", "JPEG image"),
+    ("sky.exr", b"\x76\x2f\x31\x01\x02\x00\x00\x00", "OpenEXR image"),
+    ("ink.xlsx", b"PK\x03\x04\x14\x00\x06\x00", "ZIP archive, e.g. an Excel .xlsx workbook"),
+    ("ink.pdf", b"%PDF-1.7\n%\xe2\xe3\xcf\xd3", "PDF document"),
+    ("ink.csv.gz", b"\x1f\x8b\x08\x00\x00\x00\x00\x00", "gzip-compressed file"),
+])
+def test_binary_file_is_named_not_a_utf8_hint(refuse, name, head, kind):
+    """A file that is not text gets what it is (from its first bytes), not 'not UTF-8'."""
+    line = refuse({name: head + bytes(range(256))},
+                  expect=[f"{name}: not a CSV file ({kind}); ", "save it as CSV UTF-8"])
+    assert "UTF-8 text" not in line and "byte 0x" not in line
+
+
+def test_binary_white_spectrum_is_named(refuse):
+    refuse({"a.csv": GOOD, "white.png": b"\x89PNG\r\n\x1a\n" + bytes(32)},
+           "--quantity", "ratio-to-white", "--white-reflectance", "white.png",
+           inputs=["a.csv"], expect=["white.png: not a CSV file (PNG image)"])
 
 
 def test_no_delimiter(refuse):
@@ -220,7 +243,10 @@ def test_grid_covered_only_by_another_grid_option_is_fine(tmp_path, run_gonio):
     src = tmp_path / "g.csv"
     src.write_text(wide(row(20, 10, n=31), header=header))
     res = run_gonio("ingest", src, "-o", tmp_path / "m.json", "--grid-nm", "400:700:10")
-    assert res.exit_code == 0 and res.stderr == ""
+    assert res.exit_code == 0  # no warning: only the summary line
+    assert re.fullmatch(re.escape(f"{tmp_path / 'm.json'}: 1 configuration (1 angle of "
+                                  "incidence) x 31 wavelengths, brdf from 1 file, ")
+                        + r"\d+\.\d\d s\n", res.stderr), res.stderr
 
 
 def test_long_layout_missing_a_wavelength(refuse):

@@ -50,7 +50,9 @@ def fit(
     from ..fit import to_material
     from ..fit.common import FitOptions, check_optimizer, prepare
     from ..schemas import read_measurement, write_material
+    from . import require_files
 
+    require_files([measurement], missing_fix="check the path or make it with gonio ingest")
     if on_failure not in ("error", "write"):
         raise InputError(f"--on-failure {on_failure!r} is unknown", fix="use error or write")
     check_optimizer(optimizer)
@@ -104,5 +106,8 @@ EXAMPLE = ("gonio fit red.measurement.json -o red.material.json --exclude-theta-
            "--plot red.png")
 
 
+SHORT_HELP = "Fit a reflectance model to a measurement (seeds 000 and 004)."
+
+
 def register(app: typer.Typer) -> None:
-    app.command("fit")(fit)
+    app.command("fit", short_help=SHORT_HELP)(fit)

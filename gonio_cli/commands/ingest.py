@@ -69,7 +69,9 @@ def ingest(
     from .. import log
     from ..errors import InputError
     from ..schemas import write_measurement
+    from . import require_files
 
+    require_files(inputs)
     _refuse_overwriting_an_input(output, inputs, InputError)
     params = core.resolve_parameters(inputs, quantity=quantity,
                                      white_reflectance=white_reflectance,
@@ -82,7 +84,19 @@ def ingest(
                       time_s=t["time_s"])
     if summary:
         typer.echo(core.format_summary(measurement.summary))
-        typer.echo(f"wrote {output} in {t['time_s']:.3f} s")
+    log.info(summary_line(output, measurement, len(inputs), t["time_s"]))
+
+
+def summary_line(output: Path, measurement, n_files: int, time_s: float) -> str:
+    """The one line every run ends with (on stderr, unless --quiet)."""
+    def count(n: int, noun: str) -> str:
+        return f"{n} {noun}{'' if n == 1 else 's'}"
+
+    n_theta_i = len(set(measurement.theta_i_deg.tolist()))
+    return (f"{output}: {count(measurement.theta_i_deg.size, 'configuration')} "
+            f"({count(n_theta_i, 'angle')} of incidence) x "
+            f"{count(measurement.wavelength_nm.size, 'wavelength')}, {measurement.quantity} "
+            f"from {count(n_files, 'file')}, {time_s:.2f} s")
 
 
 def _refuse_overwriting_an_input(output: Path, inputs: List[Path], error) -> None:
@@ -95,7 +109,9 @@ def _refuse_overwriting_an_input(output: Path, inputs: List[Path], error) -> Non
 
 EXAMPLE = "gonio ingest ink_red.csv -o red.measurement.json --summary"
 
+SHORT_HELP = "Read goniometer spectra (CSV) into one measurement file."
+
 
 def register(app: typer.Typer) -> None:
     """Attach ``gonio ingest`` to the app."""
-    app.command("ingest", help=HELP, no_args_is_help=True)(ingest)
+    app.command("ingest", help=HELP, short_help=SHORT_HELP)(ingest)

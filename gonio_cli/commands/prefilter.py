@@ -102,7 +102,10 @@ def prefilter(
     from .. import prefilter as core
     from ..errors import InputError
     from ..imageio import read_image
+    from . import require_files
 
+    require_files([envmap_path], what="image file")
+    require_files([lobes] if lobes is not None else [])
     if (exponents is None) == (lobes is None):
         raise InputError("give either --exponents or --lobes (one of them)",
                          fix="e.g. --exponents 1,8,64")
@@ -135,10 +138,17 @@ def prefilter(
                   "check": check}
     _write(output, envmap_path, lobes, pixels.shape, results, names, parameters,
            replaced, t["time_s"])
-    for r, name in zip(results, names):
-        log.info(f"{output / name}: E={r.exponent:g} {r.width}x{r.height} {r.method} "
-                 f"error<={r.error_estimate:.2g} ({r.checked_texels} texels checked) "
-                 f"{r.time_s:.2f} s")
+    log.info(summary_line(output, results, t["time_s"]))
+
+
+def summary_line(output: Path, results, time_s: float) -> str:
+    """The one line a run ends with; each map's size, method, error and time are in
+    OUTDIR/index.json."""
+    methods = "/".join(sorted({r.method for r in results}))
+    exps = ", ".join(f"{r.exponent:g}" for r in results)
+    worst = max(r.error_estimate for r in results)
+    return (f"{output}: {len(results)} maps, E = {exps} ({methods}), spot-checked error "
+            f"<= {worst:.2g}, {time_s:.2f} s (each map in {output / 'index.json'})")
 
 
 def _write(output: Path, envmap_path: Path, lobes, shape, results, names, parameters,
@@ -148,12 +158,14 @@ def _write(output: Path, envmap_path: Path, lobes, shape, results, names, parame
     import shutil
     import tempfile
 
-    from ..artifact import make_document, write_json
+    from ..artifact import folder_error, make_document, make_folder, note_written, write_json
     from ..imageio import write_exr
 
-    output.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{output.name}.", suffix=".tmp",
-                                dir=output.parent if str(output.parent) else "."))
+    parent = make_folder(output.parent)
+    try:
+        tmp = Path(tempfile.mkdtemp(prefix=f".{output.name}.", suffix=".tmp", dir=parent))
+    except OSError as exc:
+        raise folder_error(parent, exc) from None
     try:
         entries = []
         for r, name in zip(results, names):
@@ -176,9 +188,10 @@ def _write(output: Path, envmap_path: Path, lobes, shape, results, names, parame
         }, inputs=[envmap_path] + ([lobes] if lobes else []), parameters=parameters,
             time_s=time_s)
         write_json(tmp / "index.json", doc)
-        output.mkdir(parents=True, exist_ok=True)
+        make_folder(output)
         for name in names + ["index.json"]:
             os.replace(tmp / name, output / name)
+            note_written(output / name)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
 
@@ -186,5 +199,8 @@ def _write(output: Path, envmap_path: Path, lobes, shape, results, names, parame
 EXAMPLE = "gonio prefilter sky.exr --exponents 8,64,512 -o sky.prefiltered"
 
 
+SHORT_HELP = "Prefilter an HDR environment map for cosine lobes (seed 001)."
+
+
 def register(app: typer.Typer) -> None:
-    app.command("prefilter")(prefilter)
+    app.command("prefilter", short_help=SHORT_HELP)(prefilter)

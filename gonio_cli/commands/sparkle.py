@@ -53,7 +53,9 @@ def sparkle(
     from .. import sparkle as core
     from ..errors import InputError
     from ..imageio import read_image, write_png
+    from . import require_files
 
+    require_files(photos, what="image file")  # first: a pattern that matched nothing is 1 photo
     core.get_rule(rule)
     if output.suffix.lower() != ".png":
         raise InputError("the sparkle texture must be a PNG", path=output, fix="name it *.png")
@@ -65,7 +67,8 @@ def sparkle(
         raise InputError(f"{len(photos)} photos but {len(angles)} angles in --theta-i "
                          f"{theta_i}", fix="give one angle per photo, in the same order")
     core.bit_order(angles)
-    images = [read_image(p) for p in photos]
+    images = [read_image(p) for p in log.progress(photos, "reading photos",
+                                                   total=len(photos))]
     sizes = {(im.pixels.shape[1], im.pixels.shape[0]) for im in images}
     if len(sizes) != 1:
         first = images[0].pixels.shape
@@ -93,5 +96,8 @@ def sparkle(
 EXAMPLE = "gonio sparkle sample_data/sparkle/photo_ti*.png -o sparkle.png"
 
 
+SHORT_HELP = "Pack photographs of a metallic paint into a sparkle texture."
+
+
 def register(app: typer.Typer) -> None:
-    app.command("sparkle")(sparkle)
+    app.command("sparkle", short_help=SHORT_HELP)(sparkle)
