@@ -203,17 +203,98 @@ def test_nan_samples_from_shading_are_counted_and_blacked(run_gonio, scene, tmp_
     reaches the files: it is set to black with one warning that counts it."""
     from gonio_cli.render import shade as shade_module
 
-    real = shade_module.shade
+    real = shade_module.shade_rows
 
     def nan_shade(*args, **kwargs):
-        out = real(*args, **kwargs)
-        out[3, 5:9] = np.nan
+        out = real(*args, **kwargs)           # one row per covered sample
+        out[5:9] = np.nan
         return out
 
-    monkeypatch.setattr(shade_module, "shade", nan_shade)
+    monkeypatch.setattr(shade_module, "shade_rows", nan_shade)
     rep, exr = tmp_path / "r.json", tmp_path / "o.exr"
     r = run_gonio("render", scene, "-o", tmp_path / "o.png", "--exr", exr, "--report", rep)
     assert r.exit_code == 0, r.stderr
     assert "4 sample(s) shaded to NaN or inf were set to black" in r.stderr
     assert json.loads(rep.read_text())["counts"]["nonfinite_samples"] == 4
     assert np.all(np.isfinite(read_image(exr).pixels))
+
+
+# ------------------------------------------------------------- errors a newcomer meets --
+
+def test_var_the_scene_does_not_use_is_an_error_naming_its_variables(run_gonio, scene,
+                                                                     tmp_path):
+    scene.write_text(scene.read_text().replace('material = "red.json"',
+                                               'material = "${ink}.json"')
+                     + '\n[vars]\nink = "red"\n')
+    out = tmp_path / "o.png"
+    r = run_gonio("render", scene, "-o", out, "--var", "materal=green")
+    assert r.exit_code == 2 and r.stderr.count("\n") == 1
+    assert "--var materal: the scene uses no ${materal}" in r.stderr
+    assert "its variables are ink" in r.stderr and not out.exists()
+    assert run_gonio("render", scene, "-o", out, "--var", "ink=red").exit_code == 0
+
+
+def test_wrong_artifact_names_the_scene_file_and_key(run_gonio, scene, tmp_path):
+    """A measurement where a material is expected: the scene's key is at fault."""
+    doc = json.loads((tmp_path / "red.json").read_text())
+    doc["schema"] = "gonio.measurement"
+    (tmp_path / "meas.json").write_text(json.dumps(doc))
+    scene.write_text(scene.read_text().replace('"red.json"', '"meas.json"'))
+    r = run_gonio("render", scene, "-o", tmp_path / "o.png")
+    assert r.exit_code == 2 and r.stderr.count("\n") == 1
+    assert (f"{scene}: [[object]] 1 material = meas.json: schema is 'gonio.measurement', "
+            "expected 'gonio.material'") in r.stderr
+    assert "point material at the right file" in r.stderr
+
+
+def test_buffers_beyond_the_machine_are_refused_before_allocating(run_gonio, scene,
+                                                                  tmp_path):
+    """16384² at ssaa 16 needs petabytes: refused at once with the estimate and the
+    options that lower it (if this allocated, the test would not finish)."""
+    r = run_gonio("render", scene, "-o", tmp_path / "o.png", "--width", "16384",
+                  "--height", "16384", "--ssaa", "16")
+    assert r.exit_code == 2 and r.stderr.count("\n") == 1
+    assert "a 16384x16384 render at ssaa 16 needs about" in r.stderr
+    assert "lower --ssaa or --width/--height" in r.stderr
+
+
+def test_memory_estimate_bounds_the_measured_buffers(scene):
+    """The estimate is the buffers' size at full coverage: at least the G-buffer and
+    shading arrays a frame really holds."""
+    from gonio_cli.render.pipeline import memory_estimate
+    from gonio_cli.render.scene import load_scene
+
+    sc = load_scene(scene)
+    samples = 48 * 32 * 4
+    # keys 8 + object 4 + (position, normal, view) 36 + shaded row 12 + resolve image 12
+    assert memory_estimate(sc) >= samples * (8 + 4 + 36 + 12 + 12)
+
+
+def test_not_a_terminal_gives_one_summary_line_and_quiet_none(run_gonio, scene, tmp_path,
+                                                              monkeypatch):
+    from gonio_cli import log
+
+    seen = []
+    real = log.progress
+
+    def spy(items, description, total=None, expected_s=None):
+        seen.append((description, total))
+        return real(items, description, total, expected_s)
+
+    monkeypatch.setattr(log, "progress", spy)
+    r = run_gonio("render", scene, "-o", tmp_path / "o.png")
+    assert r.exit_code == 0
+    assert seen == [("rendering scene.toml", 6)]          # the stages go through progress
+    assert r.stderr.count("\n") == 1 and "frame" in r.stderr and "total" in r.stderr
+    r = run_gonio("--quiet", "render", scene, "-o", tmp_path / "o.png")
+    assert r.exit_code == 0 and r.stderr == ""
+
+
+def test_help_first_sentence_is_whole(run_gonio):
+    r = run_gonio("--help")
+    line = next(l for l in r.stdout.splitlines() if l.strip().startswith("render "))
+    assert line.rstrip().endswith(".") and line.count("(") == line.count(")"), line
+    r = run_gonio("render", "--help")
+    assert r.exit_code == 0 and "<list[" not in r.stdout
+    assert "Render a scene to PNG (and EXR): spectral goniochromatic shading on the CPU." \
+        in " ".join(r.stdout.split())

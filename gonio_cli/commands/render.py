@@ -53,7 +53,7 @@ def render(
     from .. import log
     from ..errors import InputError
     from ..render import Stats
-    from ..render.pipeline import render_scene, write_outputs, write_report
+    from ..render.pipeline import frame_time, render_scene, write_outputs, write_report
     from ..render.scene import load_scene
 
     variables = {}
@@ -87,7 +87,7 @@ def render(
     total = time.perf_counter() - start
     if report is not None:
         write_report(report, sc, stats, total_s=total, png=output, exr=exr)
-    frame_ms = 1e3 * sum(stats.time_s.get(k, 0.0) for k in ("rasterize", "shade", "tonemap"))
+    frame_ms = 1e3 * frame_time(stats)
     log.info(f"{output}: {sc.camera.width}x{sc.camera.height}, ssaa {sc.output.ssaa}, "
              f"{sc.output.spectral} spectra, frame {frame_ms:.0f} ms, total {total:.2f} s")
 
@@ -96,4 +96,6 @@ EXAMPLE = "gonio render sample_data/scenes/spheres.toml -o red.png --exr red.exr
 
 
 def register(app: typer.Typer) -> None:
-    app.command("render")(render)
+    # a whole sentence in the command list of ``gonio --help`` (not cut at a width)
+    app.command("render", short_help="Render a scene to PNG and EXR (spectral, on the CPU).")(
+        render)

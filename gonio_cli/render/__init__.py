@@ -6,7 +6,7 @@ between them are the dataclasses below, so each stage can be tested on its own:
 1. :mod:`.scene`    TOML scene file → :class:`Scene` (camera, objects, lights,
                     environment, output), every path relative to the scene file,
                     unknown keys and wrong types refused with the key and the file.
-2. :mod:`.mesh`     OBJ (trimesh) and built-ins (``builtin:sphere``, ``builtin:plane``)
+2. :mod:`.mesh`     OBJ (:mod:`.obj`) and built-ins (``builtin:sphere``, ``builtin:plane``)
                     → :class:`Mesh` in world space (transform applied, smooth normals).
 3. :mod:`.raster`   :class:`Camera` + meshes → :class:`GBuffer` (per pixel of the
                     supersampled image: object, position, normal, view direction, uv and
@@ -68,25 +68,40 @@ class GBuffer:
     """What the rasterizer leaves at each pixel (H, W) of the supersampled image.
 
     object_id : (H, W) int, index into the scene's objects, −1 where nothing was hit
-    position : (H, W, 3) world position ; normal : (H, W, 3) unit shading normal, flipped
-        towards the viewer on back faces ; view : (H, W, 3) unit direction to the eye (ωo)
+    position : (H, W, 3) world position (None if not asked for: only point lights need
+        it) ; normal : (H, W, 3) unit shading normal, flipped towards the viewer on back
+        faces ; view : (H, W, 3) unit direction to the eye (ωo)
     uv : (H, W, 2) or None (perspective-correct) ; uv_footprint : (H, W) the size of the
         pixel in texture space (uv units), for the mip level ; ssaa : the supersampling
         factor (H = ssaa × camera.height)
-    Background pixels hold zeros (never NaN).
+    pixels : None (dense: the arrays above are whole images, background pixels hold
+        zeros, never NaN) or (n,) ascending flat indices into (H, W) of the covered
+        samples (compact: position … uv_footprint hold one row per covered sample,
+        (n, 3), (n, 2), (n,), in this order; the render pipeline's layout).
     """
 
     object_id: np.ndarray
-    position: np.ndarray
+    position: np.ndarray | None
     normal: np.ndarray
     view: np.ndarray
     uv: np.ndarray | None = None
     uv_footprint: np.ndarray | None = None
     ssaa: int = 1
+    pixels: np.ndarray | None = None
 
     @property
     def covered(self) -> np.ndarray:
         return self.object_id >= 0
+
+    @property
+    def rows(self) -> int:
+        """Rows of the attribute arrays: covered samples (compact) or all pixels (dense)."""
+        return self.object_id.size if self.pixels is None else len(self.pixels)
+
+    def row_object_id(self) -> np.ndarray:
+        """(rows,) the object of each row of the attribute arrays."""
+        flat = self.object_id.reshape(-1)
+        return flat if self.pixels is None else flat[self.pixels]
 
 
 @dataclass

@@ -12,7 +12,8 @@ in the run report only if it ran ("leave out what the scene does not need"):
 ``environment``  prefiltered maps: only if the scene has an ``[environment]``
 ``rasterize``    the batched z-buffer at ssaa × the image size
 ``shade``        spectral shading → XYZ (and ``shade.*`` sub-stages of :mod:`.shade`)
-``downsample``   XYZ → linear sRGB (IEC matrix), background, box filter of the ssaa
+``downsample``   box filter of the ssaa (:func:`resolve`), XYZ → linear sRGB (IEC matrix)
+                 on output pixels, background
 ``tonemap``      exposure, tone map, sRGB encoding, 8 bits
 ``write_exr``, ``write_png``   the files (atomic)
 
@@ -30,7 +31,7 @@ from typing import Any
 import numpy as np
 
 from .. import log
-from ..errors import InputError
+from ..errors import ArtifactError, GonioError, InputError
 from . import Stats
 from .scene import Scene
 
@@ -71,6 +72,29 @@ class _Stage:
 
 
 # ---------------------------------------------------------------------------- loading --
+
+class _SceneKey:
+    """``with _SceneKey(scene, "[[object]] 2 material", path):`` turns an error reading the
+    artifact at ``path`` into one that names the scene file and its key first, e.g.
+    ``scene.toml: [[object]] 2 material = red.lobes.json: schema is 'gonio.lobes',
+    expected 'gonio.material'`` (the wrong file in the right place is the scene's fault)."""
+
+    def __init__(self, scene: Scene, key: str, path):
+        self.scene, self.key, self.path = scene, key, Path(path)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, kind, exc, tb):
+        if exc is None or not isinstance(exc, GonioError):
+            return False
+        where = self.path.name + (f":{exc.row}" if exc.row is not None else "")
+        column = f"{exc.column}: " if exc.column else ""
+        fix = (f"point {self.key.split()[-1]} at the right file" if isinstance(exc, ArtifactError)
+               else exc.fix)
+        raise InputError(f"{self.key} = {where}: {column}{exc.message}",
+                         path=self.scene.display, fix=fix) from None
+
 
 def load_meshes(scene: Scene) -> list:
     """Each object's mesh in world space; a mask needs texture coordinates."""
@@ -128,9 +152,10 @@ def build_surfaces(scene: Scene, stats: Stats) -> list:
 
     materials: dict[Path, Any] = {}
 
-    def material(path: Path):
+    def material(path: Path, key: str):
         if path not in materials:
-            m = read_material(path)
+            with _SceneKey(scene, key, path):
+                m = read_material(path)
             if m.status != "success":
                 log.warn(f"{path}: a fit with status {m.status!r} is rendered")
             materials[path] = on_grid(m, scene.grid_nm, path)
@@ -140,12 +165,14 @@ def build_surfaces(scene: Scene, stats: Stats) -> list:
     with _Stage(stats, "materials"):
         for o in scene.objects:
             s = Surface(name=o.name)
+            where = f"[[object]] {o.index + 1}"
             if o.material is not None:
-                s.material = material(o.material)
+                s.material = material(o.material, f"{where} material")
             elif o.measured is not None:
-                s.material = load_measured(o.measured, scene.grid_nm)
+                with _SceneKey(scene, f"{where} measured", o.measured):
+                    s.material = load_measured(o.measured, scene.grid_nm)
             else:
-                s.inks = [material(p) for p in o.inks]
+                s.inks = [material(p, f"{where} inks[{k}]") for k, p in enumerate(o.inks)]
                 sub = o.substrate
                 s.substrate = (None if sub is None or (sub.kd == 0 and sub.ks == 0) else
                                {"kd": sub.kd, "ks": sub.ks, "shininess": sub.shininess})
@@ -156,20 +183,23 @@ def build_surfaces(scene: Scene, stats: Stats) -> list:
             pyramids: dict[Path, Any] = {}
             for o, s in printed:
                 if o.mask not in pyramids:
-                    pyramids[o.mask] = load_mask_pyramid(o.mask)
+                    with _SceneKey(scene, f"[[object]] {o.index + 1} mask", o.mask):
+                        pyramids[o.mask] = load_mask_pyramid(o.mask)
                 s.coverage = pyramids[o.mask].coverage
     sparkling = [(o, s) for o, s in zip(scene.objects, surfaces) if o.sparkle is not None]
     if sparkling:
         with _Stage(stats, "sparkles"):
             for o, s in sparkling:
-                s.sparkle = load_sparkle(o)
+                with _SceneKey(scene, f"[[object]] {o.index + 1} sparkle", o.sparkle):
+                    s.sparkle = load_sparkle(o)
     if scene.environment is not None:
         with _Stage(stats, "lobes"):
             lobes: dict[Path, Any] = {}
 
-            def read(p):
+            def read(p, key):
                 if p not in lobes:
-                    lobes[p] = read_lobes(p)
+                    with _SceneKey(scene, key, p):
+                        lobes[p] = read_lobes(p)
                 return lobes[p]
 
             for o, s in zip(scene.objects, surfaces):
@@ -178,8 +208,9 @@ def build_surfaces(scene: Scene, stats: Stats) -> list:
                                      "[environment], which needs the object's lobes",
                                      path=scene.display,
                                      fix="add lobes = \"....lobes.json\" (gonio lobes fit)")
-                s.lobes = [read(p) for p in o.lobes] if isinstance(o.lobes, list) \
-                    else read(o.lobes)
+                key = f"[[object]] {o.index + 1} lobes"
+                s.lobes = ([read(p, f"{key}[{k}]") for k, p in enumerate(o.lobes)]
+                           if isinstance(o.lobes, list) else read(o.lobes, key))
     return surfaces
 
 
@@ -227,53 +258,159 @@ def load_mask_pyramid(path: Path):
 
 # ----------------------------------------------------------------------------- render --
 
+#: Bytes per covered sample of the shading and the resolve besides the G-buffer: the
+#: float32 XYZ row and its place in the float32 supersampled image.
+SHADE_BYTES_PER_SAMPLE = 12 + 12
+#: Bytes per output pixel: XYZ float64, linear float32, coverage, display uint8 and the
+#: encoders' copies.
+OUTPUT_BYTES_PER_PIXEL = 24 + 12 + 8 + 3 + 24
+
+
+def memory_estimate(scene: Scene) -> int:
+    """Peak bytes of a frame's buffers (:func:`render_scene`), as if every sample were
+    covered: the compact float32 G-buffer with its keys and indices
+    (:func:`gonio_cli.render.raster.gbuffer_bytes`), the shaded rows, the supersampled
+    image of the resolve and the output images. Meshes and materials are not counted."""
+    from .raster import gbuffer_bytes
+
+    cam, ssaa = scene.camera, scene.output.ssaa
+    samples = cam.width * cam.height * ssaa ** 2
+    return (gbuffer_bytes(cam.height, cam.width, ssaa, uv=scene.needs_uvs,
+                          position=needs_positions(scene))
+            + samples * SHADE_BYTES_PER_SAMPLE + cam.width * cam.height * OUTPUT_BYTES_PER_PIXEL)
+
+
+def machine_memory() -> int | None:
+    """Physical memory of the machine in bytes (``os.sysconf``), or None if unknown."""
+    import os
+
+    try:
+        return int(os.sysconf("SC_PAGE_SIZE")) * int(os.sysconf("SC_PHYS_PAGES"))
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def check_memory(scene: Scene) -> int:
+    """Refuse, before allocating anything, a frame whose buffers exceed the machine's
+    memory; the message gives the estimate and the options that lower it."""
+    need = memory_estimate(scene)
+    have = machine_memory()
+    if have is not None and need > have:
+        cam = scene.camera
+        raise InputError(f"a {cam.width}x{cam.height} render at ssaa {scene.output.ssaa} "
+                         f"needs about {need / 2**30:.1f} GiB of buffers, more than this "
+                         f"machine's {have / 2**30:.1f} GiB", path=scene.display,
+                         fix="lower --ssaa or --width/--height")
+    return need
+
+
+def needs_positions(scene: Scene) -> bool:
+    """World positions are read only by point lights."""
+    return any(light.kind == "point" for light in scene.lights)
+
+
 def render_scene(scene: Scene, stats: Stats | None = None) -> Frame:
-    """Render a scene; every stage's time goes into ``stats``. Returns the :class:`Frame`."""
+    """Render a scene; every stage's time goes into ``stats``. Returns the :class:`Frame`.
+
+    The stages run under :func:`gonio_cli.log.progress`: a bar on a terminal when the
+    render is still running after 2 s, nothing otherwise."""
     stats = stats if stats is not None else Stats()
+    state: dict[str, Any] = {}
+    steps = _render_steps(scene, stats, state)
+    for _ in log.progress(steps, f"rendering {scene.path.name}", total=RENDER_STEPS):
+        pass
+    return state["frame"]
+
+
+#: Steps of :func:`_render_steps` (the progress bar's length).
+RENDER_STEPS = 6
+
+
+def _render_steps(scene: Scene, stats: Stats, state: dict):
+    """The render as a generator that yields after each of :data:`RENDER_STEPS` steps."""
+    stats.counts["memory_estimate_bytes"] = check_memory(scene)
     with _Stage(stats, "meshes"):
         meshes = load_meshes(scene)
+    yield "meshes"
     surfaces = build_surfaces(scene, stats)
     environment = None
     if scene.environment is not None:
         from .environment import load_environment
 
-        with _Stage(stats, "environment"):
+        with _Stage(stats, "environment"), _SceneKey(scene, "[environment] prefiltered",
+                                                     scene.environment.prefiltered):
             environment = load_environment(scene.environment.prefiltered)
-    from .raster import downsample, rasterize
-    from .shade import shade
+    yield "materials"
+    from .raster import rasterize
+    from .shade import shade_rows
 
     ssaa = scene.output.ssaa
     with _Stage(stats, "rasterize"):
-        # texture coordinates only when a mask or a sparkle texture will read them
-        gbuffer = rasterize(scene.camera, meshes, ssaa, uv=scene.needs_uvs)
+        # compact float32 rows of covered samples; texture coordinates only when a mask
+        # or a sparkle texture will read them, positions only for point lights
+        gbuffer = rasterize(scene.camera, meshes, ssaa, uv=scene.needs_uvs, compact=True,
+                            dtype=np.float32, position=needs_positions(scene))
+    del meshes
+    yield "rasterize"
     t0 = time.perf_counter()
-    xyz = shade(gbuffer, surfaces, scene.lights, scene.grid_nm, environment=environment,
-                spectral=scene.output.spectral, stats=stats)
+    rows = shade_rows(gbuffer, surfaces, scene.lights, scene.grid_nm, environment=environment,
+                      spectral=scene.output.spectral, stats=stats, dtype=np.float32)
     stats.time_s.setdefault("shade", time.perf_counter() - t0)
+    object_id, pixels = gbuffer.object_id, gbuffer.pixels
+    del gbuffer                                               # its rows are no longer needed
+    yield "shade"
     with _Stage(stats, "downsample"):
-        n_bad = 0
-        if not np.isfinite(xyz).all():  # the per-pixel mask only when needed (it is slow)
-            bad = ~np.isfinite(xyz).all(axis=-1)
-            n_bad = int(bad.sum())
-            log.warn(f"{scene.display}: {n_bad} sample(s) shaded to NaN or inf were set "
-                     "to black")
-            xyz = np.where(bad[..., None], 0.0, xyz)
-        stats.counts["nonfinite_samples"] = n_bad
-        covered = gbuffer.covered.astype(np.float64)
+        xyz, coverage = resolve(rows, pixels, object_id, ssaa, scene.display, stats)
+        del rows
         from ..spectra import xyz_to_linear_srgb
 
-        linear = xyz_to_linear_srgb(xyz)
+        # the colour matrix is linear: applied after the box filter, on output pixels
+        linear = np.asarray(xyz_to_linear_srgb(xyz), dtype=np.float32)
         if np.any(scene.output.background != 0):
-            linear = np.where(covered[..., None] > 0, linear, scene.output.background)
-        linear = np.asarray(downsample(linear, ssaa), dtype=np.float32)
-        xyz = np.asarray(downsample(xyz, ssaa), dtype=np.float64)
-        coverage = np.asarray(downsample(covered[..., None], ssaa))[..., 0]
+            linear += ((1.0 - coverage)[..., None]
+                       * np.asarray(scene.output.background, np.float32))
     stats.counts["covered_pixels"] = int(np.count_nonzero(coverage > 0))
+    yield "resolve"
     with _Stage(stats, "tonemap"):
         from .tonemap import display
 
         png = display(linear, scene.output.exposure, scene.output.tonemap)
-    return Frame(linear, png, xyz, coverage)
+    state["frame"] = Frame(linear, png, xyz, coverage)
+    yield "tonemap"
+
+
+def resolve(rows: np.ndarray, pixels: np.ndarray, object_id: np.ndarray, ssaa: int,
+            where: str = "", stats: Stats | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The box filter of the supersampled frame: shaded rows → output XYZ and coverage.
+
+    Parameters
+    ----------
+    rows : (n, 3) XYZ of the covered samples ; pixels : (n,) their flat indices in the
+    (ssaa H, ssaa W) image ; object_id : (ssaa H, ssaa W), −1 on the background.
+
+    Returns
+    -------
+    xyz : (H, W, 3) float64, the mean over each ssaa × ssaa block (background 0), summed
+    in float32 (≤ 256 values: relative error ~1e-7);
+    coverage : (H, W) float64, the fraction of covered samples. Non-finite shaded
+    samples are set to black with one warning that counts them.
+    """
+    n_bad = 0
+    if not np.isfinite(rows).all():                           # the mask only when needed
+        bad = ~np.isfinite(rows).all(axis=-1)
+        n_bad = int(bad.sum())
+        log.warn(f"{where}: {n_bad} sample(s) shaded to NaN or inf were set to black")
+        rows = np.where(bad[:, None], 0.0, rows)
+    if stats is not None:
+        stats.counts["nonfinite_samples"] = n_bad
+    from .raster import downsample
+
+    image = np.zeros((object_id.size, 3), np.float32)
+    image[pixels] = rows
+    hh, ww = object_id.shape
+    xyz = downsample(image.reshape(hh, ww, 3), ssaa, np.float32)
+    coverage = downsample(object_id >= 0, ssaa, np.float32)
+    return xyz.astype(np.float64), coverage.astype(np.float64)
 
 
 # ----------------------------------------------------------------------------- output --

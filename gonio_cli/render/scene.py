@@ -8,7 +8,8 @@ line that name the file and the key (STYLE 7), e.g.::
 
 A scene may be a template: ``${name}`` in any string is replaced by the variable
 ``name``, defined in the scene's ``[vars]`` table (defaults) or on the command line
-(``gonio render --var name=value``, which wins). After substitution a relative path is
+(``gonio render --var name=value``, which wins; a ``--var`` name that no ``${name}`` of
+the scene uses is an error listing the names it does use). After substitution a relative path is
 still relative to the scene file. The sample scenes use this to reach the demo's
 artifacts (``material = "${out}/rgbink/${ink}.material.json"`` with ``out = "../../out"``).
 
@@ -258,6 +259,17 @@ def _tname(value) -> str:
             dict: "table"}.get(type(value), type(value).__name__)
 
 
+def _names_used(value) -> list[str]:
+    """Every ``${name}`` in the strings of a parsed TOML value, recursively."""
+    if isinstance(value, str):
+        return _VAR.findall(value)
+    if isinstance(value, list):
+        return [n for v in value for n in _names_used(v)]
+    if isinstance(value, dict):
+        return [n for v in value.values() for n in _names_used(v)]
+    return []
+
+
 def _substitute(value, variables: Mapping[str, str], chk: _Checker, where: str):
     """Replace ``${name}`` in every string of a parsed TOML value, recursively."""
     if isinstance(value, str):
@@ -309,6 +321,12 @@ def load_scene(path: str | os.PathLike, *, variables: Mapping[str, str] | None =
     merged = {}
     for k, v in defaults.items():
         merged[k] = chk.string(v, f"[vars] {k}")
+    used = sorted(set(_names_used({k: v for k, v in doc.items() if k != "vars"})))
+    for name in variables or {}:
+        if name not in used:
+            raise chk.error("", f"--var {name}: the scene uses no ${{{name}}}",
+                            fix=(f"its variables are {', '.join(used)}" if used else
+                                 "it has no ${NAME} variables"))
     merged.update(variables or {})
     doc = _substitute({k: v for k, v in doc.items() if k != "vars"}, merged, chk, "")
     overrides = {k: v for k, v in (overrides or {}).items() if v is not None}

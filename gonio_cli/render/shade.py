@@ -443,6 +443,20 @@ class _Pixels:
 def shade(gbuffer: GBuffer, surfaces: Sequence[Surface], lights: Sequence[Light],
           wavelength_nm, environment=None, spectral: str = "table",
           stats: Stats | None = None) -> np.ndarray:
+    """XYZ of every pixel of the GBuffer as an (H, W, 3) float64 image (background 0):
+    :func:`shade_rows` (its parameters), placed into the image."""
+    rows = shade_rows(gbuffer, surfaces, lights, wavelength_nm, environment, spectral, stats)
+    h, w = gbuffer.object_id.shape
+    if gbuffer.pixels is None:
+        return rows.reshape(h, w, 3)
+    image = np.zeros((h * w, 3))
+    image[gbuffer.pixels] = rows
+    return image.reshape(h, w, 3)
+
+
+def shade_rows(gbuffer: GBuffer, surfaces: Sequence[Surface], lights: Sequence[Light],
+               wavelength_nm, environment=None, spectral: str = "table",
+               stats: Stats | None = None, dtype=np.float64) -> np.ndarray:
     """XYZ of every pixel of the GBuffer (docs/conventions.md: XYZ = Σλ L cmf / Σλ ȳ).
 
     Parameters
@@ -457,18 +471,21 @@ def shade(gbuffer: GBuffer, surfaces: Sequence[Surface], lights: Sequence[Light]
     stats : :class:`~gonio_cli.render.Stats` to fill: ``time_s["shade"]``,
         ``time_s["shade.environment"]`` and ``counts["shade"]``.
 
+    dtype : of the result (the pipeline: float32; the arithmetic of a block is float64
+        or the G-buffer's dtype).
+
     Returns
     -------
-    (H, W, 3) float64 XYZ (radiance units: a white f = 1/π under E = π shows Y = 1);
-    background pixels are 0.
+    (rows, 3) XYZ, one row per row of the G-buffer's attributes (compact: covered samples;
+    dense: every pixel, background 0), in radiance units (a white f = 1/π under E = π
+    shows Y = 1). Only covered rows are shaded.
     """
     start = time.perf_counter()
     if spectral not in SPECTRAL_PATHS:
         raise InputError(f"spectral path {spectral!r} is unknown",
                          fix=f"use one of {', '.join(SPECTRAL_PATHS)}")
     wl = np.asarray(wavelength_nm, dtype=float)
-    h, w = gbuffer.object_id.shape
-    out = np.zeros((h * w, 3))
+    out = np.zeros((gbuffer.rows, 3), dtype)
     counts: dict[str, Any] = {"spectral": spectral, "pixels": 0, "lit_pixel_lights": 0,
                               "ink_pixels": {}, "inks_skipped": 0, "table_sizes": [],
                               "environment_pixels": 0}
@@ -499,9 +516,13 @@ def shade(gbuffer: GBuffer, surfaces: Sequence[Surface], lights: Sequence[Light]
                 counts["table_sizes"].append(int(size))
         return kernels[key]
 
-    obj = gbuffer.object_id.reshape(-1)
-    flat = {"position": gbuffer.position.reshape(-1, 3),
+    obj = gbuffer.row_object_id()
+    flat = {"position": (None if gbuffer.position is None
+                         else gbuffer.position.reshape(-1, 3)),
             "normal": gbuffer.normal.reshape(-1, 3), "view": gbuffer.view.reshape(-1, 3)}
+    if flat["position"] is None and any(L.kind == "point" for L in lights):
+        raise InputError("point lights need the G-buffer's positions",
+                         fix="rasterize with position=True")
     n_objects = len(surfaces)
     if obj.size and obj.max() >= n_objects:
         raise InputError(f"the GBuffer names object {int(obj.max())} but the scene has "
@@ -541,8 +562,12 @@ def shade(gbuffer: GBuffer, surfaces: Sequence[Surface], lights: Sequence[Light]
         else:
             terms.append((surface.material, False, None, px))
 
-        obj_xyz = np.zeros((index.size, 3))
+        whole = px.flat_index is None                     # the object covers every row
+        obj_xyz = out if whole else np.zeros((index.size, 3), dtype)
         for material, is_substrate, weight, tp in terms:
+            if weight is None and tp.sel is None:         # accumulate in place
+                _direct(material, is_substrate, tp, lights, kernel_of, counts, obj_xyz)
+                continue
             acc = _direct(material, is_substrate, tp, lights, kernel_of, counts)
             if weight is not None:
                 acc *= weight[:, None]
@@ -565,9 +590,7 @@ def shade(gbuffer: GBuffer, surfaces: Sequence[Surface], lights: Sequence[Light]
             obj_xyz += _environment_term(environment, surface, k, px, cov, wl)
             counts["environment_pixels"] += int(index.size)
             env_time += time.perf_counter() - t0
-        if px.flat_index is None:
-            out[...] = obj_xyz                                # the only object
-        else:
+        if not whole:
             out[index] = obj_xyz                              # objects never share a pixel
 
     if stats is not None:
@@ -577,17 +600,19 @@ def shade(gbuffer: GBuffer, surfaces: Sequence[Surface], lights: Sequence[Light]
         if "sparkle_pixels" in counts:
             stats.time_s["shade.sparkle"] = sparkle_time
         stats.counts["shade"] = counts
-    return out.reshape(h, w, 3)
+    return out
 
 
 def _direct(material, is_substrate: bool, tp: _Pixels, lights: Sequence[Light],
-            kernel_of, counts: dict) -> np.ndarray:
-    """XYZ (n, 3) of one term of f (a material, an ink or the substrate) under the lights.
+            kernel_of, counts: dict, acc: np.ndarray | None = None) -> np.ndarray:
+    """XYZ (n, 3) of one term of f (a material, an ink or the substrate) under the lights,
+    added to ``acc`` (a new float64 array if None).
 
     Pixels are processed in blocks of :data:`BLOCK` so that the ~30 temporaries of the
     per-pixel arithmetic stay in the CPU cache (twice as fast as whole-image arrays here).
     """
-    acc = np.zeros((tp.size, 3))
+    if acc is None:
+        acc = np.zeros((tp.size, 3))
     point = any(L.kind == "point" for L in lights)
     for start in range(0, tp.size, BLOCK):
         b = slice(start, start + BLOCK)
@@ -668,7 +693,8 @@ def _sparkle_term(surface: Surface, k: int, gbuffer: GBuffer, index: np.ndarray,
     if sel.size == 0 or peak == 0.0 or not lights:
         return out
     rows = index[sel]
-    n, v, p = flat["normal"][rows], flat["view"][rows], flat["position"][rows]
+    n, v = flat["normal"][rows], flat["view"][rows]
+    p = flat["position"][rows] if flat["position"] is not None else None
     cos_o = _dot(n, v)
     reflectance = sparkle_reflectance(sp.color, wl)
     cos_nh = np.zeros((sel.size, len(lights)))
