@@ -22,8 +22,8 @@ import pytest
 
 from gonio_cli.cache import CACHE_ENV
 from gonio_cli.errors import InputError
-from gonio_cli.halftone import (METHODS, TONE_SIGMA_PX, halftone, ink_coverage,
-                                labels_to_mask, prepare, tone_error)
+from gonio_cli.halftone import (METHODS, PALETTE, TONE_SIGMA_PX, halftone, ink_coverage,
+                                labels_to_mask, prepare, prepare_and_halftone, tone_error)
 from gonio_cli.halftone import coverage as cov
 from gonio_cli.halftone import diffusion, screens
 from gonio_cli.halftone.testimage import print_test_image
@@ -163,6 +163,109 @@ def test_kernel_equals_reference_bit_for_bit(matrix, serpentine):
         c = flat(tie, 12)
         np.testing.assert_array_equal(diffusion.diffuse(c, matrix, serpentine),
                                       diffusion.diffuse_reference(c, matrix, serpentine))
+
+
+def random_pixels(rng, h, w, channels=3) -> np.ndarray:
+    """8-bit pixels over the whole cube: ~half of them out of gamut (r + g + b > 1 after
+    decoding), with exact 0 and 255 values among them."""
+    px = rng.integers(0, 256, (h, w, channels)).astype(np.uint8)
+    px[0, :, :3] = 255
+    px[-1, :, :3] = 0
+    if channels == 4:
+        px[:, :, 3] = 255
+    return px
+
+
+def float_path(pixels: np.ndarray, encoding="auto", gamut="scale"):
+    """The way coverage was made before stored integers were read: a float copy scaled as
+    OpenImageIO scales (value × float32(1/255)), decoded whole, mapped whole."""
+    as_float = pixels.astype(np.float32) * np.float32(1 / np.iinfo(pixels.dtype).max)
+    rgb, used = cov.linear_rgb(as_float, encoding, is_float=False)
+    c, fraction = cov.map_gamut(rgb, gamut)
+    return c, used, fraction
+
+
+@pytest.mark.parametrize("encoding", ["auto", "linear"])
+@pytest.mark.parametrize("gamut", ["scale", "clip"])
+@pytest.mark.parametrize("dtype", [np.uint8, np.uint16])
+def test_coverage_from_stored_integers_equals_the_float_path(encoding, gamut, dtype):
+    """Decoding by table, band by band, gives the float path's numbers exactly, across
+    band boundaries (the image is taller than a band)."""
+    rng = np.random.default_rng(11)
+    top = np.iinfo(dtype).max
+    px = rng.integers(0, top + 1, (cov.BAND_ROWS + 37, 19, 4)).astype(dtype)
+    px[:, :, 3] = top
+    c, used, fraction, mean = cov.to_coverage(px, encoding, False, gamut)
+    expected, expected_used, expected_fraction = float_path(px, encoding, gamut)
+    np.testing.assert_array_equal(c, expected)
+    assert used == expected_used and fraction == expected_fraction
+    # the mean is a float64 sum of the same float32 numbers (order differs: 1e-12 relative)
+    np.testing.assert_allclose(mean, expected.reshape(-1, 3).mean(axis=0, dtype=np.float64),
+                               rtol=1e-12)
+
+
+def test_float_pixels_in_bands_equal_the_whole_image():
+    rng = np.random.default_rng(12)
+    px = (rng.random((2 * cov.BAND_ROWS + 5, 7, 3)) * 1.4 - 0.2).astype(np.float32)
+    for is_float in (False, True):
+        c, used, fraction, _ = cov.to_coverage(px, "auto", is_float, "clip")
+        rgb, _ = cov.linear_rgb(px, "auto", is_float)
+        expected, expected_fraction = cov.map_gamut(rgb, "clip")
+        np.testing.assert_array_equal(c, expected)
+        assert fraction == expected_fraction
+    px[cov.BAND_ROWS + 2, 3, 1] = np.inf      # refused whichever band it is in
+    px[3, 3, :] = np.nan
+    with pytest.raises(InputError, match="2 pixels with NaN"):
+        cov.to_coverage(px, "auto", True, "scale")
+
+
+@pytest.mark.parametrize("matrix", [diffusion.FLOYD_STEINBERG, diffusion.JARVIS,
+                                    diffusion.STUCKI], ids=lambda m: m.name)
+def test_kernel_from_pixels_equals_prepare_then_diffuse(matrix):
+    """The fused path (decoding and --gamut scale inside the kernel) gives the labels,
+    out-of-gamut count and coverage of the general path."""
+    rng = np.random.default_rng(13)
+    for encoding in ("srgb", "linear"):
+        px = random_pixels(rng, 45, 31)
+        table = cov.decode_table(np.uint8, encoding)
+        labels, outside, total = diffusion.diffuse_pixels(px, table, cov.SCALE_LIMIT, matrix)
+        c, _, fraction = float_path(px, encoding)
+        np.testing.assert_array_equal(labels, diffusion.diffuse_reference(c, matrix))
+        assert outside == fraction * px.shape[0] * px.shape[1] and outside > 0
+        np.testing.assert_allclose(total, c.reshape(-1, 3).sum(axis=0, dtype=np.float64),
+                                   rtol=1e-12)
+
+
+def test_prepare_and_halftone_takes_the_fused_path_only_where_equal():
+    rng = np.random.default_rng(14)
+    px = random_pixels(rng, 40, 30, channels=4)
+    general = prepare(px, is_float=False)
+    expected = halftone(general.coverage, "jarvis")
+    prepared, result = prepare_and_halftone(px, is_float=False, method="jarvis")
+    assert prepared.coverage is None                  # the fused path was taken
+    np.testing.assert_array_equal(result.labels, expected.labels)
+    assert prepared.out_of_gamut_fraction == general.out_of_gamut_fraction
+    np.testing.assert_allclose(prepared.coverage_mean, general.coverage_mean, rtol=1e-12)
+    assert prepared.source_shape == (40, 30) and prepared.input_encoding == "srgb"
+    # anything the fused kernel does not do goes the general way, with the coverage kept
+    for kwargs in ({"keep_coverage": True}, {"gamut": "clip"}, {"size": (20, 15)},
+                   {"method": "bayer"}):
+        prepared, result = prepare_and_halftone(px, is_float=False, **kwargs)
+        assert prepared.coverage is not None, kwargs
+    prepared, _ = prepare_and_halftone(px.astype(np.float32) / 255, is_float=False)
+    assert prepared.coverage is not None
+    # the fused path refuses what prepare refuses
+    px[3, 4, 3] = 100
+    with pytest.raises(InputError, match="transparent"):
+        prepare_and_halftone(px, is_float=False)
+    with pytest.raises(InputError, match="auto, srgb, linear"):
+        prepare_and_halftone(px[:, :, :3], is_float=False, encoding="gamma")
+
+
+def test_palette_is_the_mask():
+    lab = np.random.default_rng(15).integers(0, 4, (9, 11)).astype(np.uint8)
+    np.testing.assert_array_equal(PALETTE[lab], labels_to_mask(lab))
+    np.testing.assert_allclose(ink_coverage(lab), [(lab == k).mean() for k in (1, 2, 3)])
 
 
 def test_weights_sum_to_one_and_point_forward():

@@ -79,6 +79,41 @@ def test_split_writes_one_screen_per_ink(run_gonio, tmp_path):
         assert PILImage.open(tmp_path / f"print.{ink}.png").mode == "1"  # a true 1-bit PNG
 
 
+def png_header(path) -> tuple[int, int, int]:
+    """(bit depth, colour type, zlib FLEVEL) of a PNG (PNG spec §11.2.2, RFC 1950)."""
+    data = path.read_bytes()
+    depth, colour = data[24], data[25]
+    idat = data.index(b"IDAT")
+    return depth, colour, data[idat + 5] >> 6
+
+
+def test_mask_formats_and_compression(run_gonio, tmp_path):
+    """The default mask is a 2-bit paletted PNG deflated at level 1; --mask-format rgb is
+    8-bit truecolour; both decode to the same RGB image; --compress sets the level."""
+    pal, rgb = tmp_path / "pal.png", tmp_path / "rgb.png"
+    r = run_gonio("halftone", SAMPLE, "-o", pal, "--split")
+    assert r.exit_code == 0, r.stderr
+    assert png_header(pal) == (2, 3, 0)          # palette, level 1 (FLEVEL 0)
+    assert png_header(tmp_path / "pal.red.png")[2] == 0
+    r = run_gonio("halftone", SAMPLE, "-o", rgb, "--mask-format", "rgb", "--compress", "small")
+    assert r.exit_code == 0, r.stderr
+    assert png_header(rgb) == (8, 2, 3)          # truecolour, level 9 (FLEVEL 3)
+    np.testing.assert_array_equal(mask_of(pal), mask_of(rgb))
+    assert json.loads(read_image(rgb).metadata["parameters"])["mask_format"] == "rgb"
+
+
+def test_tone_error_only_with_a_report(run_gonio, tmp_path):
+    """Without --report the tone error is not computed (the summary names coverage only);
+    the mask is the same either way."""
+    r = run_gonio("halftone", SAMPLE, "-o", tmp_path / "a.png")
+    assert r.exit_code == 0, r.stderr
+    assert "tone RMSE" not in r.stderr and "R=" in r.stderr
+    r = run_gonio("halftone", SAMPLE, "-o", tmp_path / "b.png", "--report", tmp_path / "b.json")
+    assert r.exit_code == 0, r.stderr
+    assert "tone RMSE" in r.stderr
+    np.testing.assert_array_equal(mask_of(tmp_path / "a.png"), mask_of(tmp_path / "b.png"))
+
+
 def test_linear_exr_input_is_coverage(run_gonio, tmp_path):
     """A float image is linear: its values are the coverage (no sRGB decoding)."""
     src = tmp_path / "flat.exr"
@@ -156,6 +191,8 @@ BAD = {
     "bad gamut": (lambda d: SAMPLE, ["--gamut", "squash"], "scale, clip"),
     "bad encoding": (lambda d: SAMPLE, ["--input-encoding", "gamma"], "auto, srgb, linear"),
     "not png": (lambda d: SAMPLE, ["-o", "OUT/mask.tif"], "must be a PNG"),
+    "bad compress": (lambda d: SAMPLE, ["--compress", "max"], "none, fast, balanced, small"),
+    "bad mask format": (lambda d: SAMPLE, ["--mask-format", "gif"], "palette, rgb"),
 }
 
 
@@ -195,8 +232,10 @@ def test_help_lists_methods(run_gonio):
 
 
 def test_help_method_names_match_the_registry():
-    from gonio_cli.commands.halftone import GAMUT_NAMES, METHOD_NAMES
+    from gonio_cli.commands.halftone import COMPRESSION_NAMES, GAMUT_NAMES, METHOD_NAMES
     from gonio_cli.halftone import METHODS
     from gonio_cli.halftone.coverage import GAMUT_MAPPERS
+    from gonio_cli.imageio import COMPRESSION
 
     assert METHOD_NAMES == tuple(METHODS) and GAMUT_NAMES == tuple(GAMUT_MAPPERS)
+    assert COMPRESSION_NAMES == tuple(COMPRESSION)

@@ -11,6 +11,29 @@ import typer
 #: refuse anything else (kept here only so that --help needs no core import).
 METHOD_NAMES = ("floyd-steinberg", "jarvis", "stucki", "bayer", "clustered", "blue-noise")
 GAMUT_NAMES = ("scale", "clip")
+COMPRESSION_NAMES = ("none", "fast", "balanced", "small")     # imageio.COMPRESSION
+
+
+def _write_palette(path: Path, labels, metadata: dict, compression: str) -> None:
+    from ..halftone import PALETTE
+    from ..imageio import write_png_indexed
+
+    write_png_indexed(path, labels, PALETTE, metadata, compression=compression)
+
+
+def _write_rgb(path: Path, labels, metadata: dict, compression: str) -> None:
+    from ..halftone import labels_to_mask
+    from ..imageio import write_png
+
+    write_png(path, labels_to_mask(labels), metadata, compression=compression)
+
+
+#: ``--mask-format``: how the mask PNG stores its RGB pixels (both decode to the same RGB
+#: image, channels 0/255). ``palette``: a 2-bit paletted PNG (4 pixels a byte; a 4096² mask
+#: encodes in ~0.15 s where 8-bit RGB takes ~1 s at the same --compress); ``rgb``: 8-bit
+#: truecolour, for tools that read a paletted PNG's indices instead of its colours (Pillow's
+#: Image.open without .convert("RGB")).
+MASK_WRITERS = {"palette": _write_palette, "rgb": _write_rgb}
 
 
 def split_paths(output: Path) -> list[Path]:
@@ -56,7 +79,15 @@ def halftone(
                                     "MASK.green.png, MASK.blue.png (0/255, 255 = ink)."),
     report: Optional[Path] = typer.Option(None, "--report", metavar="REPORT.json",
                                           help="Write coverage per ink, tone error, "
-                                               "out-of-gamut fraction and times."),
+                                               "out-of-gamut fraction and times (the tone "
+                                               "error is computed only for the report)."),
+    compress: str = typer.Option("fast", "--compress", metavar="LEVEL",
+                                 help="PNG deflate level, lossless: "
+                                      f"{', '.join(COMPRESSION_NAMES)} (zlib 0, 1, 6, 9)."),
+    mask_format: str = typer.Option("palette", "--mask-format", metavar="palette|rgb",
+                                    help="How the mask PNG stores its RGB pixels: palette "
+                                         "(2 bits per pixel, fast) or rgb (8-bit "
+                                         "truecolour); both decode to the same RGB image."),
 ) -> None:
     """Halftone an image into exclusive R/G/B ink masks (seed 000, Figure 6).
 
@@ -70,12 +101,16 @@ def halftone(
     from ..artifact import make_document, write_json
     from ..errors import InputError
     from ..halftone import coverage as cov
-    from ..imageio import read_image, write_png, write_png_1bit
+    from ..imageio import get_compression, read_image, write_png_1bit
 
     # options first, so a typo costs nothing and nothing is written
     m = core.get_method(method)
     params = core.resolve_parameters(m, {"bayer_size": bayer_size, "cell_size": cell_size,
                                          "mask_size": mask_size})
+    get_compression(compress)
+    if mask_format not in MASK_WRITERS:
+        raise InputError(f"--mask-format {mask_format!r} is unknown",
+                         fix=f"use one of {', '.join(MASK_WRITERS)}")
     if output.suffix.lower() != ".png":
         raise InputError("the mask must be a PNG", path=output, fix="name it *.png")
     if size is not None and (dpi is not None or print_width_mm is not None):
@@ -85,24 +120,31 @@ def halftone(
         raise InputError("--dpi and --print-width-mm go together",
                          fix="give both, or --size WxH")
     target_size = cov.parse_size(size) if size is not None else None
-    img = read_image(image)
+    img = read_image(image, keep_integers=True)     # 8/16-bit files as stored: no float copy
     if dpi is not None:
         target_size = cov.size_from_dpi(dpi, print_width_mm, img.pixels.shape[:2])
     with log.timer() as t:
-        prepared = core.prepare(img.pixels, is_float=img.is_float, encoding=input_encoding,
-                                gamut=gamut, size=target_size, path=image)
-        result = core.halftone(prepared.coverage, m.name, **params)
-    payload = core.evaluate(result, prepared)
+        prepared, result = core.prepare_and_halftone(
+            img.pixels, is_float=img.is_float, encoding=input_encoding, gamut=gamut,
+            size=target_size, method=m.name, keep_coverage=report is not None, path=image,
+            **params)
+        del img                                  # the decoded file is no longer needed
+    if report is not None:
+        payload = core.evaluate(result, prepared)
+    else:
+        payload = core.summarize(result, prepared)
+    prepared.coverage = None                     # free it before the PNGs are encoded
     parameters = {"method": m.name, **params, "input_encoding": input_encoding,
                   "gamut": gamut, "size": size, "dpi": dpi, "print_width_mm": print_width_mm,
-                  "split": split}
+                  "split": split, "compress": compress, "mask_format": mask_format}
     screens = split_paths(output) if split else []
     payload.update(mask=str(output), split=[str(p) for p in screens])
     meta = {"schema": "gonio.halftone-mask", "method": m.name, "parameters": parameters,
             "input": str(image), "time_s": round(t["time_s"], 6)}
-    write_png(output, result.mask(), metadata=meta)
+    MASK_WRITERS[mask_format](output, result.labels, meta, compress)
     for k, path in enumerate(screens):
-        write_png_1bit(path, result.labels == k + 1, metadata={**meta, "ink": core.INKS[k]})
+        write_png_1bit(path, result.labels == k + 1, {**meta, "ink": core.INKS[k]},
+                       compression=compress)
     if report is not None:
         write_json(report, make_document(core.REPORT_SCHEMA, core.REPORT_SCHEMA_VERSION,
                                          payload, inputs=[image], parameters=parameters,
@@ -110,14 +152,31 @@ def halftone(
     if prepared.out_of_gamut_fraction > 0:
         log.info(f"{image}: {100 * prepared.out_of_gamut_fraction:.1f} % of the pixels were "
                  f"out of gamut (r+g+b > 1), mapped by --gamut {gamut}")
-    cover = " ".join(f"{ink[0].upper()}={100 * a:.2f}%(target {100 * c:.2f}%)"
-                     for ink, a, c in zip(core.INKS, payload["coverage_mask"],
-                                          payload["coverage_target"]))
-    log.info(f"{output}: {m.name} {payload['width_px']}x{payload['height_px']} {cover} "
-             f"tone RMSE {payload['tone_rmse']:.4f} (σ={core.TONE_SIGMA_PX:g} px) "
-             f"{1e3 * result.time_s:.0f} ms"
-             + (f" (+{result.compile_time_s:.1f} s JIT compile)" if result.compile_time_s else ""))
+    log.info(summary_line(output, payload, result))
 
+
+#: How the summary line names the kernel's start-up cost, by :func:`kernel_status`.
+KERNEL_NOTES = {"cache": "numba start-up, kernel from cache",
+                "compiled": "JIT compile, now cached",
+                "compiled-uncached": "JIT compile, no writable numba cache"}
+
+
+def summary_line(output: Path, payload: dict, result) -> str:
+    """One line from numbers already computed: size, coverage per ink against target,
+    the tone error if the report computed it, the core time and the kernel's start-up."""
+    from ..halftone import INKS, TONE_SIGMA_PX
+
+    cover = " ".join(f"{ink[0].upper()}={100 * a:.2f}%(target {100 * c:.2f}%)"
+                     for ink, a, c in zip(INKS, payload["coverage_mask"],
+                                          payload["coverage_target"]))
+    tone = (f" tone RMSE {payload['tone_rmse']:.4f} (σ={TONE_SIGMA_PX:g} px)"
+            if "tone_rmse" in payload else "")
+    startup = ""
+    if result.compile_time_s:
+        note = KERNEL_NOTES.get(result.info.get("kernel", ""), "numba start-up")
+        startup = f" (+{result.compile_time_s:.1f} s {note})"
+    return (f"{output}: {payload['method']} {payload['width_px']}x{payload['height_px']} "
+            f"{cover}{tone} {1e3 * result.time_s:.0f} ms{startup}")
 
 EXAMPLE = ("gonio halftone photo.png -o print.png --method floyd-steinberg --report "
            "print.json")

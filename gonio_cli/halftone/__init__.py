@@ -11,9 +11,10 @@ one set per pixel (docs/conventions.md). Pipeline (pure numpy; the shell in
    r + g + b ≤ 1, optional resampling to print size;
 2. :func:`halftone`: one of :data:`METHODS` (error diffusion in :mod:`.diffusion`, threshold
    screens in :mod:`.screens`);
-3. :func:`evaluate`: coverage per ink against the target and the tone error — the RMSE
-   between the mask and the target, both blurred by a Gaussian of σ = 2 px (a viewer at
-   reading distance no longer resolves the dots).
+3. :func:`summarize`: coverage per ink against the target (from numbers already at hand);
+   :func:`evaluate` adds the tone error — the RMSE between the mask and the target, both
+   blurred by a Gaussian of σ = 2 px (a viewer at reading distance no longer resolves the
+   dots), which costs more than the halftone itself, so only a report asks for it.
 """
 
 from __future__ import annotations
@@ -30,6 +31,12 @@ from . import diffusion, screens
 
 #: Ink names in channel order (label k is ink k − 1).
 INKS = ("red", "green", "blue")
+
+#: RGB colour of each label (0 bare substrate black, 1 R, 2 G, 3 B), uint8 0/255: the
+#: mask of docs/conventions.md is ``PALETTE[labels]``, and a paletted PNG of the labels
+#: with this palette decodes to exactly that mask.
+PALETTE = np.array([[0, 0, 0], [255, 0, 0], [0, 255, 0], [0, 0, 255]], dtype=np.uint8)
+PALETTE.flags.writeable = False
 
 #: σ (pixels) of the Gaussian that stands for the eye when judging tone ("a
 #: viewer at reading distance"); blurring by 2 px averages ~25 pixels, enough to fuse
@@ -63,7 +70,10 @@ class Method:
     """A halftoning method of the registry :data:`METHODS`.
 
     ``run(coverage, **parameters)`` takes (H, W, 3) float coverage in the simplex and
-    returns labels (H, W) uint8 and a dict of facts for the report.
+    returns labels (H, W) uint8 and a dict of facts for the report. ``run_pixels(pixels,
+    table, scale_limit, **parameters)``, where a method has it, does the same straight from
+    stored 8-bit pixels for ``--gamut scale`` (see :func:`.diffusion.diffuse_pixels`) and
+    also returns the out-of-gamut count and the coverage sum per ink.
     """
 
     name: str
@@ -72,12 +82,14 @@ class Method:
     summary: str
     run: Callable[..., tuple[np.ndarray, dict]]
     parameters: Mapping[str, Parameter] = field(default_factory=dict)
+    run_pixels: Callable[..., tuple[np.ndarray, int, np.ndarray, dict]] | None = None
 
 
 def _error_diffusion(matrix: diffusion.DiffusionMatrix):
     def run(coverage: np.ndarray) -> tuple[np.ndarray, dict]:
         compile_time_s = diffusion.compile_kernel()
-        return diffusion.diffuse(coverage, matrix), {"compile_time_s": compile_time_s}
+        return diffusion.diffuse(coverage, matrix), {"compile_time_s": compile_time_s,
+                                                     "kernel": diffusion.kernel_status()}
     return run
 
 
@@ -97,9 +109,19 @@ def _blue_noise(coverage: np.ndarray, mask_size: int) -> tuple[np.ndarray, dict]
             {"blue_noise_mask": source})
 
 
+def _error_diffusion_pixels(matrix: diffusion.DiffusionMatrix):
+    def run_pixels(pixels: np.ndarray, table: np.ndarray, scale_limit: float
+                   ) -> tuple[np.ndarray, int, np.ndarray, dict]:
+        compile_time_s = diffusion.compile_kernel()
+        labels, outside, total = diffusion.diffuse_pixels(pixels, table, scale_limit, matrix)
+        return labels, outside, total, {"compile_time_s": compile_time_s,
+                                        "kernel": diffusion.kernel_status()}
+    return run_pixels
+
+
 def _diffusion_method(matrix: diffusion.DiffusionMatrix, summary: str) -> Method:
     return Method(matrix.name, "error diffusion", matrix.citation, summary,
-                  _error_diffusion(matrix))
+                  _error_diffusion(matrix), run_pixels=_error_diffusion_pixels(matrix))
 
 
 #: Every method by name; drives both :func:`halftone` and the CLI's ``--method``.
@@ -155,8 +177,9 @@ class Prepared:
 
     Attributes
     ----------
-    coverage : (H, W, 3) float32
-        Linear ink coverage in the simplex r, g, b ≥ 0, r + g + b ≤ 1, at print size.
+    coverage : (H, W, 3) float32 or None
+        Linear ink coverage in the simplex r, g, b ≥ 0, r + g + b ≤ 1, at print size; None
+        where :func:`prepare_and_halftone` never made it.
     input_encoding : str
         ``srgb`` or ``linear``: how the pixels were read.
     gamut : str
@@ -165,13 +188,16 @@ class Prepared:
         Fraction of the source pixels outside the simplex before ``gamut`` mapping.
     source_shape : (int, int)
         (H, W) of the source image.
+    coverage_mean : (3,) float64
+        Mean of ``coverage`` per ink (R, G, B): the target coverage.
     """
 
-    coverage: np.ndarray
+    coverage: np.ndarray | None
     input_encoding: str
     gamut: str
     out_of_gamut_fraction: float
     source_shape: tuple[int, int]
+    coverage_mean: np.ndarray
 
 
 def prepare(pixels: np.ndarray, *, is_float: bool, encoding: str = "auto",
@@ -179,23 +205,29 @@ def prepare(pixels: np.ndarray, *, is_float: bool, encoding: str = "auto",
             path=None) -> Prepared:
     """Image pixels (H, W, 3|4) → target coverage (see :class:`Prepared`).
 
+    ``pixels`` are float32 as stored (integers scaled to [0, 1]) or the stored uint8/uint16
+    values (:func:`.coverage.to_coverage`; same result, a quarter of the memory).
     ``size`` = (width_px, height_px) resamples after gamut mapping (bilinear, convex, so
     the result stays in gamut, :func:`.coverage.resample`); the out-of-gamut fraction is
     that of the source image.
     """
-    rgb, used = _coverage.linear_rgb(pixels, encoding, is_float, path=path)
-    c, fraction = _coverage.map_gamut(rgb, gamut)
-    if size is not None:
+    c, used, fraction, mean = _coverage.to_coverage(pixels, encoding, is_float, gamut,
+                                                    path=path)
+    source_shape = c.shape[:2]
+    if size is not None and (size[1], size[0]) != source_shape:
         c = _coverage.resample(c, *size)
-    return Prepared(c, used, gamut, fraction, rgb.shape[:2])
+        mean = _coverage.mean_coverage(c)
+    return Prepared(c, used, gamut, fraction, source_shape, mean)
 
 
 @dataclass
 class Halftone:
     """A halftone: ``labels`` (H, W) uint8 (0 bare, 1 R, 2 G, 3 B), the method, its
-    resolved parameters, facts for the report and the core time ``time_s``, excluding the
-    numba compile time ``compile_time_s`` (spent by the first error-diffusion call of a
-    process, 0 otherwise)."""
+    resolved parameters, facts for the report and the core time ``time_s``, excluding
+    ``compile_time_s``, the time the first error-diffusion call of a process spends
+    importing numba and loading the kernel from numba's on-disk cache (or compiling it,
+    the first time on a machine; 0 otherwise); ``info["kernel"]`` says which
+    (:func:`.diffusion.kernel_status`)."""
 
     labels: np.ndarray
     method: str
@@ -235,16 +267,54 @@ def halftone(coverage: np.ndarray, method: str = "floyd-steinberg",
     return Halftone(labels, m.name, params, elapsed - compile_time_s, compile_time_s, info)
 
 
+def prepare_and_halftone(pixels: np.ndarray, *, is_float: bool, encoding: str = "auto",
+                         gamut: str = "scale", size: tuple[int, int] | None = None,
+                         method: str = "floyd-steinberg", keep_coverage: bool = False,
+                         path=None, **parameters: Any) -> tuple[Prepared, Halftone]:
+    """:func:`prepare` then :func:`halftone`, the way that needs least time and memory.
+
+    Where the method can read stored pixels (``run_pixels``: error diffusion), the pixels
+    are 8-bit, the gamut mapping is ``scale``, no resampling is asked for and the caller
+    does not need the coverage (``keep_coverage``, e.g. for :func:`tone_error`), the
+    kernel decodes each pixel as it reaches it and the (H, W, 3) float32 coverage is never
+    made (``Prepared.coverage`` is None); the labels and figures are those of the general
+    path, bit for bit (a test checks it). Otherwise it is :func:`prepare` then
+    :func:`halftone`. ``Halftone.time_s`` is then the time of both, decoding included.
+    """
+    m = get_method(method)
+    params = resolve_parameters(m, parameters)
+    px = np.asarray(pixels)
+    used = _coverage.check_encoding(encoding, is_float)
+    h, w = px.shape[:2]
+    fused = (m.run_pixels is not None and px.dtype == np.uint8 and gamut == "scale"
+             and (size is None or (size[1], size[0]) == (h, w)) and not keep_coverage)
+    if not fused:
+        prepared = prepare(px, is_float=is_float, encoding=encoding, gamut=gamut, size=size,
+                           path=path)
+        return prepared, halftone(prepared.coverage, m.name, **params)
+    _coverage.check_pixels(px, path)
+    table = _coverage.decode_table(np.uint8, used)
+    start = time.perf_counter()
+    labels, outside, total, info = m.run_pixels(px, table, _coverage.SCALE_LIMIT, **params)
+    elapsed = time.perf_counter() - start
+    compile_time_s = float(info.pop("compile_time_s", 0.0))
+    prepared = Prepared(None, used, gamut, outside / float(h * w), (h, w), total / float(h * w))
+    return prepared, Halftone(labels, m.name, params, elapsed - compile_time_s,
+                              compile_time_s, info)
+
+
 def labels_to_mask(labels: np.ndarray) -> np.ndarray:
-    """Labels (H, W) → RGB mask (H, W, 3) uint8 with 255 in channel label − 1."""
+    """Labels (H, W) → RGB mask (H, W, 3) uint8 with 255 in channel label − 1
+    (:data:`PALETTE`)."""
     lab = np.asarray(labels)
     return ((lab[:, :, None] == np.arange(1, 4, dtype=lab.dtype)) * np.uint8(255)).astype(np.uint8)
 
 
 def ink_coverage(labels: np.ndarray) -> np.ndarray:
-    """Fraction of pixels of each ink, (3,) float (R, G, B)."""
-    counts = np.bincount(np.asarray(labels).ravel(), minlength=4)[1:4]
-    return counts / float(np.asarray(labels).size)
+    """Fraction of pixels of each ink, (3,) float (R, G, B) (counted per label: no
+    widened copy of the image)."""
+    lab = np.asarray(labels)
+    return np.array([np.count_nonzero(lab == k) for k in range(1, 4)]) / float(lab.size)
 
 
 def tone_error(labels: np.ndarray, coverage: np.ndarray, sigma: float = TONE_SIGMA_PX
@@ -274,14 +344,13 @@ def tone_error(labels: np.ndarray, coverage: np.ndarray, sigma: float = TONE_SIG
     return float(np.sqrt(np.mean(per_ink ** 2))), per_ink
 
 
-def evaluate(result: Halftone, prepared: Prepared) -> dict[str, Any]:
-    """The report's payload: sizes, coverage per ink against target, tone error, gamut,
-    times. Units are in the names; coverages are fractions of the print area."""
-    start = time.perf_counter()
-    target = prepared.coverage.reshape(-1, 3).mean(axis=0, dtype=np.float64)
+def summarize(result: Halftone, prepared: Prepared) -> dict[str, Any]:
+    """Sizes, coverage per ink against the target, gamut and times: everything of the
+    report but the tone error, from numbers already at hand (cheap; ``prepared.coverage``
+    is not read, so the caller may have dropped it). Units are in the names; coverages are
+    fractions of the print area."""
+    target = np.asarray(prepared.coverage_mean, dtype=np.float64)
     achieved = ink_coverage(result.labels)
-    rmse, per_ink = tone_error(result.labels, prepared.coverage)
-    tone_time_s = time.perf_counter() - start
     h, w = result.labels.shape
     return {
         "method": result.method,
@@ -299,11 +368,18 @@ def evaluate(result: Halftone, prepared: Prepared) -> dict[str, Any]:
         "coverage_error": achieved - target,
         "bare_fraction_target": 1.0 - float(target.sum()),
         "bare_fraction_mask": 1.0 - float(achieved.sum()),
-        "tone_sigma_px": TONE_SIGMA_PX,
-        "tone_rmse": rmse,
-        "tone_rmse_per_ink": per_ink,
         "halftone_time_s": result.time_s,
         "compile_time_s": result.compile_time_s,
-        "tone_time_s": tone_time_s,
         **result.info,
     }
+
+
+def evaluate(result: Halftone, prepared: Prepared) -> dict[str, Any]:
+    """The report's payload: :func:`summarize` plus the tone error (:func:`tone_error`,
+    over the whole image) and the time it took."""
+    payload = summarize(result, prepared)
+    start = time.perf_counter()
+    rmse, per_ink = tone_error(result.labels, prepared.coverage)
+    payload.update(tone_sigma_px=TONE_SIGMA_PX, tone_rmse=rmse, tone_rmse_per_ink=per_ink,
+                   tone_time_s=time.perf_counter() - start)
+    return payload

@@ -21,6 +21,9 @@ from ..spectra import srgb_decode
 #: rounding of in-gamut sums (an 8-bit (1, 0, 0) sums to exactly 1), not a colour.
 GAMUT_TOLERANCE = 1e-6
 
+#: The float32 sum r + g + b above which a pixel is out of gamut (:func:`out_of_gamut`).
+SCALE_LIMIT = np.float32(1.0 + GAMUT_TOLERANCE)
+
 #: Largest output in pixels (2²⁷ ≈ 11 585²): the float32 coverage alone is then 1.6 GB.
 MAX_PIXELS = 1 << 27
 
@@ -30,36 +33,151 @@ MM_PER_INCH = 25.4
 INPUT_ENCODINGS = ("auto", "srgb", "linear")
 
 
-def linear_rgb(pixels: np.ndarray, encoding: str, is_float: bool, path=None
-               ) -> tuple[np.ndarray, str]:
-    """Linear R, G, B (H, W, 3) float32 from image pixels (H, W, 3 or 4).
+#: Rows converted at a time by :func:`to_coverage`: the float temporaries of a band stay
+#: in the CPU cache and never grow with the image (a 4096-wide band is 12 MB of float32).
+BAND_ROWS = 256
 
-    ``encoding`` ``auto`` means sRGB for integer files and linear for float files (EXR);
-    returns the array and the encoding used. A fourth channel must be an opaque alpha;
-    non-finite values are refused.
-    """
-    if encoding not in INPUT_ENCODINGS:
-        raise InputError(f"--input-encoding {encoding!r} is unknown",
-                         fix=f"use one of {', '.join(INPUT_ENCODINGS)}")
-    px = np.asarray(pixels, dtype=np.float32)
+
+def check_pixels(px: np.ndarray, path=None) -> None:
+    """Refuse an image that is not R, G, B (+ opaque alpha) or has no pixels; an integer
+    image's alpha is checked here whole (float images are checked as they are decoded)."""
+    _check_channels(px, path)
+    if px.shape[2] == 4 and px.dtype.kind in "ui" and not np.all(
+            px[:, :, 3] == np.iinfo(px.dtype).max):
+        raise _transparent(path)
+
+
+def _check_channels(px: np.ndarray, path) -> None:
     channels = px.shape[2] if px.ndim == 3 else 1
     if px.ndim != 3 or channels not in (3, 4):
         raise InputError(f"has {channels} channel{'s' if channels != 1 else ''}, "
                          "halftoning needs R, G, B (3 channels, or 4 with an opaque alpha)",
                          path=path, fix="convert it to RGB")
-    if channels == 4:
-        if not np.all(px[:, :, 3] == 1.0):
-            raise InputError("has transparent pixels (alpha < 1); the print has no "
-                             "transparency", path=path,
-                             fix="flatten it onto black (bare substrate) or white first")
-        px = px[:, :, :3]
     if px.shape[0] == 0 or px.shape[1] == 0:
         raise InputError("is empty (0 pixels)", path=path)
+
+
+def check_encoding(encoding: str, is_float: bool) -> str:
+    if encoding not in INPUT_ENCODINGS:
+        raise InputError(f"--input-encoding {encoding!r} is unknown",
+                         fix=f"use one of {', '.join(INPUT_ENCODINGS)}")
+    return ("linear" if is_float else "srgb") if encoding == "auto" else encoding
+
+
+def _transparent(path) -> InputError:
+    return InputError("has transparent pixels (alpha < 1); the print has no transparency",
+                      path=path, fix="flatten it onto black (bare substrate) or white first")
+
+
+def _non_finite(count: int, path) -> InputError:
+    return InputError(f"has {count} pixels with NaN or infinite values", path=path,
+                      fix="fix or clamp them in the source image")
+
+
+def decode_table(dtype, encoding: str) -> np.ndarray:
+    """Linear level of every stored integer value, (2⁸,) or (2¹⁶,) float32.
+
+    The stored value v is scaled to v · float32(1/vmax), as OpenImageIO converts integers to
+    float (so a table lookup gives the same float32 numbers as decoding a float copy of
+    the image), then decoded from sRGB by :func:`~gonio_cli.spectra.srgb_decode` if
+    ``encoding`` is ``srgb``.
+    """
+    top = np.iinfo(dtype).max
+    x = np.arange(top + 1, dtype=np.float32) * np.float32(1.0 / top)
+    return srgb_decode(x) if encoding == "srgb" else x
+
+
+def to_coverage(pixels: np.ndarray, encoding: str, is_float: bool, gamut: str, path=None
+                ) -> tuple[np.ndarray, str, float, np.ndarray]:
+    """Image pixels (H, W, 3|4) → coverage (H, W, 3) float32 in the simplex, in bands.
+
+    ``pixels`` are float (values as stored, integers scaled to [0, 1]) or the stored
+    uint8/uint16 integers themselves (:func:`gonio_cli.imageio.read_image` with
+    ``keep_integers``), which are decoded through :func:`decode_table`; the result is the
+    same float32 numbers either way. Each band of :data:`BAND_ROWS` rows is decoded
+    (``encoding`` as in :func:`linear_rgb`) and mapped into gamut (:data:`GAMUT_MAPPERS`)
+    before the next, so the only full-size float array is the result.
+
+    Returns
+    -------
+    coverage : (H, W, 3) float32
+    encoding_used : str
+        ``srgb`` or ``linear``.
+    out_of_gamut_fraction : float
+        Fraction of the pixels outside the simplex before mapping (:func:`out_of_gamut`).
+    mean_coverage : (3,) float64
+        Mean coverage per ink (R, G, B) of the result.
+    """
+    used = check_encoding(encoding, is_float)
+    if gamut not in GAMUT_MAPPERS:
+        raise InputError(f"--gamut {gamut!r} is unknown",
+                         fix=f"use one of {', '.join(GAMUT_MAPPERS)}")
+    px = np.asarray(pixels)
+    _check_channels(px, path)
+    integer = px.dtype.kind in "ui"
+    if integer:
+        table = decode_table(px.dtype, used)
+        opaque = np.iinfo(px.dtype).max
+    else:
+        opaque = 1.0
+    mapper = GAMUT_MAPPERS[gamut]
+    h, w = px.shape[:2]
+    out = np.empty((h, w, 3), dtype=np.float32)
+    outside = 0
+    bad = 0
+    total = np.zeros(3)
+    for y0 in range(0, h, BAND_ROWS):
+        band = px[y0:y0 + BAND_ROWS]
+        if band.shape[2] == 4:
+            if not np.all(band[:, :, 3] == opaque):
+                raise _transparent(path)
+            band = band[:, :, :3]
+        if integer:
+            rgb = table[band]
+        else:
+            rgb = np.asarray(band, dtype=np.float32)
+            finite = np.isfinite(rgb).all(axis=2)
+            if not finite.all():
+                bad += int(finite.size - np.count_nonzero(finite))
+                continue
+            if used == "srgb":
+                rgb = srgb_decode(rgb)
+        outside += int(np.count_nonzero(out_of_gamut(rgb)))
+        c = out[y0:y0 + BAND_ROWS]
+        c[...] = mapper(rgb)
+        total += [c[:, :, k].sum(dtype=np.float64) for k in range(3)]
+    if bad:
+        raise _non_finite(bad, path)
+    return out, used, outside / float(h * w), total / float(h * w)
+
+
+def mean_coverage(coverage: np.ndarray) -> np.ndarray:
+    """Mean coverage per ink (R, G, B) of (H, W, 3), (3,) float64 (one strided sum per
+    channel: no float64 copy of the image)."""
+    c = np.asarray(coverage)
+    return np.array([c[:, :, k].sum(dtype=np.float64) for k in range(3)]) / float(
+        c.shape[0] * c.shape[1])
+
+
+def linear_rgb(pixels: np.ndarray, encoding: str, is_float: bool, path=None
+               ) -> tuple[np.ndarray, str]:
+    """Linear R, G, B (H, W, 3) float32 from image pixels (H, W, 3 or 4), whole.
+
+    ``encoding`` ``auto`` means sRGB for integer files and linear for float files (EXR);
+    returns the array and the encoding used. A fourth channel must be an opaque alpha;
+    non-finite values are refused. (:func:`to_coverage` does this and the gamut mapping
+    band by band.)
+    """
+    used = check_encoding(encoding, is_float)
+    px = np.asarray(pixels, dtype=np.float32)
+    _check_channels(px, path)
+    if px.shape[2] == 4:
+        if not np.all(px[:, :, 3] == 1.0):
+            raise _transparent(path)
+        px = px[:, :, :3]
     bad = ~np.isfinite(px)
     if bad.any():
-        raise InputError(f"has {int(bad.any(axis=2).sum())} pixels with NaN or infinite "
-                         "values", path=path, fix="fix or clamp them in the source image")
-    used = ("linear" if is_float else "srgb") if encoding == "auto" else encoding
+        raise _non_finite(int(bad.any(axis=2).sum()), path)
     return (srgb_decode(px) if used == "srgb" else np.ascontiguousarray(px)), used
 
 
@@ -73,7 +191,7 @@ def _channels(rgb) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def out_of_gamut(rgb: np.ndarray) -> np.ndarray:
     """(H, W) bool: a channel below 0 or r + g + b above 1 (+ :data:`GAMUT_TOLERANCE`)."""
     r, g, b = _channels(rgb)
-    return (r < 0) | (g < 0) | (b < 0) | (r + g + b > np.float32(1.0 + GAMUT_TOLERANCE))
+    return (r < 0) | (g < 0) | (b < 0) | (r + g + b > SCALE_LIMIT)
 
 
 def gamut_scale(rgb: np.ndarray) -> np.ndarray:

@@ -141,14 +141,26 @@ def diffuse_reference(coverage: np.ndarray, matrix: DiffusionMatrix,
     return labels
 
 
-def _kernel_source(coverage, dy, dx, wt, serpentine, labels):  # pragma: no cover - jitted
-    """The numba kernel (see :func:`diffuse`); ``labels`` (H, W) uint8 is filled in place.
+def _kernel_source(coverage, pixels, table, scale_limit, dy, dx, wt, serpentine, labels,
+                   stats):  # pragma: no cover - jitted
+    """The numba kernel (see :func:`diffuse` and :func:`diffuse_pixels`); ``labels``
+    (H, W) uint8 is filled in place.
+
+    The coverage of a pixel comes from ``coverage`` (H, W, 3) float32, or, when
+    ``pixels`` is not empty, from the stored 8-bit ``pixels`` (H, W, C): each channel
+    through ``table`` (:func:`.coverage.decode_table`), then brought into gamut as
+    :func:`.coverage.gamut_scale` does it, in the same float32 operations ((r + g) + b,
+    divide by max(sum, 1)); ``stats`` (4,) float64 receives the number of pixels whose sum
+    exceeds ``scale_limit`` (:func:`.coverage.out_of_gamut`) and the sum of the coverage of
+    each ink.
 
     Error lives in a ring buffer of ``rows`` lines padded by ``pad`` columns on each side,
     so no bounds checks run in the inner loop; what lands in the padding or below the last
     row is dropped, exactly as the reference's bounds checks drop it.
     """
-    h, w = coverage.shape[0], coverage.shape[1]
+    h, w = labels.shape[0], labels.shape[1]
+    from_pixels = pixels.shape[0] > 0
+    one = np.float32(1.0)
     n = dy.shape[0]
     rows = 1
     pad = 0
@@ -158,6 +170,10 @@ def _kernel_source(coverage, dy, dx, wt, serpentine, labels):  # pragma: no cove
     err = np.zeros((rows, w + 2 * pad, 3), dtype=np.float64)
     ring = np.empty(n, dtype=np.int64)
     offset = np.empty(n, dtype=np.int64)
+    outside = 0
+    sum0 = 0.0
+    sum1 = 0.0
+    sum2 = 0.0
     for y in range(h):
         cur = y % rows
         step = 1
@@ -169,9 +185,27 @@ def _kernel_source(coverage, dy, dx, wt, serpentine, labels):  # pragma: no cove
         for i in range(w):
             x = i if step == 1 else w - 1 - i
             xe = x + pad
-            v0 = np.float64(coverage[y, x, 0]) + err[cur, xe, 0]
-            v1 = np.float64(coverage[y, x, 1]) + err[cur, xe, 1]
-            v2 = np.float64(coverage[y, x, 2]) + err[cur, xe, 2]
+            if from_pixels:
+                c0 = table[pixels[y, x, 0]]
+                c1 = table[pixels[y, x, 1]]
+                c2 = table[pixels[y, x, 2]]
+                total = c0 + c1 + c2
+                if total > scale_limit:
+                    outside += 1
+                if total > one:
+                    c0 = c0 / total
+                    c1 = c1 / total
+                    c2 = c2 / total
+                sum0 += c0
+                sum1 += c1
+                sum2 += c2
+            else:
+                c0 = coverage[y, x, 0]
+                c1 = coverage[y, x, 1]
+                c2 = coverage[y, x, 2]
+            v0 = np.float64(c0) + err[cur, xe, 0]
+            v1 = np.float64(c1) + err[cur, xe, 1]
+            v2 = np.float64(c2) + err[cur, xe, 2]
             best = v0
             label = 1
             if v1 > best:
@@ -194,23 +228,57 @@ def _kernel_source(coverage, dy, dx, wt, serpentine, labels):  # pragma: no cove
                 err[r, xx, 1] += e1 * wk
                 err[r, xx, 2] += e2 * wk
         err[cur, :, :] = 0.0
+    stats[0] = outside
+    stats[1] = sum0
+    stats[2] = sum1
+    stats[3] = sum2
 
+
+#: The kernel's one signature: float32 coverage or 8-bit pixels with their float32 decoding
+#: table and the float32 out-of-gamut limit, taps as int64/float64, labels uint8, stats.
+KERNEL_SIGNATURE = ("void(float32[:, :, ::1], uint8[:, :, ::1], float32[::1], float32, "
+                    "int64[::1], int64[::1], float64[::1], boolean, uint8[:, ::1], float64[::1])")
 
 _KERNEL: dict = {}
 
 
 def compile_kernel() -> float:
-    """Compile the numba kernel if this process has not yet; return the seconds spent
-    compiling now, numba's import included (0 once compiled). Compiled eagerly for float32 coverage; no on-disk
-    cache, so nothing is ever written beside the package."""
+    """Make the numba kernel ready in this process; return the seconds spent now: numba's
+    import and loading or compiling the kernel (0 once ready).
+
+    The kernel is compiled for :data:`KERNEL_SIGNATURE` with numba's on-disk cache
+    (``cache=True``): the first process on a machine compiles it (seconds) and stores it,
+    later processes load it (no compilation; what remains is numba's own start-up, ~0.5–1 s,
+    which imports scipy.linalg). numba picks the folder: ``NUMBA_CACHE_DIR`` if set, else
+    ``__pycache__`` beside this file if writable, else its user-wide cache
+    (``~/.cache/numba``); if none is writable the kernel is compiled without a cache
+    (:func:`kernel_status` says which happened).
+    """
     if "fn" in _KERNEL:
         return 0.0
-    start = time.perf_counter()  # importing numba is part of the price of compiling
-    import numba
+    start = time.perf_counter()
+    import numba  # importing numba is part of the price
 
-    sig = "void(float32[:, :, ::1], int64[::1], int64[::1], float64[::1], boolean, uint8[:, ::1])"
-    _KERNEL["fn"] = numba.njit([sig], nogil=True, error_model="numpy")(_kernel_source)
+    options = dict(nogil=True, error_model="numpy")
+    try:
+        fn = numba.njit([KERNEL_SIGNATURE], cache=True, **options)(_kernel_source)
+        cached = True
+    except RuntimeError:  # "cannot cache function ...: no locator available"
+        fn = numba.njit([KERNEL_SIGNATURE], **options)(_kernel_source)
+        cached = False
+    _KERNEL.update(fn=fn, cached=cached)
     return time.perf_counter() - start
+
+
+def kernel_status() -> str:
+    """How this process got the kernel: ``cache`` (loaded from numba's on-disk cache),
+    ``compiled`` (compiled and written to the cache), ``compiled-uncached`` (no writable
+    cache folder), or ``not-loaded``."""
+    if "fn" not in _KERNEL:
+        return "not-loaded"
+    if not _KERNEL["cached"]:
+        return "compiled-uncached"
+    return "cache" if sum(_KERNEL["fn"].stats.cache_hits.values()) else "compiled"
 
 
 def diffuse(coverage: np.ndarray, matrix: DiffusionMatrix,
@@ -221,5 +289,48 @@ def diffuse(coverage: np.ndarray, matrix: DiffusionMatrix,
     c = as_float32(coverage)
     labels = np.zeros(c.shape[:2], dtype=np.uint8)
     dy, dx, wt = matrix.arrays()
-    _KERNEL["fn"](c, dy, dx, wt, bool(serpentine), labels)
+    _KERNEL["fn"](c, _NO_PIXELS, _NO_TABLE, np.float32(0.0), dy, dx, wt, bool(serpentine),
+                  labels, np.zeros(4))
     return labels
+
+
+_NO_COVERAGE = np.zeros((0, 0, 3), dtype=np.float32)
+_NO_PIXELS = np.zeros((0, 0, 3), dtype=np.uint8)
+_NO_TABLE = np.zeros(1, dtype=np.float32)
+
+
+def diffuse_pixels(pixels: np.ndarray, table: np.ndarray, scale_limit: float,
+                   matrix: DiffusionMatrix, serpentine: bool = True
+                   ) -> tuple[np.ndarray, int, np.ndarray]:
+    """Vector error diffusion straight from stored 8-bit pixels, for ``--gamut scale``.
+
+    Gives the labels of ``diffuse(gamut_scale(table[pixels[..., :3]]))`` (the result of
+    :func:`.coverage.to_coverage` with ``gamut="scale"``), bit for bit, without ever holding
+    the (H, W, 3) float32 coverage: each pixel is decoded and scaled into gamut as the
+    kernel reaches it (a test checks the equality).
+
+    Parameters
+    ----------
+    pixels : (H, W, C) uint8
+        C ≥ 3; channels past the third are ignored (the caller checks alpha).
+    table : (256,) float32
+        Linear level of each stored value (:func:`.coverage.decode_table`).
+    scale_limit : float
+        A pixel counts as out of gamut where r + g + b > float32(scale_limit).
+
+    Returns
+    -------
+    labels : (H, W) uint8
+    outside : int
+        Pixels out of gamut before scaling.
+    coverage_sum : (3,) float64
+        Sum over the pixels of the in-gamut coverage of each ink.
+    """
+    compile_kernel()
+    px = np.ascontiguousarray(pixels, dtype=np.uint8)
+    labels = np.zeros(px.shape[:2], dtype=np.uint8)
+    stats = np.zeros(4)
+    dy, dx, wt = matrix.arrays()
+    _KERNEL["fn"](_NO_COVERAGE, px, np.ascontiguousarray(table, dtype=np.float32),
+                  np.float32(scale_limit), dy, dx, wt, bool(serpentine), labels, stats)
+    return labels, int(stats[0]), stats[1:].copy()
