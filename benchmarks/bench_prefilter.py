@@ -39,9 +39,10 @@ DEFAULT_MAPS = [ROOT / "sample_data/sky.exr"]
 TARGET_S = 5.0
 
 
-def load_map(argv) -> tuple[np.ndarray, str]:
-    path = Path(argv[argv.index("--map") + 1]) if "--map" in argv else next(
-        p for p in DEFAULT_MAPS if p.is_file())
+def load_map(path: Path | None) -> tuple[np.ndarray, str]:
+    """The map (given, or the bundled sky) repeated up to 2048 × 1024. A missing or bad
+    file is a GonioError (one line from :func:`run`)."""
+    path = path if path is not None else next(p for p in DEFAULT_MAPS if p.is_file())
     img = read_image(path).pixels[:, :, :3].astype(np.float64)
     rep = max(1, 1024 // img.shape[0])
     big = np.repeat(np.repeat(img, rep, axis=0), rep, axis=1)
@@ -104,9 +105,16 @@ def lookup_error(m, exponents) -> None:
     table(["E", "output", "texels per σ", "lookup p99 error", "max error"], rows)
 
 
-def main() -> None:
-    quick = "--quick" in sys.argv
-    big, name = load_map(sys.argv)
+def main(argv: list[str] | None = None) -> None:
+    import argparse
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="fewer exponents")
+    parser.add_argument("--map", type=Path, metavar="SKY.exr|SKY.hdr",
+                        help="a lat-long HDR map (default: sample_data/sky.exr)")
+    args = parser.parse_args(argv)
+    quick = args.quick
+    big, name = load_map(args.map)
     exponents = list(np.geomspace(1.0, 1e4, 8))
     print(f"## gonio prefilter: {name} at 2048×1024, {len(exponents)} exponents 1…1e4\n")
     target_run(big, exponents)
@@ -121,5 +129,17 @@ def main() -> None:
                  [1.0, 3.0, 10.0, 30.0, 100.0, 300.0, 1000.0])
 
 
+def run(argv: list[str] | None = None) -> int:
+    """main() with gonio's error convention: a GonioError is one line and exit 2."""
+    from gonio_cli.errors import EXIT_USAGE, GonioError
+
+    try:
+        main(argv)
+    except GonioError as exc:
+        print(f"{Path(sys.argv[0]).name}: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    return 0
+
+
 if __name__ == "__main__":
-    main()
+    sys.exit(run())

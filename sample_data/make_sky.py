@@ -82,10 +82,16 @@ def make_sky() -> np.ndarray:
     return np.where(above[..., None], sky, ground * shade).astype(np.float32)
 
 
+#: The header date of the tracked ``sky.exr`` (2026-11-23 15:42:23 UTC), written again on
+#: every run so that the script reproduces the tracked file byte for byte (the writer
+#: would otherwise stamp the current time).
+SKY_DATE_EPOCH = 1795448543
+
+
 def main() -> None:
     out = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).with_name("sky.exr")
     write_exr(out, make_sky(), {"source": "sample_data/make_sky.py",
-                                "sun_to_sky": SUN_TO_SKY})
+                                "sun_to_sky": SUN_TO_SKY}, source_date_epoch=SKY_DATE_EPOCH)
     print(out)
 
 

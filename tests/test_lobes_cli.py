@@ -53,8 +53,41 @@ def test_round_trip(run_gonio, inks, tmp_path):
     assert lobes.gloss.shape == (3, 2, 3) and lobes.diffuse.shape == (3, 3)
     for arr in (lobes.diffuse, lobes.directional_diffuse, lobes.gloss):
         assert np.all(arr >= 0)
-    assert set(doc["errors"]) >= {"lp", "nnls", "lsq-clamp"} and doc["time_s"] > 0
+    assert list(doc["errors"]) == ["lp"] and doc["time_s"] > 0     # no comparison unasked
+    assert doc["errors"]["lp"]["status"] == ["optimal"] * 3
     assert [i["path"] for i in doc["inputs"]] == [str(inks[0]), str(basis)]
+    r = run_gonio("lobes", "fit", inks[0], "--basis", basis, "--lobes", "2", "-o", out,
+                  "--view-angles", "10,40,70", "--channels", "xyz", "--compare")
+    assert r.exit_code == 0, r.stderr
+    both = json.loads(out.read_text())
+    assert list(both["errors"]) == ["lp", "highs", "lp-simplex", "nnls", "lsq-clamp"]
+    assert both["parameters"]["compare"] is True
+    # the same weights (the solver written is unchanged), the same LP optimum as HiGHS
+    np.testing.assert_array_equal(both["gloss"], doc["gloss"])
+    np.testing.assert_allclose(both["errors"]["lp"]["l1"], both["errors"]["highs"]["l1"],
+                               rtol=1e-6)
+
+
+def test_time_limit_is_recorded_not_fatal(run_gonio, inks, tmp_path):
+    """A comparison (or the chosen solver) stopped by --time-limit-s: exit 0, the file is
+    written with the status per view, and a warning says which solver and views."""
+    out = tmp_path / "l.json"
+    r = run_gonio("lobes", "fit", inks[0], "--exponents", "3,30,300", "-o", out,
+                  "--view-angles", "10,40", "--solver", "nnls", "--compare",
+                  "--time-limit-s", "1e-9")
+    assert r.exit_code == 0, r.stderr
+    doc = json.loads(out.read_text())
+    assert doc["errors"]["nnls"]["status"] == ["optimal", "optimal"]
+    for name in ("lp", "highs", "lp-simplex"):
+        assert doc["errors"][name]["status"] == ["time_limit", "time_limit"]
+        assert "time limit" in doc["errors"][name]["message"][0]
+    warnings = [line for line in r.stderr.splitlines() if line.startswith("gonio: warning:")]
+    assert len(warnings) == 3 and all("comparison only" in w for w in warnings)
+    r = run_gonio("lobes", "fit", inks[0], "--exponents", "3,30,300", "-o", out,
+                  "--view-angles", "10,40", "--time-limit-s", "1e-9")
+    assert r.exit_code == 0, r.stderr
+    assert json.loads(out.read_text())["errors"]["lp"]["status"] == ["time_limit"] * 2
+    assert "not optimal there" in r.stderr
 
 
 def test_fit_with_exponents_spectral(run_gonio, inks, tmp_path):

@@ -184,3 +184,62 @@ def test_lobes_section_times_the_environment_render_per_lobe_count(quick_report)
     counts = [b["lobes"] for b in lobes["basis"]]
     assert [r["lobes"] for r in lobes["render"]] == counts
     assert all(r["render_ms"] > 0 and r["pixels"] > 1000 for r in lobes["render"])
+
+
+def test_no_time_is_printed_as_zero(quick_report):
+    import re
+
+    _, md, _ = quick_report
+    # a time rounded to nothing ("0.0 s", "0.000", "| 0.0 |") says the run took no time
+    assert not re.search(r"(?<![\d.])0\.0+ ?(s|ms)\b", md)
+    head = md.split('<a id="fit"></a>')[0]
+    assert re.search(r"\| \[.*\]\(#sheets\) \| (<1 ms|[\d.]+ m?s) \|", head)
+    from gonio_cli.report import format_seconds
+
+    assert [format_seconds(t) for t in (0.0, 4e-4, 0.0123, 0.5, 2.345, 61.0)] == \
+        ["<1 ms", "<1 ms", "12.3 ms", "500 ms", "2.35 s", "61 s"]
+
+
+def test_plots_say_what_they_show(monkeypatch, tmp_path):
+    """The Table 1 plot names each ink's points; the prefilter plot marks errors drawn at
+    the 1e-9 floor as exact (in the legend) instead of showing them as measured 1e-9."""
+    from matplotlib.figure import Figure
+
+    seen = {}
+
+    def record(fig, path, *args, **kwargs):
+        ax = fig.axes[0]
+        seen[path] = ([t.get_text() for t in ax.texts],
+                      [t.get_text() for t in ax.get_legend().get_texts()])
+
+    monkeypatch.setattr(Figure, "savefig", record)
+    S._scatter(tmp_path / "t1.png", {"eq. 5": ([10, 20], [0.1, 0.2])}, "x", "y", "t",
+               point_labels={"eq. 5": ["red ink", "green ink"]})
+    assert seen[tmp_path / "t1.png"][0] == ["red ink", "green ink"]
+    S._scatter(tmp_path / "p.png", {"ring": ([0.1, 0.2, 0.3], [0.0, 1e-12, 1e-4])}, "x", "y",
+               "t", floor=S.ERROR_FLOOR)
+    legend = seen[tmp_path / "p.png"][1]
+    assert legend[0] == "ring" and "≤1e-09 (exact)" in legend[1]
+    S._scatter(tmp_path / "q.png", {"ring": ([0.1], [1e-4])}, "x", "y", "t",
+               floor=S.ERROR_FLOOR)
+    assert seen[tmp_path / "q.png"][1] == ["ring"]          # nothing floored: no such entry
+
+
+def test_scratch_folder_is_private_and_removed(monkeypatch, run_gonio, tmp_path):
+    """Scratch files go to a fresh private folder per run (tempfile.mkdtemp), never a
+    fixed name: two runs (make -j, two users) cannot collide."""
+    import gonio_cli.report as R
+
+    workdirs = []
+
+    def fake_run_report(names, workdir, **kwargs):
+        assert workdir.is_dir() and list(workdir.iterdir()) == []
+        assert (workdir.stat().st_mode & 0o777) == 0o700
+        workdirs.append(workdir)
+        return R.Report([], [], True)
+
+    monkeypatch.setattr(R, "run_report", fake_run_report)
+    for k in range(2):
+        assert run_gonio("report", "-o", tmp_path / f"r{k}", "--sections", "fit").exit_code == 0
+    assert workdirs[0] != workdirs[1]
+    assert not any(w.exists() for w in workdirs)

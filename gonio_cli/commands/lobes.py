@@ -96,10 +96,16 @@ def fit(
                                     help="View angles of the weight table (deg, seed 001 §5.2)."),
     channels: str = _choice_option("--channels", "spectral", "spectral|xyz",
                                    "Weights per wavelength of the grid, or per XYZ."),
-    solver: str = _choice_option("--solver", "lp", "lp|lp-simplex|nnls|lsq-clamp",
-                                 "Solver of the weights written (all are compared)."),
+    solver: str = _choice_option("--solver", "lp", "lp|highs|lp-simplex|nnls|lsq-clamp",
+                                 "Solver of the weights written (lp: exact simplex; highs: "
+                                 "the same LP by HiGHS, the reference)."),
+    compare: bool = typer.Option(False, "--compare",
+                                 help="Also run every other solver on the same samples and "
+                                      "record its error, time and status (not its weights)."),
     time_limit_s: float = typer.Option(1.0, "--time-limit-s", metavar="S",
-                                       help="Stop an LP slower than this and say so."),
+                                       help="Time limit of one LP (one view angle); a solve "
+                                            "stopped by it is recorded as status "
+                                            "time_limit, not an error."),
 ) -> None:
     """Fit non-negative cosine-lobe weights at each view angle (seed 001 §4, eqs. 5-6, §5.2).
 
@@ -132,16 +138,27 @@ def fit(
     e = core.check_exponents(e, where="--exponents" if basis_path is None else str(basis_path))
     mat = read_material(material)
     s = core.sample_set(samples, core.parse_view_angles(view_angles))
+    others = tuple(core.WEIGHT_SOLVERS) if compare else ()
     with log.timer() as t:
-        table = core.fit_weight_table(mat, e, s, channels, solver, time_limit_s=time_limit_s)
+        table = core.fit_weight_table(mat, e, s, channels, solver, compare=others,
+                                      time_limit_s=time_limit_s)
     lobes = Lobes(table.exponents, channels, table.channels, table.view_angle_deg,
                   table.diffuse, table.directional_diffuse, table.gloss, table.errors,
                   solver, samples, table.n_samples)
     write_lobes(output, lobes, inputs=inputs, time_s=t["time_s"],
                 parameters={"lobes": n_lobes, "exponents": [float(v) for v in e],
                             "samples": samples, "view_angles": view_angles,
-                            "channels": channels, "solver": solver,
+                            "channels": channels, "solver": solver, "compare": compare,
                             "time_limit_s": time_limit_s})
+    for name, r in table.errors.items():
+        stopped = [k for k, st in enumerate(r["status"]) if st not in core.FINISHED]
+        if stopped:
+            views = ", ".join(f"{table.view_angle_deg[k]:g}" for k in stopped)
+            what = ("the weights written are not optimal there" if name == solver
+                    else "a comparison only: the weights written are not affected")
+            log.warn(f"{output}: {name} did not finish at view angle(s) {views} deg "
+                     f"({r['message'][stopped[0]]}); {what}; the status per view is in "
+                     "the file")
     parts = [f"{name}: rel-RMS {max(r['rms_relative']):.3g} (worst view), "
              f"{1e3 * sorted(r['time_s'])[len(r['time_s']) // 2]:.2f} ms/view (median)"
              for name, r in table.errors.items()]

@@ -23,6 +23,15 @@ SCHEMA_VERSION = 1
 SECTION_NAMES = ("fit", "lobes", "prefilter", "render", "table1", "sheets")
 
 
+def format_seconds(t: float) -> str:
+    """A run time for the report: three significant digits with its unit, never "0.0"
+    (below a millisecond the timer's resolution and the noise of a busy machine make more
+    digits meaningless: "<1 ms")."""
+    if t < 1e-3:
+        return "<1 ms"
+    return f"{1e3 * t:.3g} ms" if t < 1.0 else f"{t:.3g} s"
+
+
 def parse_sections(spec: str | None) -> list[str]:
     """``"fit,table1"`` → ["fit", "table1"] in report order; None or "" → all. An unknown
     name is an :class:`InputError` that lists the valid ones."""
@@ -53,12 +62,13 @@ class Report:
 
     def markdown(self) -> str:
         head = ["# gonio report", "",
-                f"{'Quick' if self.quick else 'Full'} run, {self.time_s:.1f} s in total; every "
-                "number was measured in the run that wrote this file (only the paper's "
+                f"{'Quick' if self.quick else 'Full'} run, {format_seconds(self.time_s)} in "
+                "total; every number was measured in the run that wrote this file (only the paper's "
                 "Table 1 figures are pasted, and labelled). Inputs: "
                 + (", ".join(f"`{p}`" for p in self.inputs) or "synthetic data") + ".", "",
-                "| section | time s |", "|---|---:|"]
-        head += [f"| [{s.title}](#{s.name}) | {s.time_s:.1f} |" for s in self.sections]
+                "| section | time |", "|---|---:|"]
+        head += [f"| [{s.title}](#{s.name}) | {format_seconds(s.time_s)} |"
+                 for s in self.sections]
         body = [f'\n<a id="{s.name}"></a>\n\n## {s.title}\n\n{s.markdown}'
                 for s in self.sections]
         return "\n".join(head) + "\n" + "\n".join(body) + "\n"

@@ -13,7 +13,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from . import sweeps
+from . import format_seconds, sweeps
 
 ROOT = Path(__file__).resolve().parent.parent.parent
 SAMPLE_DATA = ROOT / "sample_data"
@@ -76,9 +76,21 @@ def _numeric(text: str) -> bool:
         return False
 
 
+#: Errors below this are drawn at it on log axes (an exact method's 0 or 1e-16 would
+#: stretch the axis over decades of nothing) and marked as such in the legend.
+ERROR_FLOOR = 1e-9
+
+
 def _scatter(path: Path, series: dict[str, tuple[list[float], list[float]]], xlabel: str,
-             ylabel: str, title: str, logx=True, logy=True) -> None:
-    """An error-against-time scatter plot (one marker style per series), PNG."""
+             ylabel: str, title: str, logx=True, logy=True,
+             point_labels: dict[str, list[str]] | None = None,
+             floor: float | None = None) -> None:
+    """An error-against-time scatter plot (one marker style per series), PNG.
+
+    ``point_labels``: per series, a text written beside each point (e.g. the ink).
+    ``floor``: y values below it are drawn at it with a hollow marker, and the legend
+    says "≤ floor (exact)".
+    """
     import matplotlib
 
     matplotlib.use("Agg")
@@ -86,10 +98,26 @@ def _scatter(path: Path, series: dict[str, tuple[list[float], list[float]]], xla
 
     fig, ax = plt.subplots(figsize=(6.4, 4.2), dpi=110)
     markers = "osD^v<>ph*"
+    floored_any = False
     for k, (label, (x, y)) in enumerate(series.items()):
         x, y = np.asarray(x, float), np.asarray(y, float)
+        floored = np.zeros(y.shape, bool) if floor is None else y < floor
+        if floor is not None:
+            y = np.maximum(y, floor)
         ok = np.isfinite(x) & np.isfinite(y) & (x > 0) & ((y > 0) | (not logy))
-        ax.plot(x[ok], y[ok], markers[k % len(markers)], label=label, alpha=0.8)
+        marker = markers[k % len(markers)]
+        (line,) = ax.plot(x[ok & ~floored], y[ok & ~floored], marker, label=label, alpha=0.8)
+        if np.any(ok & floored):
+            floored_any = True
+            ax.plot(x[ok & floored], y[ok & floored], marker, mfc="none",
+                    color=line.get_color(), alpha=0.9)
+        for xi, yi, text in zip(x[ok], y[ok],
+                                np.asarray((point_labels or {}).get(label, []), object)[ok]
+                                if (point_labels or {}).get(label) else []):
+            ax.annotate(text, (xi, yi), textcoords="offset points", xytext=(4, 3), fontsize=7)
+    if floored_any:
+        ax.plot([], [], "o", mfc="none", color="0.3", label=f"hollow: ≤{floor:g} (exact), "
+                                                            f"drawn at {floor:g}")
     if logx:
         ax.set_xscale("log")
     if logy:
@@ -239,7 +267,7 @@ def lobes_section(inputs: Inputs, workdir: Path, quick: bool) -> Section:
                  "lobes: approximation error against weight-fit time (1…N lobes)")
 
     md = (f"Basis search (seed 001 eq. 4, XYZ) over {len(res['materials'])} materials "
-          f"({', '.join(res['materials'])}) took {res['basis_time_s']:.2f} s:\n\n"
+          f"({', '.join(res['materials'])}) took {format_seconds(res['basis_time_s'])}:\n\n"
           + _md_table(["lobes", "eq. 4 error", "exponents"],
                       [[str(b["lobes"]), f"{b['eq4_error']:.4f}",
                         ", ".join(f"{e:.3g}" for e in b["exponents"])] for b in res["basis"]])
@@ -248,14 +276,14 @@ def lobes_section(inputs: Inputs, workdir: Path, quick: bool) -> Section:
           + _md_table(["lobes", "weights", "solver", "L1 (sum)", "rel. RMS (worst)",
                        "time ms"],
                       [[str(r["lobes"]), str(r["weights"]), r["solver"], f"{r['l1_sum']:.4g}",
-                        f"{r['rel_rms_worst']:.4g}", f"{r['time_ms']:.3f}"] for r in rows])
+                        f"{r['rel_rms_worst']:.4g}", f"{r['time_ms']:.3g}"] for r in rows])
           + ("\n\nEnvironment light per lobe count (seed 001 eqs. 7–9, what `gonio render` "
              f"runs): {inputs.inks[0].name if inputs.inks else ''} ink's eq. 5 weights fitted "
              "over the hemisphere, the bundled sky "
              f"prefiltered at the basis's exponents, the environment term over the "
              f"{render[0]['pixels']} pixels of a sphere:\n\n"
              + _md_table(["lobes", "render ms (median)"],
-                         [[str(r["lobes"]), f"{r['render_ms']:.1f}"] for r in render])
+                         [[str(r["lobes"]), f"{r['render_ms']:.3g}"] for r in render])
              if render else "")
           + "\n\n![lobes](lobes.png)")
     return Section("lobes", "Lobes: lobe count and weight solver", res, md,
@@ -282,25 +310,25 @@ def prefilter_section(inputs: Inputs, workdir: Path, quick: bool) -> Section:
         for r in brute:
             x, y = series.setdefault("ring (auto) vs brute", ([], []))
             x.append(r["ring_s"])
-            y.append(max(r["p99_error"], 1e-9))
+            y.append(r["p99_error"])
         for r in ring:
             x, y = series.setdefault(f"ring E={r['exponent']:g} vs full-res ring", ([], []))
             x.append(r["time_s"])
-            y.append(max(r["p99_error"], 1e-9))
+            y.append(r["p99_error"])
         _scatter(path, series, "time (s)", "relative error, 99th percentile",
-                 "prefilter: error against run time")
+                 "prefilter: error against run time", floor=ERROR_FLOOR)
 
     md = (f"The bundled sky (`sample_data/sky.exr`), at {small.shape[1]}×{small.shape[0]} "
           "for brute force (the truth):\n\n"
           + _md_table(["E", "output", "ring s", "brute s", "p99 error", "max error"],
-                      [[f"{r['exponent']:.4g}", r["output"], f"{r['ring_s']:.4f}",
-                        f"{r['brute_s']:.3f}", f"{r['p99_error']:.1e}", f"{r['max_error']:.1e}"]
+                      [[f"{r['exponent']:.4g}", r["output"], f"{r['ring_s']:.3g}",
+                        f"{r['brute_s']:.3g}", f"{r['p99_error']:.1e}", f"{r['max_error']:.1e}"]
                        for r in brute])
           + f"\n\nRing on {mid.shape[1]}×{mid.shape[0]} by output resolution and working map "
             "(reference: ring on the full input):\n\n"
           + _md_table(["E", "output", "working map", "time s", "p99 error", "max error"],
                       [[f"{r['exponent']:.4g}", r["output"] + (" (auto)" if r["auto"] else ""),
-                        r["working"], f"{r['time_s']:.4f}", f"{r['p99_error']:.1e}",
+                        r["working"], f"{r['time_s']:.3g}", f"{r['p99_error']:.1e}",
                         f"{r['max_error']:.1e}"] for r in ring])
           + "\n\n![prefilter](prefilter.png)")
     return Section("prefilter", "Prefilter: method and resolution per exponent",
@@ -357,14 +385,14 @@ def render_section(inputs: Inputs, workdir: Path, quick: bool) -> Section:
                  f"render: error against frame time ({size}×{size}, {ink} ink)")
 
     md = (f"The {ink} ink on `spheres.toml` at {size}×{size}; reference: exact spectral path, "
-          f"ssaa 4, 288 segments ({ref_t * 1e3:.0f} ms). CIEDE2000 (Lab, D65 white at Y = 1) "
+          f"ssaa 4, 288 segments ({format_seconds(ref_t)}). CIEDE2000 (Lab, D65 white at Y = 1) "
           "over pixels covered in either image; frame = rasterize + shade + downsample + tone "
           "map, second of two runs.\n\n"
           + _md_table(["spectral", "ssaa", "segments", "triangles", "ΔE00 mean", "ΔE00 p99",
                        "frame ms", "shade ms"],
                       [[r["spectral"], str(r["ssaa"]), str(r["segments"]), str(r["triangles"]),
                         f"{r['de2000_mean']:.3f}", f"{r['de2000_p99']:.3f}",
-                        f"{r['frame_ms']:.1f}", f"{r['shade_ms']:.1f}"] for r in rows])
+                        f"{r['frame_ms']:.3g}", f"{r['shade_ms']:.3g}"] for r in rows])
           + "\n\n![render](render.png)")
     return Section("render", "Render: spectral path, supersampling, tessellation",
                    {"size_px": size, "reference": {**ref_settings, "frame_ms": 1e3 * ref_t},
@@ -416,13 +444,16 @@ def table1_section(inputs: Inputs, workdir: Path, quick: bool) -> Section:
 
     def plot(path):
         series: dict[str, tuple[list, list]] = {}
+        names: dict[str, list[str]] = {}
         for r in rows:
             x, y = series.setdefault(MODEL_LABEL[r["model"]], ([], []))
             x.append(r["frame_ms"])
             y.append(r["rmse"])
+            names.setdefault(MODEL_LABEL[r["model"]], []).append(f"{r['ink']} ink")
         _scatter(path, series, f"frame time (ms, {size}×{size}, CPU)",
                  "RMSE vs measured-reference render",
-                 "seed 000 Table 1: RMSE against render time", logy=False)
+                 "seed 000 Table 1: RMSE against render time (label: ink)", logy=False,
+                 point_labels=names)
 
     def strip(path):
         import matplotlib
@@ -450,7 +481,7 @@ def table1_section(inputs: Inputs, workdir: Path, quick: bool) -> Section:
         [[r["ink"], MODEL_LABEL[r["model"]], f"{r['rmse']:.4f}",
           "—" if r["paper_rmse"] is None else f"{r['paper_rmse']:.4f}", f"{r['ssim']:.4f}",
           "—" if r["paper_ssim"] is None else f"{r['paper_ssim']:.4f}",
-          f"{r['frame_ms']:.1f} ms", f"{r['paper_frame_us']:.0f} µs"] for r in rows])
+          f"{r['frame_ms']:.3g} ms", f"{r['paper_frame_us']:.0f} µs"] for r in rows])
     md = (f"Spheres of `spheres.toml` / `spheres_measured.toml` at {size}×{size} (ssaa 2, "
           "filmic tone map, two D65 lights). RMSE and SSIM are computed on the displayed "
           "images: sRGB-encoded after the scene's tone map, in [0, 1] (8-bit / 255), whole "
@@ -521,7 +552,7 @@ def table1_discussion(rows: list[dict], sparsity: list[dict], size: int) -> str:
     f_ms = mean(gc, "frame_ms")
     parts.append(
         f"Render times are not comparable: ours are CPU numpy frames at {size}×{size} "
-        f"(ssaa 2, {f_ms:.1f} ms for eq. 5, {mean(ts, 'frame_ms'):.1f} ms for the standard "
+        f"(ssaa 2, {f_ms:.3g} ms for eq. 5, {mean(ts, 'frame_ms'):.3g} ms for the standard "
         f"model, on this machine), the paper's are {PAPER_TABLE1[gc]['frame_us']:.0f} and "
         f"{PAPER_TABLE1[ts]['frame_us']:.0f} µs on an RTX 4080 laptop GPU at 512×512. In both, "
         "the two models cost about the same per frame (the eq. 5 exponent is tabulated).")
