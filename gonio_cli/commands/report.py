@@ -18,7 +18,7 @@ SECTION_NAMES = ("fit", "lobes", "prefilter", "render", "table1", "sheets")  # r
 
 def report(
     inputs: Optional[List[Path]] = typer.Argument(
-        None, metavar="[MEASUREMENT/MATERIAL.json ...]", show_default=False,
+        None, metavar="FILE.json", show_default=False,
         help="gonio.measurement files (Table 1, paired with NAME.material.json and "
              "NAME.torrance-sparrow.material.json when given, else fitted in memory) and "
              "gonio.material files (sheets). None: the bundled sample inks."),
