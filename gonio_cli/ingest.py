@@ -12,13 +12,18 @@ Pipeline of :func:`ingest`, per input file and then for all of them:
    multi-angle; detected from the header), with ``,`` / ``;`` / tab delimiters, a decimal
    comma when the delimiter is ``;``, a UTF-8 BOM and ``#`` comment lines; it checks every
    cell (numeric, finite), the angles (ranges, radians) and the wavelengths (increasing,
-   unique).
+   unique). Instrument exports as a spreadsheet saves them are read too: preamble lines
+   before the header (the header is the first line that is one of a layout's), label
+   columns (:data:`LABEL_COLUMNS`: ``Name``, ``Date/Time`` …) set aside, and of a file
+   that holds several samples the one ``--sample`` names.
 2. The file's grid must cover the working grid (``--grid-nm``); wavelengths the
    resampling does not use are dropped (seed 000 trims its spectra to 380–780 nm).
-3. ``--dark`` is subtracted (seed 004 §3), then negative values are checked: beyond
-   noise they are an error, small ones are clipped after averaging (step 6).
+3. ``--dark`` is subtracted (seed 004 §3), the values are multiplied by ``--scale``, then
+   negative values are checked: beyond noise they are an error, small ones are clipped
+   after averaging (step 6).
 4. Files merge (they must share their grid) and the values are converted to BRDF in sr⁻¹
-   by the quantity's rule (:data:`QUANTITIES`, seed 004 eqs. 5, 7, 8).
+   by the quantity's rule (:data:`QUANTITIES`, seed 004 eqs. 5, 7, 8). A file whose values
+   look like percent (:func:`check_percent`) is refused.
 5. Repeated rows of one configuration are averaged, their sample standard deviation kept
    (seed 000 averages ten spectra per configuration).
 6. Small negative means are clipped to 0 (counted), and everything is resampled onto
@@ -70,6 +75,25 @@ RADIAN_LIMIT = math.pi / 2
 #: Spectralon of seed 000 ("Preparation and measurement"), docs/conventions.md.
 DEFAULT_WHITE_REFLECTANCE = 0.99
 
+#: A file whose median value is above this, in the quantity's :attr:`Quantity.level`, is
+#: in percent (``--scale 0.01``), not fractions. A perfect white diffuser has reflectance
+#: factor 1 at every geometry and matte samples stay below it (the MA-T12 green earth of
+#: tests/fixtures/real: median 0.50); a glossy sample exceeds 1 only near the specular
+#: direction, a few configurations of a goniometric sweep, so its median stays far lower
+#: (the sample red ink: median BRDF 0.040 sr^-1, peak 7.2; an RGL colour-shifting wrap in
+#: plane: median 0.018 sr^-1, peak 22). Percent data lands above 1.5 unless the sample
+#: reflects under 1.5 % at most geometries (then it cannot be told from fractions). For
+#: ``brdf`` the limit is 1.5 sr^-1, a reflectance factor of 4.7 at most configurations.
+PERCENT_MEDIAN_LIMIT = 1.5
+
+#: The header is searched for among the first this many lines with content (preamble
+#: lines of instrument exports: job, standard, instrument, illuminant …, a few to a few
+#: dozen); a file whose header is not among them gets the first line's error.
+HEADER_SEARCH_LINES = 100
+
+#: An error listing the samples of a file names at most this many (then "… N more").
+MAX_LISTED_SAMPLES = 10
+
 #: Header names of the angle columns (degrees) and of the multi-angle geometry label.
 THETA_I = "theta_i_deg"
 THETA_O = "theta_o_deg"
@@ -85,6 +109,20 @@ _DELIMITER_NAMES = {"\t": "tab", ";": "semicolon", ",": "comma"}
 #: direction towards the light (θo = 45 − 15 = 30°); a degree sign is tolerated.
 _ASPECULAR = re.compile(r"^\s*(\d+(?:\.\d*)?)\s*°?\s*as\s*([+-]?\d+(?:\.\d*)?)\s*°?\s*$",
                         re.IGNORECASE)
+
+#: Label columns of instrument exports, set aside by name (normalised by
+#: :func:`label_kind`: lower case, runs of space, ``_``, ``-``, ``.`` as one space) with
+#: what they hold. ``sample`` columns name the sample: a file with several values in one
+#: holds several samples (``--sample`` picks one); the first of them in this order that a
+#: file has is its sample column. ``note`` columns (dates, operators, comments) are
+#: recorded in the summary and otherwise ignored; any other unknown column is an error.
+LABEL_COLUMNS: dict[str, str] = {
+    **dict.fromkeys(("sample", "sample name", "name", "specimen", "sample id", "id"),
+                    "sample"),
+    **dict.fromkeys(("date", "time", "date/time", "date time", "datetime", "timestamp",
+                     "comment", "comments", "note", "notes", "operator", "user",
+                     "standard", "job", "batch", "instrument"), "note"),
+}
 
 _LAYOUT_HELP = ("expected theta_i_deg,theta_o_deg,wavelength_nm,value (long), "
                 "theta_i_deg,theta_o_deg,<wavelength_nm>,... (wide) or "
@@ -106,6 +144,7 @@ class Table:
     lines : (n_rows,) int, 1-based line number of each data row.
     delimiter : str; decimal_comma : bool.
     comment_lines, empty_rows : int, lines skipped.
+    preamble_lines : int, lines with content before the header (instrument exports).
     """
 
     path: str
@@ -117,6 +156,7 @@ class Table:
     decimal_comma: bool
     comment_lines: int
     empty_rows: int
+    preamble_lines: int = 0
 
     def index(self, name: str) -> int:
         """Position of a column by its (lower-case) name."""
@@ -167,6 +207,9 @@ class Quantity:
 
     ``convert(values, theta_o_deg=, white=, solid_angle_sr=)`` maps (n, n_λ) values to BRDF;
     ``options`` names the CLI options it needs (refused for the other quantities).
+    ``level(values, brdf)`` is the (n, n_λ) figure :func:`check_percent` compares with
+    :data:`PERCENT_MEDIAN_LIMIT` (``level_name`` says what it is in messages), and
+    ``percent_fix`` the options that read percent values of this quantity.
     """
 
     name: str
@@ -174,6 +217,9 @@ class Quantity:
     citation: str
     options: tuple[str, ...]
     convert: Callable[..., np.ndarray]
+    level: Callable[[np.ndarray, np.ndarray], np.ndarray]
+    level_name: str
+    percent_fix: str
 
 
 # ------------------------------------------------------------------------- reading --
@@ -211,13 +257,69 @@ def _delimiter(header: str, path: str, line: int) -> str:
                      row=line, fix="separate columns with ',', ';' or tab; " + _LAYOUT_HELP)
 
 
-def read_table(path: str | os.PathLike) -> Table:
+def label_kind(name: str) -> str | None:
+    """``"sample"`` or ``"note"`` for a label column of :data:`LABEL_COLUMNS`, else None.
+
+    >>> label_kind("Date/Time"), label_kind("Sample_ID"), label_kind("380")
+    ('note', 'sample', None)
+    """
+    return LABEL_COLUMNS.get(_label_key(name))
+
+
+def _label_key(name: str) -> str:
+    """A header name as :data:`LABEL_COLUMNS` spells it (``Sample_ID`` → ``sample id``)."""
+    return re.sub(r"[\s_.-]+", " ", name.strip().lower()).strip()
+
+
+def _header_names(text: str) -> list[str] | None:
+    """A line's cells as lower-case header names (None if it has no delimiter)."""
+    delim = next((d for d in DELIMITERS if d in text), None)
+    if delim is None:
+        return None
+    cells = next(csv.reader([text], delimiter=delim, skipinitialspace=True), [])
+    return [c.strip().lower().replace(",", ".") if delim == ";" else c.strip().lower()
+            for c in cells]
+
+
+def is_layout_header(names: Sequence[str]) -> bool:
+    """Whether header cells ``names`` (lower case) hold every column of the layout they
+    select (:func:`detect_layout`), label columns and empty cells aside."""
+    columns = [n for n in names if n and label_kind(n) is None]
+    return all(c in columns for c in detect_layout(columns).columns)
+
+
+#: Every column name of a layout (a header with a mistake still has some).
+_KNOWN_NAMES = frozenset((THETA_I, THETA_O, WAVELENGTH, VALUE, GEOMETRY))
+
+
+def _header_index(content: Sequence[tuple[int, str]]) -> int | None:
+    """Position in ``content`` of the header: the first line that is a layout's header
+    (:func:`is_layout_header`), so preamble lines before it are skipped. If none is, the
+    first line naming a known column (a header with a mistake, reported by the layout
+    checks), else None."""
+    fallback = None
+    for k, (_, text) in enumerate(content[:HEADER_SEARCH_LINES]):
+        names = _header_names(text)
+        if names is None:
+            continue
+        if is_layout_header(names):
+            return k
+        if fallback is None and any(n in _KNOWN_NAMES or label_kind(n) for n in names):
+            fallback = k
+    return fallback
+
+
+def read_table(path: str | os.PathLike, *, find_header: bool = False) -> Table:
     """Split a delimited file into a :class:`Table`.
 
     The delimiter is the first of tab, ``;``, ``,`` found in the header line; with ``;``
-    a decimal comma is accepted (``0,25`` → 0.25). A UTF-8 BOM, lines starting with ``#``
-    and rows with no content (blank, or only delimiters) are skipped. Every data row must
-    have as many cells as the header.
+    a decimal comma is accepted (``0,25`` → 0.25; label columns keep their text). A UTF-8
+    BOM, lines starting with ``#`` and rows with no content (blank, or only delimiters)
+    are skipped. Every data row must have as many cells as the header.
+
+    The header is the first line with content, or with ``find_header`` the first that is
+    the header of one of the :data:`LAYOUTS` (:func:`_header_index`); the lines before it
+    are a preamble (``QC JOB:,Job …`` of an instrument export), counted and skipped.
     """
     path = os.fspath(path)
     raw = _read_lines(path)
@@ -227,12 +329,29 @@ def read_table(path: str | os.PathLike) -> Table:
     if not content:
         raise InputError("empty file (no header and no data rows)", path=path,
                          fix="export the measurement again; " + _LAYOUT_HELP)
+    preamble = _header_index(content) if find_header else 0
+    if preamble is None:
+        if any(d in content[0][1] for d in DELIMITERS):
+            n = min(len(content), HEADER_SEARCH_LINES)
+            raise InputError(f"has no header: none of its first {n} lines with content "
+                             "names the columns of a layout", path=path, row=content[0][0],
+                             fix="add the header line; " + _LAYOUT_HELP)
+        preamble = 0  # no delimiter either: that error, on the first line
+    content = content[preamble:]
     header_line, header_text = content[0]
     delim = _delimiter(header_text, path, header_line)
     decimal_comma = delim == ";"
-    texts = [s.replace(",", ".") if decimal_comma else s for _, s in content]
+    texts = [s for _, s in content]
+    names = next(csv.reader(texts[:1], delimiter=delim, skipinitialspace=True))
+    labels = [k for k, h in enumerate(names) if label_kind(h)]
+    if decimal_comma and not labels:
+        texts = [s.replace(",", ".") for s in texts]
     rows = [[c.strip() for c in r]
             for r in csv.reader(texts, delimiter=delim, skipinitialspace=True)]
+    if decimal_comma and labels:  # decimal commas in the numbers, not in the labels
+        keep = set(labels)
+        rows = [[c if k in keep else c.replace(",", ".") for k, c in enumerate(r)]
+                for r in rows]
     header, data = rows[0], rows[1:]
     while header and not header[-1]:  # a trailing delimiter, common in exports
         header.pop()
@@ -254,7 +373,79 @@ def read_table(path: str | os.PathLike) -> Table:
                                 if delim == "," else ""))
     cells = np.array([r[:width] for r in data], dtype=str)
     return Table(path, header, header_line, cells, np.asarray(lines, dtype=int), delim,
-                 decimal_comma, comments, empty)
+                 decimal_comma, comments, empty, preamble)
+
+
+# ---------------------------------------------------------- labels and samples --
+
+def split_labels(table: Table) -> tuple[Table, dict[str, np.ndarray]]:
+    """Set aside the label columns (:data:`LABEL_COLUMNS`) of a table.
+
+    Returns the table without them and ``{header name: (n_rows,) str}`` in file order
+    (the first of two columns with one name).
+    """
+    labels: dict[str, np.ndarray] = {}
+    keep = []
+    for k, h in enumerate(table.header):
+        if label_kind(h):
+            labels.setdefault(h, table.cells[:, k])
+        else:
+            keep.append(k)
+    if not labels:
+        return table, labels
+    return replace(table, header=[table.header[k] for k in keep],
+                   cells=table.cells[:, keep]), labels
+
+
+def _listing(names: Sequence[str]) -> str:
+    """Sample names for a message, at most :data:`MAX_LISTED_SAMPLES` of them."""
+    shown = [n if n else "(empty)" for n in names[:MAX_LISTED_SAMPLES]]
+    more = len(names) - len(shown)
+    return ", ".join(shown) + (f", ... ({more} more)" if more else "")
+
+
+def select_sample(table: Table, labels: dict[str, np.ndarray],
+                  sample: str | None) -> tuple[Table, dict[str, Any]]:
+    """Keep the rows of one sample of a table with its labels set aside.
+
+    The sample column is the first ``sample`` label of :data:`LABEL_COLUMNS` the file
+    has. Several names in it are several samples: ``sample`` must then name one
+    (exactly as written), and it must name one whenever it is given. Returns the table
+    of its rows and what :attr:`Spectra.info` records: ``label_columns``,
+    ``sample_column``, ``sample``, ``samples`` (every name, in file order) and
+    ``rows_other_samples``.
+    """
+    order = list(LABEL_COLUMNS)
+    columns = sorted((h for h in labels if label_kind(h) == "sample"),
+                     key=lambda h: order.index(_label_key(h)))
+    column = columns[0] if columns else None
+    info: dict[str, Any] = {"label_columns": list(labels), "sample_column": column,
+                            "sample": None, "samples": [], "rows_other_samples": 0}
+    if column is None:
+        if sample is not None:
+            raise InputError(f"--sample {sample!r} is given, but the file has no column "
+                             "naming samples", path=table.path, row=table.header_line,
+                             fix="drop --sample, or name the samples in a column "
+                                 "Name, Sample or ID")
+        return table, info
+    values = labels[column]
+    names = list(dict.fromkeys(values.tolist()))
+    info["samples"] = names
+    if sample is None:
+        if len(names) > 1:
+            k = int(np.flatnonzero(values != names[0])[0])
+            raise InputError(f"holds {len(names)} samples ({_listing(names)})",
+                             path=table.path, row=int(table.lines[k]), column=column,
+                             fix="pick one with --sample NAME")
+        info["sample"] = names[0]
+        return table, info
+    if sample not in names:
+        raise InputError(f"holds no sample {sample!r}, only {_listing(names)}",
+                         path=table.path, row=table.header_line, column=column,
+                         fix="pick one of those with --sample NAME, exactly as written")
+    rows = values == sample
+    info.update(sample=sample, rows_other_samples=int(np.count_nonzero(~rows)))
+    return replace(table, cells=table.cells[rows], lines=table.lines[rows]), info
 
 
 def _floats(table: Table, cols: Sequence[int]) -> np.ndarray:
@@ -318,19 +509,24 @@ def _check_wavelengths(wl: np.ndarray, names: Sequence[str], path: str, line: in
 
 
 def _check_header(table: Table, layout: Layout) -> None:
-    """Refuse missing and unknown columns (STYLE 7), naming them."""
+    """Refuse unknown and missing columns (STYLE 7), naming them: an unknown one first, as
+    a misspelt name (``Geometri``) is what leaves the right one missing."""
     names = [h.lower() for h in table.header]
-    for name in layout.columns:
-        if name not in names:
-            raise InputError(f"missing column {name!r} for the {layout.name} layout",
-                             path=table.path, row=table.header_line, fix=layout.example)
+    # a header with wavelength columns may be meant as either layout that has them
+    example = (" or ".join(lay.example for lay in LAYOUTS.values() if lay.wide)
+               if layout.wide else layout.example)
     allowed = set(layout.columns)
     for h in table.header:
         is_wl = layout.wide and _number(h) is not None
         if not is_wl and h.lower() not in allowed:
             raise InputError(f"unknown column {h!r} in the {layout.name} layout",
                              path=table.path, row=table.header_line, column=h or "(empty)",
-                             fix=layout.example)
+                             fix=f"{example} (label columns such as Name, Sample, ID, "
+                                 "Date/Time are set aside)")
+    for name in layout.columns:
+        if name not in names:
+            raise InputError(f"missing column {name!r} for the {layout.name} layout",
+                             path=table.path, row=table.header_line, fix=example)
     dup = [h for h in layout.columns if names.count(h) > 1]
     if dup:
         raise InputError(f"column {dup[0]!r} appears twice", path=table.path,
@@ -497,8 +693,12 @@ def detect_layout(header: Sequence[str]) -> Layout:
     return LAYOUTS["long"]
 
 
-def read_spectra(path: str | os.PathLike) -> Spectra:
+def read_spectra(path: str | os.PathLike, sample: str | None = None) -> Spectra:
     """Read and check one goniometer CSV (any of :data:`LAYOUTS`).
+
+    Preamble lines before the header are skipped (:func:`read_table`), label columns set
+    aside (:func:`split_labels`) and, of a file holding several samples, the rows of
+    ``sample`` kept (:func:`select_sample`).
 
     Returns
     -------
@@ -506,16 +706,20 @@ def read_spectra(path: str | os.PathLike) -> Spectra:
         One spectrum per data row (wide, multi-angle) or per (θi, θo, repeat) (long), on
         the file's own wavelengths, in the file's units; nothing converted or resampled.
     """
-    table = read_table(path)
+    table, labels = split_labels(read_table(path, find_header=True))
     layout = detect_layout(table.header)
     _check_header(table, layout)
+    rows_read = int(table.lines.size)
+    table, samples = select_sample(table, labels, sample)
     spectra = layout.read(table)
     spectra.info = {"path": table.path, "layout": layout.name,
                     "header_line": table.header_line,
                     "delimiter": _DELIMITER_NAMES[table.delimiter],
-                    "decimal_comma": table.decimal_comma, "rows": int(table.lines.size),
+                    "decimal_comma": table.decimal_comma, "rows": rows_read,
                     "spectra": int(spectra.values.shape[0]),
+                    "preamble_lines": table.preamble_lines,
                     "comment_lines": table.comment_lines, "empty_rows": table.empty_rows,
+                    **samples,
                     "wavelength_nm": _grid_text(spectra.wavelength_nm)}
     return spectra
 
@@ -682,37 +886,68 @@ def _from_flux_ratio(values, *, theta_o_deg, solid_angle_sr, **_):
     return values / (cos_theta_o[:, None] * solid_angle_sr)
 
 
+def _value_level(values, brdf):
+    """The values themselves: fractions of a white diffuser's (or sr⁻¹), at most ~1 at
+    most configurations of any real sample."""
+    return values
+
+
+def _reflectance_factor_level(values, brdf):
+    """π f, the reflectance factor: flux ratios scale with the aperture, so their own
+    size says nothing."""
+    return np.pi * brdf
+
+
+_PERCENT_FIX = "pass --scale 0.01 if they are percent"
+
 #: Measured quantities and their conversion to BRDF in sr⁻¹ (STYLE 3).
 QUANTITIES: dict[str, Quantity] = {
-    "brdf": Quantity("brdf", "f = value", "docs/conventions.md", (), _from_brdf),
+    "brdf": Quantity(
+        "brdf", "f = value", "docs/conventions.md", (), _from_brdf, _value_level,
+        "BRDF (sr^-1)", "pass --quantity reflectance-factor --scale 0.01 if they are "
+        "reflectance factors in percent (as instruments export them), --scale 0.01 alone "
+        "if a BRDF in percent"),
     "ratio-to-white": Quantity(
         "ratio-to-white", "f = ratio · R_white(λ) / π",
         "seed 004 eq. 8 with a Lambertian standard f_rs = R_white/π; seed 000 "
-        "'Preparation and measurement'", ("white_reflectance",), _from_ratio_to_white),
-    "reflectance-factor": Quantity("reflectance-factor", "f = R / π", "docs/conventions.md", (),
-                                   _from_reflectance_factor),
+        "'Preparation and measurement'", ("white_reflectance",), _from_ratio_to_white,
+        _value_level, "ratio to white", _PERCENT_FIX),
+    "reflectance-factor": Quantity(
+        "reflectance-factor", "f = R / π", "docs/conventions.md", (),
+        _from_reflectance_factor, _value_level, "reflectance factor", _PERCENT_FIX),
     "flux-ratio": Quantity(
         "flux-ratio", "f = (ΔΦr/ΔΦi) / (cos θo · Δω), Δω = π w² / (4 d²)",
-        "seed 004 eqs. 5 and 7", ("aperture_mm", "distance_mm"), _from_flux_ratio),
+        "seed 004 eqs. 5 and 7", ("aperture_mm", "distance_mm"), _from_flux_ratio,
+        _reflectance_factor_level, "reflectance factor pi*f", _PERCENT_FIX),
 }
+
+#: The quantity when ``--quantity`` is not given.
+DEFAULT_QUANTITY = "brdf"
+
+#: Layouts whose instruments export reflectance factors, not BRDFs: ingesting one
+#: without ``--quantity`` warns (multi-angle spectrophotometers, ASTM E2194).
+REFLECTANCE_FACTOR_LAYOUTS = ("multi-angle",)
 
 _OPTION_FLAGS = {"white_reflectance": "--white-reflectance", "aperture_mm": "--aperture-mm",
                  "distance_mm": "--distance-mm"}
 
 
-def resolve_parameters(paths: Sequence[str | os.PathLike], *, quantity: str = "brdf",
+def resolve_parameters(paths: Sequence[str | os.PathLike], *, quantity: str | None = None,
                        white_reflectance: float | str | None = None,
                        aperture_mm: float | None = None, distance_mm: float | None = None,
                        dark: str | os.PathLike | None = None,
-                       grid_nm: str | None = None) -> dict[str, Any]:
+                       grid_nm: str | None = None, scale: float | None = None,
+                       sample: str | None = None) -> dict[str, Any]:
     """Check the options against each other and fill in defaults.
 
-    Returns the effective parameters (recorded in the artifact): ``quantity``,
-    ``white_reflectance`` (a number, a CSV path, or None when not used), ``aperture_mm``,
-    ``distance_mm``, ``dark`` (path or None) and ``grid_nm``. An option the quantity does
-    not use is an error (it would be silently ignored otherwise, STYLE 7).
+    Returns the effective parameters (recorded in the artifact): ``quantity`` (default
+    :data:`DEFAULT_QUANTITY`), ``white_reflectance`` (a number, a CSV path, or None when
+    not used), ``aperture_mm``, ``distance_mm``, ``dark`` (path or None), ``grid_nm``,
+    ``scale`` (default 1) and ``sample`` (or None). An option the quantity does not use is
+    an error (it would be silently ignored otherwise, STYLE 7).
     """
     where = os.fspath(paths[0]) if paths else None
+    quantity = DEFAULT_QUANTITY if quantity is None else quantity
     if quantity not in QUANTITIES:
         raise InputError(f"--quantity {quantity!r} is not known", path=where,
                          fix=f"use one of {', '.join(QUANTITIES)}")
@@ -731,9 +966,18 @@ def resolve_parameters(paths: Sequence[str | os.PathLike], *, quantity: str = "b
         _receptor_options(aperture_mm, distance_mm, where)
     grid = grid_nm if grid_nm is not None else DEFAULT_GRID_NM
     parse_grid(grid)  # refuse a bad --grid-nm before reading anything
+    scale = 1.0 if scale is None else float(scale)
+    if not (math.isfinite(scale) and scale > 0):
+        raise InputError(f"--scale {scale:g} is not a positive number", path=where,
+                         fix="the factor the values are multiplied by, e.g. --scale 0.01 "
+                             "for percent")
+    if sample is not None and not str(sample).strip():
+        raise InputError("--sample is empty", path=where,
+                         fix="name the sample as the file's Name (or Sample, ID) column has it")
     return {"quantity": quantity, "white_reflectance": white_reflectance,
             "aperture_mm": aperture_mm, "distance_mm": distance_mm,
-            "dark": os.fspath(dark) if dark is not None else None, "grid_nm": grid}
+            "dark": os.fspath(dark) if dark is not None else None, "grid_nm": grid,
+            "scale": scale, "sample": None if sample is None else str(sample).strip()}
 
 
 def _white_option(value: float | str | None, where: str | None) -> float | str:
@@ -857,17 +1101,20 @@ def average_repeats(theta_i_deg, theta_o_deg, values):
 
 # ------------------------------------------------------------------------ the stage --
 
-def ingest(paths: Sequence[str | os.PathLike], *, quantity: str = "brdf",
+def ingest(paths: Sequence[str | os.PathLike], *, quantity: str | None = None,
            white_reflectance: float | str | None = None, aperture_mm: float | None = None,
            distance_mm: float | None = None, dark: str | os.PathLike | None = None,
-           grid_nm: str | None = None) -> Measurement:
+           grid_nm: str | None = None, scale: float | None = None,
+           sample: str | None = None) -> Measurement:
     """Read goniometer CSVs and return one measurement on the working grid.
 
     Parameters
     ----------
     paths : sequence of path, at least one CSV (any of :data:`LAYOUTS`); several files
         merge (e.g. one per angle of incidence) and must share their wavelengths.
-    quantity : key of :data:`QUANTITIES`, what the files hold (default ``"brdf"``).
+    quantity : key of :data:`QUANTITIES`, what the files hold (default ``"brdf"``; not
+        given, a multi-angle file gets a warning that such instruments export reflectance
+        factors).
     white_reflectance : number in (0, 1] or path of a ``wavelength_nm,value`` CSV, the
         white standard's reflectance for ``ratio-to-white`` (default 0.99).
     aperture_mm, distance_mm : receptor aperture diameter and distance for ``flux-ratio``
@@ -875,6 +1122,11 @@ def ingest(paths: Sequence[str | os.PathLike], *, quantity: str = "brdf",
     dark : path of a ``wavelength_nm,value`` CSV subtracted from every row before the
         conversion, in the units of the files' value columns (:func:`subtract_dark`).
     grid_nm : working grid ``"START:STOP:STEP"`` in nm (default ``"380:780:10"``).
+    scale : positive factor the values are multiplied by after the dark subtraction and
+        before the conversion (``0.01`` for percent; default 1). Values that still look
+        like percent are refused (:func:`check_percent`).
+    sample : of files holding several samples (a ``Name``, ``Sample`` or ``ID`` column
+        with several values), the one to read (:func:`select_sample`).
 
     Returns
     -------
@@ -886,25 +1138,29 @@ def ingest(paths: Sequence[str | os.PathLike], *, quantity: str = "brdf",
         raise InputError("no input files", fix="gonio ingest INPUT.csv [...] -o OUT.json")
     params = resolve_parameters(paths, quantity=quantity, white_reflectance=white_reflectance,
                                 aperture_mm=aperture_mm, distance_mm=distance_mm, dark=dark,
-                                grid_nm=grid_nm)
+                                grid_nm=grid_nm, scale=scale, sample=sample)
     _refuse_repeated_inputs(paths)
     grid = parse_grid(params["grid_nm"])
     dark_spectrum = read_spectrum(dark, "dark") if dark is not None else None
     parts, grids, negatives = [], [], 0
     for path in log.progress(paths, "reading CSV files", total=len(paths)):
-        spectra = read_spectra(path)
+        spectra = read_spectra(path, params["sample"])
         grids.append(spectra.wavelength_nm)
         spectra = crop(spectra, grid)
         if dark_spectrum is not None:
             spectra = subtract_dark(spectra, dark_spectrum)
+        if params["scale"] != 1.0:
+            spectra = replace(spectra, values=spectra.values * params["scale"])
         negatives += check_negatives(spectra)
         parts.append(spectra)
     merged = merge(parts, grids)
     brdf = _convert(merged, params)
+    check_percent(parts, brdf, params)
     ti, to, mean, std, counts = average_repeats(merged.theta_i_deg, merged.theta_o_deg, brdf)
     clipped = int(np.count_nonzero(mean < 0))
     mean = np.maximum(mean, 0.0)
-    notes = _grid_notes(parts, grids, grid, params["grid_nm"])
+    notes = _quantity_notes(parts, quantity is not None)
+    notes += _grid_notes(parts, grids, grid, params["grid_nm"])
     if clipped:
         notes.append(f"clipped {clipped} small negative value{'s' if clipped > 1 else ''} "
                      f"(noise, above -{NEGATIVE_NOISE_FRACTION:.0%} of the peak) to 0 "
@@ -912,7 +1168,8 @@ def ingest(paths: Sequence[str | os.PathLike], *, quantity: str = "brdf",
     wl = merged.wavelength_nm
     repeated = bool(counts.max() > 1)
     m = Measurement(grid, ti, to, resample(wl, mean, grid),
-                    resample(wl, std, grid) if repeated else None, counts, quantity)
+                    resample(wl, std, grid) if repeated else None, counts,
+                    params["quantity"])
     resampled = not all(same_grid(g, grid) for g in grids)
     m.summary = _summary(m, parts, params, resampled, negatives, clipped, notes)
     for note in notes:  # only now: a failing run prints one line, its error
@@ -929,6 +1186,51 @@ def _refuse_repeated_inputs(paths: Sequence[str | os.PathLike]) -> None:
             raise InputError(f"is given twice (also as {seen[key]})", path=p,
                              fix="pass each file once; check overlapping wildcards")
         seen[key] = os.fspath(p)
+
+
+def check_percent(parts: Sequence[Spectra], brdf: np.ndarray,
+                  params: dict[str, Any]) -> None:
+    """Refuse a file whose values look like percent, not fractions.
+
+    Per file (``parts``, whose rows are ``brdf``'s (n, n_λ) rows in order), the median
+    of the quantity's :attr:`Quantity.level` over every value must not exceed
+    :data:`PERCENT_MEDIAN_LIMIT`: a glossy peak is far above it at a few configurations,
+    but the median of any real sample is not. The error names the value nearest the
+    median and the options that read percent.
+    """
+    q = QUANTITIES[params["quantity"]]
+    start = 0
+    for part in parts:
+        rows = slice(start, start + part.values.shape[0])
+        start = rows.stop
+        level = q.level(part.values, brdf[rows])
+        median = float(np.median(level))
+        if not median > PERCENT_MEDIAN_LIMIT:
+            continue
+        r, c = np.unravel_index(np.argmin(np.abs(level - median)), level.shape)
+        after = f" after --scale {params['scale']:g}" if params["scale"] != 1.0 else ""
+        # percent of anything real stays below 100 x the limit; beyond, another unit
+        percent = median <= 100 * PERCENT_MEDIAN_LIMIT
+        raise InputError(f"the values {'look like percent' if percent else 'are far too large'}"
+                         f": their median {q.level_name}{after} is {median:.4g}, above "
+                         f"{PERCENT_MEDIAN_LIMIT:g}, which a real sample exceeds at a few "
+                         "near-specular geometries at most", path=part.path,
+                         row=int(part.lines[r, c]), column=part.columns[c],
+                         fix=q.percent_fix if percent else
+                         "check --quantity and its options, or give the factor to "
+                         "fractions with --scale")
+
+
+def _quantity_notes(parts: Sequence[Spectra], quantity_given: bool) -> list[str]:
+    """The warning for a multi-angle file read as BRDF because ``--quantity`` was not
+    given (:data:`REFLECTANCE_FACTOR_LAYOUTS`)."""
+    if quantity_given:
+        return []
+    return [f"{p.path}: a {p.layout} file read as BRDF in sr^-1 (the default --quantity "
+            f"{DEFAULT_QUANTITY}), but {p.layout} instruments export reflectance factors: "
+            "pass --quantity reflectance-factor if these are (f = R/pi), or --quantity "
+            f"{DEFAULT_QUANTITY} to keep them and silence this"
+            for p in parts if p.layout in REFLECTANCE_FACTOR_LAYOUTS]
 
 
 def _convert(spectra: Spectra, params: dict[str, Any]) -> np.ndarray:
@@ -968,6 +1270,7 @@ def _summary(m: Measurement, parts, params, resampled, negatives, clipped,
         "files": [p.info for p in parts],
         "quantity": params["quantity"],
         "conversion": QUANTITIES[params["quantity"]].formula,
+        "scale": params["scale"],
         "theta_i_deg": [float(t) for t in np.unique(m.theta_i_deg)],
         "theta_o_by_theta_i": per_theta_i,
         "working_grid_nm": params["grid_nm"],
@@ -985,7 +1288,8 @@ def _summary(m: Measurement, parts, params, resampled, negatives, clipped,
 
 
 #: Lines without data that ``format_summary`` reports as skipped (``Spectra.info`` keys).
-_SKIPPED = {"comment_lines": "comment lines", "empty_rows": "empty rows"}
+_SKIPPED = {"preamble_lines": "preamble lines", "comment_lines": "comment lines",
+            "empty_rows": "empty rows", "rows_other_samples": "rows of other samples"}
 
 
 def format_summary(summary: dict[str, Any]) -> str:
@@ -1000,7 +1304,15 @@ def format_summary(summary: dict[str, Any]) -> str:
         out.append(f"  skipped: {', '.join(skipped) or 'nothing'}; dropped: "
                    + (f"{dropped} wavelengths outside the working grid" if dropped
                       else "nothing"))
-    out.append(f"quantity: {summary['quantity']} ({summary['conversion']})")
+        if f.get("label_columns"):
+            n = len(f.get("samples") or ())
+            of = f" (1 of {n} in the file)" if n > 1 else ""
+            sample = (f"; sample {f['sample']}{of} from column {f['sample_column']}"
+                      if f.get("sample_column") else "")
+            out.append(f"  label columns set aside: {', '.join(f['label_columns'])}{sample}")
+    scale = summary.get("scale", 1.0)
+    out.append(f"quantity: {summary['quantity']} ({summary['conversion']})"
+               + (f", values x {scale:g} (--scale)" if scale != 1.0 else ""))
     out.append("angles of incidence (deg): "
                + ", ".join(f"{t:g}" for t in summary["theta_i_deg"]))
     for row in summary["theta_o_by_theta_i"]:

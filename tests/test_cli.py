@@ -455,3 +455,35 @@ def test_a_numpy_value_in_a_stage_message_prints_as_a_number():
     with pytest.raises(InputError) as info:
         prefilter.validate_exponents(np.array([0.5]))
     assert str(info.value).startswith("exponent 0.5 is outside")
+
+
+@posix_only
+def test_ctrl_c_during_start_up_imports_is_one_line(tmp_path):
+    """Interrupted while the entry point still imports the CLI (typer here): the line
+    every interrupt gets and status 130, no traceback."""
+    script = tmp_path / "start.py"
+    script.write_text(textwrap.dedent(f"""
+        import sys, time
+        class _Slow:
+            def find_spec(self, name, path=None, target=None):
+                if name == "typer":
+                    print("ready", flush=True)
+                    time.sleep({WAIT_S})
+                return None
+        sys.meta_path.insert(0, _Slow())
+        sys.argv = ["gonio", "--version"]
+        from gonio_cli.__main__ import main
+        main()
+        """))
+    proc = subprocess.Popen([sys.executable, str(script)], text=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    try:
+        assert proc.stdout.readline() == "ready\n"
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=WAIT_S)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 130
+    assert err == "gonio: interrupted; nothing was written\n"

@@ -191,6 +191,7 @@ def test_ratio_to_white_spectrum_csv(tmp_path):
 
 def test_flux_ratio_seed004_eqs_5_and_7(tmp_path):
     ti, to, v = table()
+    v = v * 1e-4  # a flux ratio into 7.9e-5 sr: reflectance factors pi*f of 0.3-1
     w_mm, d_mm = 4.0, 400.0  # seed 004 §4.1: w = 0.4 cm, d = 40 cm
     m = ingest(write(tmp_path, "a.csv", wide_text(ti, to, v)), quantity="flux-ratio",
                aperture_mm=w_mm, distance_mm=d_mm)
@@ -203,6 +204,7 @@ def test_flux_ratio_seed004_eqs_5_and_7(tmp_path):
 
 def test_flux_ratio_on_the_command_line(tmp_path, run_gonio):
     ti, to, v = table()
+    v = v * 1e-4  # a flux ratio into 7.9e-5 sr: reflectance factors pi*f of 0.3-1
     src = write(tmp_path, "a.csv", wide_text(ti, to, v))
     out = tmp_path / "m.json"
     res = run_gonio("ingest", src, "-o", out, "--quantity", "flux-ratio", "--aperture-mm",
@@ -469,7 +471,7 @@ def test_artifact_round_trip_and_provenance(tmp_path, run_gonio):
     assert doc["schema"] == "gonio.measurement" and doc["schema_version"] == 1
     assert doc["parameters"] == {"quantity": "brdf", "white_reflectance": None,
                                  "aperture_mm": None, "distance_mm": None, "dark": None,
-                                 "grid_nm": DEFAULT_GRID_NM}
+                                 "grid_nm": DEFAULT_GRID_NM, "scale": 1.0, "sample": None}
     assert doc["time_s"] > 0
     assert doc["brdf_std"] is None
     m = read_measurement(out)

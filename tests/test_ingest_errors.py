@@ -5,6 +5,7 @@ traceback, and no output file (not even a temporary one)."""
 from __future__ import annotations
 
 import re
+from pathlib import Path
 
 import pytest
 
@@ -129,7 +130,7 @@ def test_missing_column(refuse, header, missing):
 @pytest.mark.parametrize("header, unknown", [
     ("theta_i,theta_o_deg,wavelength_nm,value,theta_i_deg", "theta_i"),
     ("theta_i_deg,theta_o_deg,wavelength_nm,value,temperature", "temperature"),
-    ("theta_i_deg,theta_o_deg,sample,380,390", "sample"),
+    ("theta_i_deg,theta_o_deg,signal,380,390", "signal"),  # not a label (Name, Sample …)
     ("geometry,theta_i_deg,380,390", "theta_i_deg"),
     ("theta_i_deg,theta_o_deg,380nm,390nm,400", "380nm"),
 ])
@@ -417,3 +418,60 @@ def test_failed_run_keeps_the_previous_artifact(tmp_path, run_gonio):
     assert run_gonio("ingest", bad, "-o", out).exit_code == 2
     assert out.read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.csv", "good.csv", "m.json"]
+
+
+# ---------------------------------------------- instrument exports (fixtures) --
+
+REAL = Path(__file__).resolve().parent / "fixtures" / "real"
+MA_GRID = ("--grid-nm", "400:700:10")
+
+
+def real(name: str) -> str:
+    return (REAL / name).read_text()
+
+
+def test_export_with_two_samples_and_no_sample(refuse):
+    refuse({"two.csv": real("ma_t12_export_two_samples.csv")}, *MA_GRID,
+           expect=["two.csv:16: column Name: holds 2 samples (GREEN_EARTH_A, GREEN_EARTH_B)",
+                   "; pick one with --sample NAME"])
+
+
+def test_export_sample_that_is_not_there(refuse):
+    refuse({"two.csv": real("ma_t12_export_two_samples.csv")}, *MA_GRID, "--sample", "C",
+           expect=["two.csv:3: column Name: holds no sample 'C', only GREEN_EARTH_A, "
+                   "GREEN_EARTH_B"])
+
+
+def test_sample_without_a_sample_column(refuse):
+    refuse({"a.csv": GOOD}, "--sample", "A",
+           expect=["a.csv:1: --sample 'A' is given, but the file has no column naming"])
+
+
+def test_empty_sample(refuse):
+    refuse({"a.csv": GOOD}, "--sample", " ", expect=["a.csv: --sample is empty"])
+
+
+def test_export_in_percent(refuse):
+    line = refuse({"pc.csv": real("ma_t12_export_percent.csv")}, *MA_GRID,
+                  "--quantity", "reflectance-factor",
+                  expect=["the values look like percent", "; pass --scale 0.01"])
+    assert re.match(r"gonio: error: pc\.csv:\d+: column \d+: ", line), line
+
+
+@pytest.mark.parametrize("scale", ["0", "-1", "nan", "inf"])
+def test_scale_must_be_positive(refuse, scale):
+    refuse({"a.csv": GOOD}, "--scale", scale, expect=[f"a.csv: --scale {scale}"
+                                                      if scale != "-1" else "a.csv: --scale -1",
+                                                      "is not a positive number"])
+
+
+def test_export_with_a_misspelt_header(refuse):
+    text = real("ma_t12_export.csv").replace("Geometry", "Geometri")
+    refuse({"x.csv": text}, *MA_GRID,
+           expect=["x.csv:3: column Geometri: unknown column 'Geometri' in the wide layout",
+                   "multi-angle layout header: geometry,"])
+
+
+def test_preamble_without_a_header(refuse):
+    refuse({"p.csv": "QC JOB:,Job 1\nSTANDARD:,X\n1,2,3\n"},
+           expect=["p.csv:1: has no header", "theta_i_deg,theta_o_deg,wavelength_nm,value"])

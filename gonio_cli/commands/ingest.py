@@ -21,12 +21,18 @@ with ASTM E2194 labels such as 45as15). Comma, semicolon (decimal comma allowed)
 delimited; '#' starts a comment line. Several files merge into one artifact; repeated rows
 of a configuration are averaged and their standard deviation kept. Values are converted to
 BRDF (sr^-1) and resampled onto the working grid (with a warning if it differs).
+Instrument exports saved from a spreadsheet are read as they are: preamble lines before
+the header are skipped, label columns (Name, Date/Time, Sample, ID ...) set aside, and of
+a file holding several samples --sample picks one. Values that look like percent are
+refused (--scale 0.01 reads them).
 
 \b
 Example:
   gonio ingest ink_blue_a.csv ink_blue_b.csv -o blue.measurement.json --summary
   gonio ingest ink_green.csv --quantity ratio-to-white --white-reflectance 0.99 \\
       -o green.measurement.json
+  gonio ingest export.csv --sample PANEL_2 --quantity reflectance-factor --scale 0.01 \\
+      --grid-nm 400:700:10 -o panel2.measurement.json
 """
 
 
@@ -42,10 +48,11 @@ def ingest(
     output: Path = typer.Option(
         ..., "--output", "-o", metavar="MEASUREMENT.json", show_default=False,
         help="The measurement artifact to write (gonio.measurement v1)."),
-    quantity: str = typer.Option(
-        "brdf", "--quantity", metavar="NAME",
-        help="What the files hold: brdf (sr^-1), ratio-to-white (over a white standard), "
-             "reflectance-factor (pi x BRDF) or flux-ratio (reflected over incident flux)."),
+    quantity: Optional[str] = _optional(
+        "--quantity", "NAME",
+        "What the files hold: brdf (sr^-1), ratio-to-white (over a white standard), "
+        "reflectance-factor (pi x BRDF) or flux-ratio (reflected over incident flux) "
+        "[default: brdf, with a warning for a multi-angle file]."),
     white_reflectance: Optional[str] = _optional(
         "--white-reflectance", "R|FILE.csv",
         "ratio-to-white only: the white standard's reflectance, a number in (0, 1] or a "
@@ -61,6 +68,14 @@ def ingest(
         "columns) subtracted from every row before the conversion."),
     grid_nm: Optional[str] = _optional(
         "--grid-nm", "START:STOP:STEP", "Working spectral grid in nm [default: 380:780:10]."),
+    scale: Optional[float] = _optional(
+        "--scale", "FACTOR",
+        "Multiply the values by FACTOR (after --dark, before the conversion): 0.01 reads "
+        "percent [default: 1]."),
+    sample: Optional[str] = _optional(
+        "--sample", "NAME",
+        "Of a file holding several samples (a Name, Sample or ID column), the one to read, "
+        "as the file writes it."),
     summary: bool = typer.Option(
         False, "--summary", help="Print what was read (angles, grid, repeats, values, "
                                  "anything dropped or clipped) to stdout."),
@@ -73,12 +88,13 @@ def ingest(
 
     require_files(inputs)
     _refuse_overwriting_an_input(output, inputs, InputError)
-    params = core.resolve_parameters(inputs, quantity=quantity,
-                                     white_reflectance=white_reflectance,
-                                     aperture_mm=aperture_mm, distance_mm=distance_mm,
-                                     dark=dark, grid_nm=grid_nm)
+    options = dict(quantity=quantity, white_reflectance=white_reflectance,
+                   aperture_mm=aperture_mm, distance_mm=distance_mm, dark=dark,
+                   grid_nm=grid_nm, scale=scale, sample=sample)
+    params = core.resolve_parameters(inputs, **options)  # refused before anything is read
     with log.timer() as t:
-        measurement = core.ingest(inputs, **params)
+        # the options as given: the core warns about a default it had to choose
+        measurement = core.ingest(inputs, **options)
     extra = [p for p in (params["dark"], params["white_reflectance"]) if isinstance(p, str)]
     write_measurement(output, measurement, inputs=[*inputs, *extra], parameters=params,
                       time_s=t["time_s"])

@@ -1,0 +1,32 @@
+"""The ``gonio`` entry point, also ``python -m gonio_cli``.
+
+Importing the CLI (typer, click, rich) takes a noticeable part of a second; a Ctrl-C in
+that time arrives before :func:`gonio_cli.cli.run` can turn it into one line. So this
+module imports nothing heavy at its top: :func:`main` imports the CLI inside the same
+``try`` that catches the interrupt, and a Ctrl-C at any point of start-up ends with the
+line every other interrupt gets and exit status 130 (128 + SIGINT), never a traceback.
+"""
+
+from __future__ import annotations
+
+import sys
+
+#: 128 + SIGINT, as :data:`gonio_cli.errors.EXIT_INTERRUPTED` (not imported: that import
+#: could itself be the one interrupted).
+EXIT_INTERRUPTED = 130
+
+
+def main() -> None:
+    """Console entry point: import the CLI, run it, exit with its status."""
+    try:
+        from .cli import run
+
+        code = run()
+    except KeyboardInterrupt:  # during the imports; run() handles its own
+        print("gonio: interrupted; nothing was written", file=sys.stderr)
+        code = EXIT_INTERRUPTED
+    sys.exit(code)
+
+
+if __name__ == "__main__":
+    main()
