@@ -298,3 +298,65 @@ def test_help_first_sentence_is_whole(run_gonio):
     assert r.exit_code == 0 and "<list[" not in r.stdout
     assert "Render a scene to PNG (and EXR): spectral goniochromatic shading on the CPU." \
         in " ".join(r.stdout.split())
+
+
+# -------------------------------------------------------------- --grid-nm, 400-700 nm --
+
+@pytest.fixture
+def material_400_700(run_gonio, tmp_path):
+    """A material gonio fit made from synthetic data on 400-700 nm (as a multi-angle
+    instrument measures), and the test's scene pointing at it."""
+    from gonio_cli.schemas import write_measurement
+    from gonio_cli.synthetic import ink_spectra, paper_geometry, synthetic_measurement
+
+    grid = parse_grid("400:700:10")
+    rho, c = ink_spectra("green", grid)
+    ti, to = paper_geometry(10.0)
+    write_measurement(tmp_path / "g.measurement.json", synthetic_measurement(
+        "goniochromatic", {"alpha": 0.2, "rho": rho, "c": c}, ti, to, grid_nm=grid))
+    r = run_gonio("fit", tmp_path / "g.measurement.json", "-o", tmp_path / "g.json")
+    assert r.exit_code == 0, r.stderr
+    scene = tmp_path / "scene.toml"
+    scene.write_text(textwrap.dedent(SCENE).replace('"red.json"', '"g.json"'))
+    return scene
+
+
+def test_a_400_700_material_renders_without_editing_the_scene(run_gonio, material_400_700,
+                                                              tmp_path):
+    rep = tmp_path / "r.json"
+    r = run_gonio("render", material_400_700, "-o", tmp_path / "a.png", "--exr",
+                  tmp_path / "a.exr", "--report", rep)
+    assert r.exit_code == 0, r.stderr
+    warning, summary = r.stderr.splitlines()
+    assert warning == (f"gonio: warning: {material_400_700}: not every material covers the "
+                       "scene's grid 380-780 nm (g.json 400-700 nm): rendering on their "
+                       "common range 400:700:10 nm (choose another with --grid-nm)")
+    assert summary.startswith(f"{tmp_path / 'a.png'}: 48x32")
+    assert json.loads(rep.read_text())["parameters"]["grid_nm"] == "400:700:10"
+    # --grid-nm: the same grid given explicitly, no warning, the same image
+    r = run_gonio("render", material_400_700, "-o", tmp_path / "b.png", "--exr",
+                  tmp_path / "b.exr", "--grid-nm", "400:700:10")
+    assert r.exit_code == 0 and r.stderr.count("\n") == 1, r.stderr
+    np.testing.assert_array_equal(read_image(tmp_path / "a.exr").pixels,
+                                  read_image(tmp_path / "b.exr").pixels)
+    # a finer grid inside the material's range: resampled with the usual warning
+    r = run_gonio("render", material_400_700, "-o", tmp_path / "c.png", "--grid-nm",
+                  "420:680:5", "--report", rep)
+    assert r.exit_code == 0, r.stderr
+    assert "g.json: material resampled from 31 wavelengths onto the render's grid (53 " \
+           "samples)" in r.stderr
+    assert json.loads(rep.read_text())["parameters"]["grid_nm"] == "420:680:5"
+
+
+@pytest.mark.parametrize("grid, needle", [
+    ("380:780:10", "g.json: covers 400-700 nm, not the render's grid 380-780 nm; choose "
+                   "--grid-nm inside its range"),
+    ("400:700", "--grid-nm '400:700' is not START:STOP:STEP in nm"),
+])
+def test_bad_grid_nm_is_one_line_and_nothing_written(run_gonio, material_400_700, tmp_path,
+                                                     grid, needle):
+    before = set(tmp_path.iterdir())
+    r = run_gonio("render", material_400_700, "-o", tmp_path / "o.png", "--grid-nm", grid)
+    assert r.exit_code == 2 and r.stderr.count("\n") == 1, r.stderr
+    assert needle in r.stderr
+    assert set(tmp_path.iterdir()) == before

@@ -11,9 +11,11 @@ import numpy as np
 import pytest
 
 from gonio_cli.errors import InputError
-from gonio_cli.render.scene import load_scene
+from gonio_cli.evaluate import grid_spec
+from gonio_cli.render.pipeline import render_scene
+from gonio_cli.render.scene import choose_grid, load_scene
 from gonio_cli.schemas import Material, write_material
-from gonio_cli.spectra import cmfs, parse_grid
+from gonio_cli.spectra import cmfs, delta_e_2000, parse_grid, xyz_to_lab
 
 GRID = parse_grid()
 
@@ -260,3 +262,136 @@ def test_sample_scenes_are_valid(tmp_path, name, variables):
         assert sc.objects[0].mask == out / "rgbink/print.png"
         assert sc.objects[0].mesh == str(SCENES / "sheet.obj")
         assert all(("torrance" in str(p)) == ("model" in variables) for p in sc.objects[0].inks)
+
+
+# ------------------------------------------------------------------- spectral grid --
+#
+# The working grid: --grid-nm when given; else the scene's grid when every material
+# covers it; else the materials' common range on the scene grid's lattice, with one
+# warning; materials sharing less than one step are refused.
+
+
+def write_material_on(path: Path, spec: str, rho=0.1, c=2.0) -> Path:
+    grid = parse_grid(spec)
+    write_material(path, Material("goniochromatic", grid, {
+        "alpha": 0.18, "rho": np.full(grid.size, rho), "c": np.full(grid.size, c)}))
+    return path
+
+
+@pytest.mark.parametrize("ranges, spec", [
+    ([("a", 380.0, 780.0)], "380:780:10"),                    # covers: kept, no warning
+    ([("a", 360.0, 830.0), ("b", 380.0, 780.0)], "380:780:10"),
+    ([("a", 400.0, 700.0)], "400:700:10"),
+    ([("a", 400.0, 700.0), ("b", 380.0, 780.0), ("c", 420.0, 780.0)], "420:700:10"),
+    ([("a", 405.0, 695.0)], "410:690:10"),                    # on the scene grid's lattice
+    ([("a", 370.0, 700.0)], "380:700:10"),                    # short at one end only
+])
+def test_choose_grid_keeps_or_intersects(ranges, spec):
+    grid, note = choose_grid(GRID, ranges, where="s.toml")
+    np.testing.assert_allclose(grid, parse_grid(spec), rtol=0, atol=1e-9)
+    kept = spec == "380:780:10"
+    assert (note is None) == kept
+    if not kept:
+        assert note.startswith("s.toml: not every material covers the scene's grid 380-780 nm")
+        assert f"rendering on their common range {spec} nm" in note and "--grid-nm" in note
+        assert "\n" not in note
+
+
+def test_choose_grid_keeps_the_step_of_the_scene_grid():
+    grid, _ = choose_grid(parse_grid("380:780:5"), [("a", 400.0, 700.0)])
+    assert grid_spec(grid) == "400:700:5"
+
+
+@pytest.mark.parametrize("ranges, needle", [
+    ([("a", 400.0, 550.0), ("b", 560.0, 700.0)], "the materials share no range"),
+    ([("a", 400.0, 555.0), ("b", 550.0, 700.0)],
+     "the materials' common range 550-555 nm holds less than one 10 nm step of the scene's "
+     "grid 380-780 nm"),
+    ([("a", 790.0, 900.0), ("b", 400.0, 950.0)],
+     "the materials' common range 790-900 nm holds less than one 10 nm step"),
+])
+def test_choose_grid_refuses_materials_with_no_common_range(ranges, needle):
+    with pytest.raises(InputError) as info:
+        choose_grid(GRID, ranges, where="s.toml")
+    msg = info.value.format()
+    assert msg.startswith("s.toml: ") and needle in msg and "\n" not in msg
+    assert "(a " in msg and ", b " in msg and "--grid-nm" in msg
+
+
+def test_scene_follows_a_400_700_material_with_one_warning(scene_dir, capsys):
+    write_material_on(scene_dir / "red.json", "400:700:10")
+    path = write_scene(scene_dir, CAMERA + OBJECT + LIGHT)
+    capsys.readouterr()
+    sc = load_scene(path)
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "rendering on their common range 400:700:10 nm" in err
+    np.testing.assert_allclose(sc.grid_nm, parse_grid("400:700:10"))
+    assert sc.output.grid_nm == "400:700:10"
+    # the light is made on the chosen grid: Σ S ȳ / Σ ȳ = 1 there (docs/conventions.md)
+    ybar = cmfs(sc.grid_nm)[:, 1]
+    assert sc.lights[0].spectrum.shape == sc.grid_nm.shape
+    assert sc.lights[0].spectrum @ ybar / ybar.sum() == pytest.approx(1.0)
+
+
+def test_explicit_grid_wins_and_is_not_changed(scene_dir, capsys):
+    write_material_on(scene_dir / "red.json", "400:700:10")
+    path = write_scene(scene_dir, CAMERA + OBJECT + LIGHT)
+    capsys.readouterr()
+    sc = load_scene(path, overrides={"grid_nm": "450:650:5"})
+    assert capsys.readouterr().err == ""
+    assert grid_spec(sc.grid_nm) == "450:650:5" and sc.output.grid_nm == "450:650:5"
+    # an explicit grid the material does not cover is kept here; the render refuses it
+    sc = load_scene(path, overrides={"grid_nm": "380:780:10"})
+    assert grid_spec(sc.grid_nm) == "380:780:10"
+    with pytest.raises(InputError, match="covers 400-700 nm, not the render's grid 380-780"):
+        render_scene(sc)
+
+
+def test_bad_grid_option_names_the_option(scene_dir):
+    path = write_scene(scene_dir, CAMERA + OBJECT + LIGHT)
+    with pytest.raises(InputError) as info:
+        load_scene(path, overrides={"grid_nm": "700:400:10"})
+    assert info.value.format().startswith("--grid-nm '700:400:10' needs 0 < START < STOP")
+
+
+def test_inks_with_no_common_range_are_refused(scene_dir):
+    write_material_on(scene_dir / "r.json", "400:540:10")
+    write_material_on(scene_dir / "g.json", "560:700:10")
+    text = CAMERA + LIGHT + """
+    [[object]]
+    mesh = "builtin:plane"
+    inks = ["r.json", "g.json", "g.json"]
+    mask = "print.png"
+    """
+    path = write_scene(scene_dir, text)
+    with pytest.raises(InputError) as info:
+        load_scene(path)
+    msg = info.value.format()
+    assert msg.startswith(f"{path}: the materials share no range (r.json 400-540 nm, "
+                          "g.json 560-700 nm)"), msg
+
+
+def test_grey_on_400_700_looks_like_grey_on_380_780(scene_dir):
+    """A grey material (constant ρ, c = 0) renders nearly the same on 400–700 nm as on
+    380–780 nm: each light spectrum is scaled to Σ S ȳ / Σ ȳ = 1 on its own grid, so only
+    the CIE 1931 2° CMF mass outside 400–700 nm is lost, which this test measures (< 0.3 %
+    of X, Y and Z). A colour shift that small is far below CIEDE2000 1 (a just-noticeable
+    difference); the same comparison sees a third of a stop (× 1.25) of brightness."""
+    full, inside = parse_grid("380:780:10"), parse_grid("400:700:10")
+    lost = 1.0 - cmfs(inside).sum(axis=0) / cmfs(full).sum(axis=0)
+    assert np.all(lost < 0.003), lost
+    xyz = {}
+    for spec in ("380:780:10", "400:700:10"):
+        write_material_on(scene_dir / "grey.json", spec, rho=0.3, c=0.0)
+        sc = load_scene(write_scene(scene_dir, CAMERA + LIGHT + OBJECT.replace(
+            "red.json", "grey.json") + "[output]\nssaa = 1\n"))
+        assert grid_spec(sc.grid_nm) == spec
+        xyz[spec] = render_scene(sc).xyz
+    a, b = xyz["380:780:10"], xyz["400:700:10"]
+    lit = a[..., 1] > 1e-3 * a[..., 1].max()
+    assert lit.sum() > 100
+    white = np.array([0.95047, 1.0, 1.08883]) * a[..., 1].max()   # D65, the brightest Y
+    de = delta_e_2000(xyz_to_lab(a[lit], white), xyz_to_lab(b[lit], white))
+    assert de.mean() < 1.0 and de.max() < 1.0, (de.mean(), de.max())
+    brighter = delta_e_2000(xyz_to_lab(a[lit], white), xyz_to_lab(1.25 * a[lit], white))
+    assert brighter.mean() > 1.0, brighter.mean()                 # the test can fail

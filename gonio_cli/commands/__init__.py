@@ -22,7 +22,7 @@ from typer.core import TyperCommand, TyperGroup
 
 #: Stage shells in pipeline order (module names = command names); each module has
 #: ``register(app)`` and ``EXAMPLE``, and ``gonio --help`` lists the commands in this order.
-STAGES = ("ingest", "fit", "lobes", "halftone", "prefilter", "sparkle", "render", "report")
+STAGES = ("ingest", "fit", "eval", "lobes", "halftone", "prefilter", "sparkle", "render", "report")
 
 #: Characters that make a shell word a pattern (POSIX sh and bash globbing).
 GLOB_CHARACTERS = frozenset("*?[")

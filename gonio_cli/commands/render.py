@@ -33,6 +33,10 @@ def render(
                                         help="Image width (overrides [camera])."),
     height: Optional[int] = typer.Option(None, "--height", metavar="PX",
                                          help="Image height (overrides [camera])."),
+    grid_nm: Optional[str] = typer.Option(
+        None, "--grid-nm", metavar="START:STOP:STEP",
+        help="Working spectral grid in nm (overrides [output]; without it the scene's grid, "
+             "or the materials' common range if they do not cover it)."),
     var: List[str] = typer.Option([], "--var", metavar="NAME=VALUE",
                                   help="Set a ${NAME} of the scene (overrides [vars]); "
                                        "repeatable."),
@@ -46,6 +50,7 @@ def render(
     Example:
       gonio render sample_data/scenes/spheres.toml -o green.png --var material=green
       gonio render scene.toml -o a.png --exr a.exr --ssaa 3 --report run.json
+      gonio render scene.toml -o a.png --grid-nm 400:700:10
     """
     import time
 
@@ -80,7 +85,7 @@ def render(
         sc = load_scene(scene, variables=variables,
                         overrides={"width": width, "height": height, "ssaa": ssaa,
                                    "spectral": spectral, "exposure": exposure,
-                                   "tonemap": tonemap})
+                                   "tonemap": tonemap, "grid_nm": grid_nm})
     stats.time_s["scene"] = t["time_s"]
     frame = render_scene(sc, stats)
     write_outputs(frame, sc, stats, png=output, exr=exr, start=start)

@@ -122,6 +122,12 @@ def load_meshes(scene: Scene) -> list:
     return meshes
 
 
+#: The fix of a material that does not cover the render's grid: only a grid given with
+#: ``--grid-nm`` can do that (otherwise :func:`.scene.choose_grid` follows the materials).
+GRID_FIX = ("choose --grid-nm inside its range, or leave --grid-nm out and the grid "
+            "follows the materials")
+
+
 def on_grid(material, grid_nm: np.ndarray, path: Path):
     """A fitted material with its spectral parameters on the render's grid: resampled
     with a warning when its grid differs (docs/conventions.md), refused when it does not cover."""
@@ -134,7 +140,7 @@ def on_grid(material, grid_nm: np.ndarray, path: Path):
         raise InputError(f"covers {material.wavelength_nm.min():g}-"
                          f"{material.wavelength_nm.max():g} nm, not the render's grid "
                          f"{grid_nm[0]:g}-{grid_nm[-1]:g} nm", path=path,
-                         fix="choose [output] grid_nm inside the material's range")
+                         fix=GRID_FIX)
     log.warn(f"{path}: material resampled from {material.wavelength_nm.size} wavelengths "
              f"onto the render's grid ({grid_nm.size} samples)")
     params = dict(material.params)
@@ -156,7 +162,7 @@ def build_surfaces(scene: Scene, stats: Stats) -> list:
         if path not in materials:
             with _SceneKey(scene, key, path):
                 m = read_material(path)
-            if m.status != "success":
+            if not m.trusted:
                 log.warn(f"{path}: a fit with status {m.status!r} is rendered")
             materials[path] = on_grid(m, scene.grid_nm, path)
         return materials[path]
@@ -228,7 +234,7 @@ def load_measured(path: Path, grid_nm: np.ndarray):
         if not covers(m.wavelength_nm, grid_nm):
             raise InputError(f"covers {m.wavelength_nm.min():g}-{m.wavelength_nm.max():g} "
                              f"nm, not the render's grid {grid_nm[0]:g}-{grid_nm[-1]:g} nm",
-                             path=path, fix="choose [output] grid_nm inside its range")
+                             path=path, fix=GRID_FIX)
         log.warn(f"{path}: measurement resampled from {m.wavelength_nm.size} wavelengths "
                  f"onto the render's grid ({grid_nm.size} samples)")
         m = replace(m, wavelength_nm=np.asarray(grid_nm, float),

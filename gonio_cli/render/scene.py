@@ -25,6 +25,12 @@ Sections (see ``docs/render.md``)::
     [environment]  prefiltered (a gonio prefilter index.json)            (optional)
     [output]       exposure (stops), tonemap, ssaa, spectral, grid_nm, background
 
+The working spectral grid (:func:`choose_grid`): ``--grid-nm`` when given; else the
+scene's ``[output] grid_nm`` (default 380:780:10) when every material covers it; else the
+materials' common range at the step of the scene's grid, with one warning saying so (a
+material measured on 400–700 nm renders without editing the scene). Materials that share
+no range are refused.
+
 Light spectra are CIE illuminants by name (colour-science: ``D65``, ``A``, ``FL2`` …) or
 a CSV ``wavelength_nm,value``, resampled onto the working grid (with a warning when the
 CSV is on another grid) and scaled so that Σ S ȳ / Σ ȳ = 1 (docs/conventions.md).
@@ -32,17 +38,19 @@ CSV is on another grid) and scaled so that Σ S ȳ / Σ ȳ = 1 (docs/conventions
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import re
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
 
 from ..errors import InputError
+from ..spectra import grid_spec
 from . import Camera, Light
 
 #: Built-in meshes (``mesh = "builtin:NAME"``); anything else is an OBJ path.
@@ -298,7 +306,8 @@ def load_scene(path: str | os.PathLike, *, variables: Mapping[str, str] | None =
     path : the TOML file; every relative path in it is relative to its folder.
     variables : ``${name}`` values that override the scene's ``[vars]`` (``--var``).
     overrides : command-line settings that replace the file's: ``width``, ``height``
-        (camera), ``ssaa``, ``spectral``, ``exposure``, ``tonemap`` (output); None = keep.
+        (camera), ``ssaa``, ``spectral``, ``exposure``, ``tonemap``, ``grid_nm`` (output;
+        a ``grid_nm`` given here is used as it is, :func:`choose_grid`); None = keep.
 
     Raises
     ------
@@ -335,9 +344,12 @@ def load_scene(path: str | os.PathLike, *, variables: Mapping[str, str] | None =
     output = _output(chk, doc, overrides)
     from ..spectra import parse_grid
 
+    explicit_grid = "grid_nm" in overrides
     try:
         grid = parse_grid(output.grid_nm)
     except InputError as exc:
+        if explicit_grid:
+            raise                                   # names --grid-nm and its value
         raise chk.error("[output] grid_nm", exc.message, exc.fix) from None
 
     objects_raw = doc.get("object")
@@ -346,6 +358,14 @@ def load_scene(path: str | os.PathLike, *, variables: Mapping[str, str] | None =
     if not isinstance(objects_raw, list):
         raise chk.error("object", "is a table, expected [[object]] (an array of tables)")
     objects = [_object(chk, o, k + 1) for k, o in enumerate(objects_raw)]
+    if not explicit_grid:
+        chosen, note = choose_grid(grid, spectral_ranges(objects), where=display)
+        if note:
+            from .. import log
+
+            log.warn(note)
+            grid = chosen
+            output = replace(output, grid_nm=grid_spec(grid))
 
     lights_raw = doc.get("light", [])
     if not isinstance(lights_raw, list):
@@ -415,7 +435,8 @@ def _output(chk: _Checker, doc, overrides) -> Output:
     chk.keys(out, OUTPUT_KEYS, where)
     d = Output()
     src = {**out, **{k: v for k, v in overrides.items() if k in OUTPUT_KEYS}}
-    label = lambda k: f"--{k}" if k in overrides else f"{where} {k}"  # noqa: E731
+    label = (lambda k: f"--{k.replace('_', '-')}" if k in overrides  # noqa: E731
+             else f"{where} {k}")
     return Output(
         exposure=chk.number(src.get("exposure", d.exposure), label("exposure")),
         tonemap=chk.choice(src.get("tonemap", d.tonemap), label("tonemap"), tuple(TONEMAPS)),
@@ -576,3 +597,82 @@ def light_spectrum(chk: _Checker, value, where: str, grid: np.ndarray) -> np.nda
     if not y > 0:
         raise chk.error(where, f"{s}: has no visible power (Σ S ȳ = 0)")
     return spec * ybar.sum() / y
+
+
+# ------------------------------------------------------------------------ spectral grid --
+
+def _wavelength_range(path: Path) -> tuple[float, float] | None:
+    """(min, max) of a material's or measurement's ``wavelength_nm``, or None if the file
+    cannot be read so (the full read of the pipeline then names the problem)."""
+    try:
+        w = np.asarray(json.loads(path.read_text(encoding="utf-8"))["wavelength_nm"],
+                       dtype=float)
+    except (OSError, ValueError, KeyError, TypeError, IndexError):
+        return None
+    if w.ndim != 1 or w.size == 0 or not np.all(np.isfinite(w)):
+        return None
+    return float(w.min()), float(w.max())
+
+
+def spectral_ranges(objects: list[SceneObject]) -> list[tuple[str, float, float]]:
+    """(file name, min nm, max nm) of every material, ink and measured reference of the
+    scene's objects, each file once (only ``wavelength_nm`` is looked at here)."""
+    seen: dict[Path, tuple[str, float, float] | None] = {}
+    for o in objects:
+        for p in (o.material, o.measured, *(o.inks or [])):
+            if p is not None and p not in seen:
+                r = _wavelength_range(p)
+                seen[p] = None if r is None else (p.name, *r)
+    return [r for r in seen.values() if r is not None]
+
+
+#: What to do with materials that share no spectral range.
+REFIT_FIX = "re-ingest and refit them on one grid (gonio ingest --grid-nm)"
+
+
+def choose_grid(grid_nm: np.ndarray, ranges, where: str = "") -> tuple[np.ndarray, str | None]:
+    """The working grid of a scene whose materials span ``ranges``.
+
+    Parameters
+    ----------
+    grid_nm : (n_λ,) the scene's grid (``[output] grid_nm`` or its default), evenly spaced.
+    ranges : [(name, min nm, max nm)] of the materials (:func:`spectral_ranges`).
+    where : the scene file as the user named it, for the messages.
+
+    Returns
+    -------
+    (grid, note) : ``grid_nm`` itself and None when every material covers it (each is
+    then resampled onto it); otherwise the samples of ``grid_nm`` inside every material's
+    range (its step, a subset of its samples), and the one-line warning that says so.
+
+    Raises
+    ------
+    InputError : the materials share less than one step of the grid.
+    """
+    from ..spectra import WAVELENGTH_TOL_NM, covers
+
+    g = np.asarray(grid_nm, dtype=float)
+    short = [r for r in ranges if not covers([r[1], r[2]], g)]
+    if not short:
+        return g, None
+    spans = ", ".join(f"{name} {a:g}-{b:g} nm" for name, a, b in ranges)
+    lo, hi = max(r[1] for r in ranges), min(r[2] for r in ranges)
+    if hi < lo:
+        raise InputError(f"the materials share no range ({spans})", path=where or None,
+                         fix=REFIT_FIX)
+    step = float(g[1] - g[0])
+    tol = WAVELENGTH_TOL_NM / step
+    # the scene grid's samples inside [lo, hi]: never beyond the scene's own range
+    k0 = max(0, math.ceil((lo - g[0]) / step - tol))
+    k1 = min(g.size - 1, math.floor((hi - g[0]) / step + tol))
+    if k1 <= k0:
+        raise InputError(f"the materials' common range {lo:g}-{hi:g} nm holds less than one "
+                         f"{step:g} nm step of the scene's grid {g[0]:g}-{g[-1]:g} nm "
+                         f"({spans})", path=where or None, fix=REFIT_FIX)
+    chosen = g[0] + step * np.arange(k0, k1 + 1)
+    named = ", ".join(f"{name} {a:g}-{b:g} nm" for name, a, b in short[:3]) + (
+        ", ..." if len(short) > 3 else "")
+    note = (f"{where + ': ' if where else ''}not every material covers the scene's grid "
+            f"{g[0]:g}-{g[-1]:g} nm ({named}): rendering on their common range "
+            f"{grid_spec(chosen)} nm (choose another with --grid-nm)")
+    return chosen, note

@@ -1,0 +1,84 @@
+"""``gonio eval``: the thin shell over :mod:`gonio_cli.evaluate`."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+
+def evaluate(
+    material: Path = typer.Argument(..., metavar="MATERIAL.json", show_default=False,
+                                   help="A gonio.material file (gonio fit)."),
+    at: Path = typer.Option(..., "--at", metavar="MEASUREMENT.json",
+                            help="A gonio.measurement file (gonio ingest) whose "
+                                 "configurations and spectral grid the model is evaluated at."),
+    output: Path = typer.Option(..., "--output", "-o", metavar="OUT.json",
+                                help="The gonio.measurement file to write (quantity brdf)."),
+    plot: Optional[Path] = typer.Option(None, "--plot", metavar="FILE.png",
+                                        help="Also draw data against model (seed 000 "
+                                             "Figure 4 layout, PNG)."),
+) -> None:
+    """Evaluate a fitted material at a measurement's configurations, as a measurement.
+
+    The output has the measurement's angles and wavelengths and the model's BRDF
+    (sr⁻¹, no cosine factor), so data and model compare row for row in any tool.
+
+    \b
+    Example:
+      gonio eval red.material.json --at red.measurement.json -o red.model.json --plot red.png
+    """
+    from .. import log
+    from ..errors import InputError
+    from ..evaluate import evaluate_at, model_parameters
+    from ..schemas import read_material, read_measurement, write_measurement
+    from . import require_files
+
+    require_files([material], missing_fix="check the path or make it with gonio fit")
+    require_files([at], missing_fix="check the path or make it with gonio ingest")
+    for flag, path in (("-o", output), ("--plot", plot)):
+        if path is None:
+            continue
+        for name, given in (("the material", material), ("--at", at)):
+            if _same_file(path, given):
+                raise InputError(f"{flag} {path} is {name} ({given}): it would be overwritten",
+                                 fix=f"choose another {flag}")
+    if plot is not None and _same_file(plot, output):
+        raise InputError(f"--plot {plot} is also -o", fix="choose another --plot")
+    if plot is not None and plot.suffix.lower() != ".png":
+        raise InputError(f"--plot {plot}: the plot is written as PNG", fix="name it *.png")
+    mat = read_material(material)
+    data = read_measurement(at)
+    if not mat.trusted:
+        log.warn(f"{material}: a fit with status {mat.status!r} is evaluated")
+    with log.timer() as t:
+        model = evaluate_at(mat, data, material_path=material, measurement_path=at)
+    parameters = {"material": str(material), "at": str(at), **model_parameters(mat)}
+    write_measurement(output, model, inputs=[material, at], parameters=parameters,
+                      time_s=t["time_s"])
+    if plot is not None:
+        from ..fit.plot import plot_fit
+
+        plot_fit(plot, data, mat, title=f"{at.name} against {material.name} ({mat.model})")
+    log.info(f"{output}: {mat.model} at {data.n_configurations} configurations x "
+             f"{data.wavelength_nm.size} wavelengths of {at}")
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    """Do two paths name the same file (the same path, or a link to it)?"""
+    import os
+
+    if a.exists() and b.exists():
+        return os.path.samefile(a, b)
+    return os.path.abspath(a) == os.path.abspath(b)
+
+
+EXAMPLE = ("gonio eval red.material.json --at red.measurement.json -o red.model.json "
+           "--plot red.model.png")
+
+SHORT_HELP = "Evaluate a fitted material at a measurement's configurations, as a measurement."
+
+
+def register(app: typer.Typer) -> None:
+    app.command("eval", short_help=SHORT_HELP)(evaluate)

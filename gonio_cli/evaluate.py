@@ -1,0 +1,82 @@
+"""A material's model evaluated at a measurement's configurations (``gonio eval``).
+
+The result is a :class:`~gonio_cli.schemas.Measurement` on the measurement's own grid
+and geometry, quantity ``brdf`` (sr⁻¹, no cosine factor, docs/conventions.md), so that
+data and model can be compared row for row in any tool that reads ``gonio.measurement``.
+The model is evaluated once per configuration through :meth:`Material.evaluate` (the
+one code path of :mod:`gonio_cli.brdf`); nothing is resampled: a material on another
+spectral grid is refused.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any
+
+import numpy as np
+
+from .errors import InputError
+from .geometry import in_plane_cosines
+from .schemas import Material, Measurement
+from .spectra import grid_spec, same_grid
+
+
+def _grid_text(wavelength_nm) -> str:
+    w = np.asarray(wavelength_nm, dtype=float)
+    return f"{w[0]:g}-{w[-1]:g} nm ({w.size} wavelengths)"
+
+
+def check_same_grid(material: Material, measurement: Measurement, *,
+                    material_path=None, measurement_path=None) -> None:
+    """Refuse a material whose spectral grid is not the measurement's (one line, with the
+    ``--grid-nm`` that re-ingesting the measurement needs)."""
+    if same_grid(material.wavelength_nm, measurement.wavelength_nm):
+        return
+    spec = grid_spec(material.wavelength_nm)
+    fix = (f"re-ingest the measurement with --grid-nm {spec} (the material's grid)"
+           if spec else "re-ingest the measurement with --grid-nm on the material's grid")
+    whose = (f"the material's ({os.fspath(material_path)})" if material_path is not None
+             else "the material's")
+    raise InputError(f"spectral grid {_grid_text(measurement.wavelength_nm)} is not "
+                     f"{whose} {_grid_text(material.wavelength_nm)}",
+                     path=measurement_path, fix=fix)
+
+
+def evaluate_at(material: Material, measurement: Measurement, *, material_path=None,
+                measurement_path=None) -> Measurement:
+    """The model of ``material`` at every configuration of ``measurement``.
+
+    Returns
+    -------
+    Measurement
+        Same ``wavelength_nm`` (n_λ,), ``theta_i_deg`` and ``theta_o_deg`` (n_cfg,) as
+        ``measurement``; ``brdf`` (n_cfg, n_λ) the model in sr⁻¹ (no cosine factor);
+        no ``brdf_std``; ``n_repeats`` 1; quantity ``brdf``; ``summary`` naming the model.
+
+    Raises
+    ------
+    InputError
+        The two spectral grids differ (:func:`check_same_grid`).
+    """
+    check_same_grid(material, measurement, material_path=material_path,
+                    measurement_path=measurement_path)
+    f = material.evaluate(in_plane_cosines(measurement.theta_i_deg, measurement.theta_o_deg))
+    n = measurement.n_configurations
+    return Measurement(measurement.wavelength_nm.copy(), measurement.theta_i_deg.copy(),
+                       measurement.theta_o_deg.copy(), np.asarray(f, dtype=float), None,
+                       np.ones(n, dtype=int), "brdf",
+                       {"model": material.model, "material_status": material.status,
+                        "configurations": n,
+                        "brdf_min_per_sr": float(np.min(f)) if f.size else 0.0,
+                        "brdf_max_per_sr": float(np.max(f)) if f.size else 0.0})
+
+
+def model_parameters(material: Material) -> dict[str, Any]:
+    """The model as the ``parameters`` of an evaluated measurement: its name, its
+    citation and every parameter (scalars as numbers, spectra as lists)."""
+    from .brdf import MODELS
+
+    return {"model": material.model, "citation": MODELS[material.model].citation,
+            "status": material.status,
+            "params": {k: (np.asarray(v, dtype=float) if np.ndim(v) else float(v))
+                       for k, v in material.params.items()}}
