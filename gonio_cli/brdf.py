@@ -220,6 +220,37 @@ def cook_torrance(cos: Cosines, kd, ks, m, f0) -> np.ndarray:
     return kd / np.pi + spec * cook_torrance_specular_geometry(cos, m)
 
 
+# ------------------------------------------------------------------ real surfaces --
+
+def lambertian(rho_d) -> np.ndarray:
+    """A Lambertian term ρ_d(λ)/π in sr⁻¹ (paper, binder, a diffuse base coat)."""
+    return np.asarray(rho_d, dtype=float) / np.pi
+
+
+def goniochromatic_diffuse(cos: Cosines, alpha, rho, c, rho_d) -> np.ndarray:
+    """Seed 000 eq. (5) plus a Lambertian term: f = ρ_d(λ)/π + eq. 5(α, ρ, c), sr⁻¹.
+
+    The structural-colour layer over a diffusely reflecting substrate or binder. ``rho_d``:
+    (..., n_λ) diffuse albedo; the rest as :func:`goniochromatic`.
+    """
+    return lambertian(rho_d) + goniochromatic(cos, alpha, rho, c)
+
+
+def goniochromatic_coat(cos: Cosines, alpha, rho, c, rho_d, alpha_coat, k_coat,
+                        f0_coat) -> np.ndarray:
+    """Seed 000 eq. (5), a Lambertian term and an achromatic clear coat, sr⁻¹:
+
+    f = ρ_d(λ)/π + eq. 5(α, ρ, c) + k_coat F(θd; F0_coat) G D(θh; α_coat) / (4 cos θi cos θo),
+
+    the coat a Torrance–Sparrow lobe (:func:`torrance_sparrow`, GGX D, Smith G, Schlick F)
+    with one F0 for every wavelength (a clear dielectric over the colour-shifting layer:
+    F0 = ((n − 1)/(n + 1))², 0.04 for n = 1.5) and a scale ``k_coat`` (1 for a coat that
+    covers the sample and reflects as a smooth dielectric; less for a partial or thin one).
+    """
+    coat = torrance_sparrow(cos, alpha_coat, np.atleast_1d(np.asarray(f0_coat, dtype=float)))
+    return goniochromatic_diffuse(cos, alpha, rho, c, rho_d) + float(k_coat) * coat
+
+
 # ----------------------------------------------------------------------------- registry --
 
 @dataclass(frozen=True)
@@ -244,6 +275,12 @@ MODELS: dict[str, Model] = {
                               "seed 000 eq. 2 with GGX D, Smith G, Schlick F"),
     "cook-torrance": Model("cook-torrance", (), ("kd", "ks", "m", "f0"), cook_torrance,
                            "seed 004 eqs. 9-12"),
+    "goniochromatic-diffuse": Model("goniochromatic-diffuse", ("alpha",), ("rho", "c", "rho_d"),
+                                    goniochromatic_diffuse, "seed 000 eq. 5 + Lambertian"),
+    "goniochromatic-coat": Model("goniochromatic-coat",
+                                 ("alpha", "alpha_coat", "k_coat", "f0_coat"),
+                                 ("rho", "c", "rho_d"), goniochromatic_coat,
+                                 "seed 000 eq. 5 + Lambertian + GGX clear coat"),
 }
 
 

@@ -21,7 +21,10 @@ from .commands import STAGES, Group, apply_help_style
 from .errors import EXIT_INTERRUPTED, EXIT_USAGE, GonioError
 
 #: Stage shells in pipeline order; each module has ``register(app)`` and ``EXAMPLE``.
-COMMAND_MODULES = STAGES
+#: ``eval`` (the model at a measurement's configurations) follows ``fit``.
+COMMAND_MODULES = (STAGES if "eval" in STAGES else
+                   STAGES[:STAGES.index("fit") + 1] + ("eval",)
+                   + STAGES[STAGES.index("fit") + 1:])
 
 
 def _modules():
@@ -92,7 +95,7 @@ def run(argv: Sequence[str] | None = None) -> int:
         return _interrupted() if code == EXIT_INTERRUPTED else code
     except GonioError as exc:
         print(f"gonio: error: {exc.format()}", file=sys.stderr)
-        return EXIT_USAGE
+        return exc.exit_code
     except SystemExit as exc:
         code = exc.code
         return code if isinstance(code, int) else (0 if code is None else 1)

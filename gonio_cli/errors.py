@@ -16,6 +16,10 @@ import os
 #: Exit status for every error the user can fix (bad input, bad options, untrustworthy fit).
 EXIT_USAGE = 2
 
+#: Exit status of a fit that ran but is poor against a limit the user set
+#: (``gonio fit --max-error``): not bad input, a result below the bar; nothing written.
+EXIT_POOR_FIT = 3
+
 #: Exit status of a run stopped by Ctrl-C: 128 + SIGINT (2), what a shell reports for a
 #: process the signal ended, so ``make`` and shell loops stop too.
 EXIT_INTERRUPTED = 130
@@ -37,6 +41,9 @@ class GonioError(Exception):
     fix : str, optional
         What the user can do about it.
     """
+
+    #: The process's exit status when this error ends a command.
+    exit_code = EXIT_USAGE
 
     def __init__(self, message: str, *, path=None, row: int | None = None,
                  column: str | None = None, fix: str | None = None):
@@ -74,6 +81,12 @@ class ArtifactError(GonioError):
 
 class FitError(GonioError):
     """A fit that cannot be trusted (no signal, too few configurations, non-finite result)."""
+
+
+class PoorFitError(FitError):
+    """A fit that ran but misses the user's limit (``--max-error``): exit status 3."""
+
+    exit_code = EXIT_POOR_FIT
 
 
 class WriteError(GonioError, OSError):

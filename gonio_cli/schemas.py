@@ -142,7 +142,7 @@ def write_measurement(path: str | os.PathLike, m: Measurement, **envelope) -> di
 
 @dataclass
 class Material:
-    """A fitted reflectance model (``gonio.material`` v1), read by lobes and render.
+    """A fitted reflectance model (``gonio.material`` v2), read by lobes and render.
 
     Attributes
     ----------
@@ -151,7 +151,9 @@ class Material:
     params : the model's parameters by name: scalars (``alpha``) as float, spectra
         (``rho``, ``c``, ``f0``, ``kd`` …) as (n_λ,) arrays. Written at the top level of
         the artifact, so a material reads like the paper: ``alpha``, ``rho``, ``c``.
-    status : "success" or "failed" (a failed fit is written only on request).
+    status : the fit's verdict, "good", "poor" or "failed" (:mod:`gonio_cli.fit.verdict`;
+        a failed fit is written only on request). Version 1 files said "success" or
+        "failed"; they are read as they are.
     fit : how it was obtained: ``final`` (the method whose parameters these are) and
         ``methods`` (per method: parameters, errors, optimiser, evaluations, time_s).
     """
@@ -159,12 +161,20 @@ class Material:
     model: str
     wavelength_nm: np.ndarray
     params: dict[str, Any]
-    status: str = "success"
+    status: str = "good"
     fit: dict[str, Any] = field(default_factory=dict)
 
     SCHEMA = "gonio.material"
-    VERSION = 1
+    VERSION = 2
+    #: Versions read: 1 (status success/failed) and 2 (status good/poor/failed).
+    READ_VERSIONS = (1, 2)
+    STATUSES = {1: ("success", "failed"), 2: ("good", "poor", "failed")}
     FIELDS = ("model", "wavelength_nm", "status", "fit")
+
+    @property
+    def trusted(self) -> bool:
+        """True for a fit whose verdict is good (v2) or success (v1)."""
+        return self.status in ("good", "success")
 
     def to_payload(self) -> dict[str, Any]:
         out: dict[str, Any] = {"model": self.model, "status": self.status,
@@ -199,13 +209,21 @@ class Material:
             if params[name].shape != wl.shape:
                 raise ArtifactError(f"field {name!r} has {params[name].size} values for "
                                     f"{wl.size} wavelengths", path=path)
-        return cls(model, wl, params, str(doc.get("status", "success")),
-                   dict(doc.get("fit") or {}))
+        version = doc.get("schema_version", cls.VERSION)
+        status = doc.get("status", cls.STATUSES.get(version, ("good",))[0])
+        if status not in cls.STATUSES.get(version, ()):
+            raise ArtifactError(f"field 'status' is {status!r}", path=path,
+                                fix=f"version {version} uses one of "
+                                    f"{', '.join(cls.STATUSES.get(version, ()))}")
+        fit = doc.get("fit") or {}
+        if not isinstance(fit, dict):
+            raise ArtifactError("field 'fit' is not an object", path=path)
+        return cls(model, wl, params, str(status), dict(fit))
 
 
 def read_material(path: str | os.PathLike) -> Material:
     """Read and validate a ``gonio.material`` artifact."""
-    doc = read_artifact(path, Material.SCHEMA, (Material.VERSION,))
+    doc = read_artifact(path, Material.SCHEMA, Material.READ_VERSIONS)
     return Material.from_document(doc, path=path)
 
 

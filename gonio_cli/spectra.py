@@ -45,6 +45,22 @@ def parse_grid(spec: str = DEFAULT_GRID_NM) -> np.ndarray:
     return start + step * np.arange(int(round(n)) + 1)
 
 
+def grid_spec(wavelength_nm) -> str | None:
+    """``"START:STOP:STEP"`` of an evenly spaced grid (as ``--grid-nm`` takes it), or None
+    for an uneven one: the inverse of :func:`gonio_cli.spectra.parse_grid`.
+
+    >>> grid_spec([400.0, 410.0, 420.0])
+    '400:420:10'
+    """
+    w = np.asarray(wavelength_nm, dtype=float)
+    if w.size < 2:
+        return None
+    steps = np.diff(w)
+    if np.ptp(steps) > WAVELENGTH_TOL_NM:
+        return None
+    return f"{w[0]:g}:{w[-1]:g}:{steps[0]:g}"
+
+
 def covers(wavelength_nm_in, grid_nm) -> bool:
     """True if the input wavelengths span the whole grid (no extrapolation needed)."""
     w = np.asarray(wavelength_nm_in, dtype=float)

@@ -7,8 +7,12 @@ from typing import List, Optional
 
 import typer
 
-MODELS = ("goniochromatic", "torrance-sparrow", "cook-torrance")
 OPTIMIZER_NAMES = ("nlopt-bobyqa", "nlopt-lbfgs", "scipy-least-squares")
+#: Mirrors gonio_cli.fit.MODEL_CHOICES and fit.common.RESIDUALS (the help must not import
+#: the fit package: a test checks these against the registries).
+MODEL_NAMES = ("goniochromatic", "goniochromatic-diffuse", "goniochromatic-coat",
+               "torrance-sparrow", "cook-torrance", "auto")
+RESIDUAL_NAMES = ("compressive", "log", "linear")
 
 
 def fit(
@@ -17,37 +21,59 @@ def fit(
     output: Path = typer.Option(..., "--output", "-o", metavar="MATERIAL.json",
                                 help="The gonio.material file to write."),
     model: str = typer.Option("goniochromatic", "--model", "-m", metavar="NAME",
-                              help=f"One of: {', '.join(MODELS)}."),
+                              help=f"One of: {', '.join(MODEL_NAMES)} (auto: every model, "
+                                   "the best on held-out angles of incidence)."),
     refine: bool = typer.Option(True, "--refine/--no-refine",
                                 help="Fit alpha, rho, c jointly after seed 000's two steps."),
     step2: str = typer.Option("mirror", "--step2", metavar="mirror|all",
                               help="Configurations of the paper's step 2: mirror (eq. 7) or all."),
     exclude_theta_i: List[float] = typer.Option(
-        [], "--exclude-theta-i", metavar="DEG", help="Leave out an angle of incidence (deg); repeatable."),
-    residuals: str = typer.Option("log", "--residuals", metavar="log|linear", help="log (multiplicative noise) or linear."),
+        [], "--exclude-theta-i", "--exclude-theta-i-deg", metavar="DEG",
+        help="Leave out an angle of incidence (deg); repeatable."),
+    exclude_theta_o: List[float] = typer.Option(
+        [], "--exclude-theta-o", "--exclude-theta-o-deg", metavar="DEG",
+        help="Leave out a detector angle (deg, signed); repeatable."),
+    weights: Optional[Path] = typer.Option(
+        None, "--weights", metavar="WEIGHTS.csv",
+        help="Weights by configuration: CSV theta_i_deg,theta_o_deg,weight (unlisted: 1; "
+             "0 leaves one out)."),
+    residuals: str = typer.Option(
+        "compressive", "--residuals", metavar="|".join(RESIDUAL_NAMES),
+        help="compressive (peak and tail alike, default), log (multiplicative noise) or "
+             "linear."),
     std_weights: bool = typer.Option(True, "--std-weights/--no-std-weights",
                                      help="Weight by brdf_std of the repeats when present."),
     optimizer: str = typer.Option("nlopt-bobyqa", "--optimizer", metavar="NAME",
                                   help=f"One of: {', '.join(OPTIMIZER_NAMES)}."),
     alpha: Optional[float] = typer.Option(None, "--alpha", metavar="ALPHA",
                                           help="Fix the roughness instead of fitting it."),
+    max_error: Optional[float] = typer.Option(
+        None, "--max-error", metavar="DE00",
+        help="Largest acceptable mean CIEDE2000 of the model against the data; a fit above "
+             "it (or otherwise poor) exits 3 and writes nothing."),
     plot: Optional[Path] = typer.Option(None, "--plot", metavar="FIT.png",
                                         help="Also draw seed 000 Figure 4 for this fit (PNG)."),
     on_failure: str = typer.Option(
         "error", "--on-failure", metavar="error|write",
         help="error: exit 2 and write nothing; write: write the material with status failed."),
 ) -> None:
-    """Fit a reflectance model to a measurement (seed 000 eqs. 1-7; seed 004 eqs. 9-14).
+    """Fit a reflectance model to a measurement and judge it (seed 000 eqs. 1-7; seed 004
+    eqs. 9-14).
+
+    Prints the model, its relative RMSE, its colour error against the data (mean and
+    worst CIEDE2000, D65, 10 degree observer), the worst configuration and a verdict:
+    good, poor or failed (thresholds in docs/fit.md), which is also the material's status.
 
     \b
     Example:
       gonio fit red.measurement.json -o red.material.json --exclude-theta-i 70 --plot red.png
-      gonio fit red.measurement.json -o red.ts.json --model torrance-sparrow
+      gonio fit wrap.measurement.json -o wrap.material.json --model auto
     """
     from .. import log
-    from ..errors import FitError, InputError
+    from ..errors import FitError, InputError, PoorFitError
+    from ..fit import MODEL_CHOICES, judge, to_material
     from ..fit import fit as run_fit
-    from ..fit import to_material
+    from ..fit import fit_auto
     from ..fit.common import FitOptions, check_optimizer, prepare
     from ..schemas import read_measurement, write_material
     from . import require_files
@@ -55,58 +81,188 @@ def fit(
     require_files([measurement], missing_fix="check the path or make it with gonio ingest")
     if on_failure not in ("error", "write"):
         raise InputError(f"--on-failure {on_failure!r} is unknown", fix="use error or write")
+    if model not in MODEL_CHOICES:
+        raise InputError(f"--model {model!r} is unknown",
+                         fix=f"use one of {', '.join(MODEL_CHOICES)}")
+    if max_error is not None and not (max_error > 0 and max_error < 1e3):
+        raise InputError(f"--max-error {max_error:g} is not a CIEDE2000 limit",
+                         fix="give a number in (0, 1000), e.g. 1.0")
     check_optimizer(optimizer)
     m = read_measurement(measurement)
+    w = read_weights(weights, m) if weights is not None else None
+    options = FitOptions(refine=refine, step2=step2, optimizer=optimizer, alpha=alpha)
+    extra = {}
     with log.timer() as t:
         data = prepare(m, residuals=residuals, exclude_theta_i_deg=exclude_theta_i,
+                       exclude_theta_o_deg=exclude_theta_o, weights=w,
                        use_std=std_weights, path=measurement)
-        result = run_fit(data, model, FitOptions(refine=refine, step2=step2,
-                                                 optimizer=optimizer, alpha=alpha))
-    material = to_material(result)
+        if model == "auto":
+            result, candidates = fit_auto(data, options)
+            extra["auto"] = {"criterion": "mean CIEDE2000 on each angle of incidence left "
+                                          "out in turn", "chosen": result.model,
+                             "candidates": [c.to_dict() for c in candidates]}
+        else:
+            result = run_fit(data, model, options)
+        judgement = judge(data, result, max_error)
     final = result.result
     if not final.success:
         if on_failure == "error":
-            raise FitError(f"{measurement}: the {model} fit cannot be trusted: {final.message}",
-                           fix="see --on-failure write to keep it anyway")
+            raise FitError(f"{measurement}: the {result.model} fit cannot be trusted: "
+                           f"{final.message}", fix="see --on-failure write to keep it anyway")
         log.warn(f"{output}: written with status failed: {final.message}")
-    if data.excluded.get("non_positive_values"):
+    elif judgement["verdict"] == "poor" and max_error is not None:
+        raise PoorFitError(f"{measurement}: the {result.model} fit is poor: "
+                           f"{'; '.join(judgement['reasons'])}; nothing written",
+                           fix="try --model auto, or raise --max-error")
+    if data.excluded.get("non_positive_values") and residuals == "log":
         log.warn(f"{measurement}: {data.excluded['non_positive_values']} non-positive values "
                  "left out of the log-residual fit")
+    material = to_material(result, judgement, extra)
     parameters = {"model": model, "refine": refine, "step2": step2,
-                  "exclude_theta_i_deg": list(exclude_theta_i), "residuals": residuals,
-                  "std_weights": std_weights, "optimizer": optimizer, "alpha": alpha,
-                  "on_failure": on_failure}
-    write_material(output, material, inputs=[measurement], parameters=parameters,
+                  "exclude_theta_i_deg": list(exclude_theta_i),
+                  "exclude_theta_o_deg": list(exclude_theta_o),
+                  "weights": str(weights) if weights is not None else None,
+                  "residuals": residuals, "std_weights": std_weights, "optimizer": optimizer,
+                  "alpha": alpha, "max_error": max_error, "on_failure": on_failure}
+    inputs = [measurement] + ([weights] if weights is not None else [])
+    write_material(output, material, inputs=inputs, parameters=parameters,
                    time_s=t["time_s"])
     if plot is not None:
         from ..fit.plot import plot_fit
 
-        plot_fit(plot, m, material, title=f"{Path(measurement).name}: {model}",
+        plot_fit(plot, m, material, title=f"{Path(measurement).name}: {result.model}",
                  excluded_theta_i_deg=exclude_theta_i)
     log.info(summary_line(output, result))
+    if model == "auto":
+        log.info(auto_line(extra["auto"]))
+    log.info(verdict_line(output, result, judgement))
+    if judgement["verdict"] == "poor" and model != "auto":
+        hint = better_model_hint(data, result, judgement, options)
+        if hint:
+            log.info(hint)
+
+
+def read_weights(path: Path, m) -> "np.ndarray":
+    """Per-configuration weights (N,) from a CSV theta_i_deg,theta_o_deg,weight; 1 for the
+    configurations it does not list. Every row must name a measured configuration."""
+    import csv
+
+    import numpy as np
+
+    from ..errors import InputError
+    from . import require_files
+
+    require_files([path], missing_fix="check the path")
+    w = np.ones(m.theta_i_deg.shape)
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as fh:
+            rows = list(csv.reader(line for line in fh if not line.lstrip().startswith("#")))
+    except UnicodeDecodeError:
+        raise InputError("is not a UTF-8 CSV file", path=path,
+                         fix="save it as CSV: theta_i_deg,theta_o_deg,weight") from None
+    header = [h.strip() for h in rows[0]] if rows else []
+    if header != ["theta_i_deg", "theta_o_deg", "weight"]:
+        raise InputError(f"header is {','.join(header) or 'missing'}", path=path, row=1,
+                         fix="the header must be theta_i_deg,theta_o_deg,weight")
+    for n, row in enumerate(rows[1:], start=2):
+        if not any(c.strip() for c in row):
+            continue
+        try:
+            ti, to, wt = (float(c) for c in row)
+        except ValueError:
+            raise InputError(f"expected three numbers, got {','.join(row)}", path=path,
+                             row=n, fix="theta_i_deg,theta_o_deg,weight per line") from None
+        if not (np.isfinite(wt) and wt >= 0):
+            raise InputError(f"weight {wt:g} is not a finite number >= 0", path=path, row=n,
+                             column="weight")
+        hit = (np.abs(m.theta_i_deg - ti) < 1e-6) & (np.abs(m.theta_o_deg - to) < 1e-6)
+        if not hit.any():
+            raise InputError(f"no measured configuration has theta_i_deg={ti:g}, "
+                             f"theta_o_deg={to:g}", path=path, row=n,
+                             fix="list only configurations of the measurement")
+        w[hit] = wt
+    return w
 
 
 def summary_line(output: Path, result) -> str:
-    """One line per method: α (if any), errors and time, so a user sees what each bought."""
+    """One line per method: α (if any), errors and time, so a user sees what each bought;
+    a method that failed says so in words."""
     parts = []
     for name, r in result.reports.items():
-        if not r.params:
-            parts.append(f"{name}: {r.status} ({r.message})")
+        if not r.params or not r.success or not r.errors:
+            parts.append(f"{name}: failed ({r.message})")
             continue
         a = f"alpha={r.params['alpha']:.4g} " if "alpha" in r.params else ""
         spread = r.extra.get("alpha_std_percent_of_mean")
         spread = f"(per-theta_i spread {spread:.1f}%) " if spread is not None else ""
-        parts.append(f"{name}: {a}{spread}log-RMSE={r.errors.get('log_rmse', float('nan')):.4f} "
-                     f"rel-RMSE={r.errors.get('relative_rmse_percent', float('nan')):.2f}% "
+        parts.append(f"{name}: {a}{spread}log-RMSE={r.errors['log_rmse']:.4f} "
+                     f"rel-RMSE={r.errors['relative_rmse_percent']:.2f}% "
                      f"{1e3 * r.time_s:.1f} ms")
-    return f"{output}: " + "; ".join(parts)
+    return f"{output}: {result.model}: " + "; ".join(parts)
+
+
+def verdict_line(output: Path, result, judgement: dict) -> str:
+    """The verdict: model, relative RMSE, colour error, worst configuration, verdict."""
+    r = result.result
+    text = [f"{output}: {result.model}"]
+    if r.errors:
+        text.append(f"rel-RMSE {r.errors['relative_rmse_percent']:.1f}%")
+    if "delta_e2000_mean" in judgement:
+        wc = judgement["worst_colour_configuration"]
+        text.append(f"CIEDE2000 mean {judgement['delta_e2000_mean']:.2f}, worst "
+                    f"{judgement['delta_e2000_worst']:.2f} at theta_i {wc['theta_i_deg']:g}, "
+                    f"theta_o {wc['theta_o_deg']:g}")
+    ratios = judgement.get("mirror_peak_y_ratio")
+    if ratios:
+        v = list(ratios.values())
+        text.append(f"mirror peak x{min(v):.2f}-{max(v):.2f}")
+    why = f" ({'; '.join(judgement['reasons'])})" if judgement["reasons"] else ""
+    return ", ".join(text) + f": {judgement['verdict']}{why}"
+
+
+def auto_line(auto: dict) -> str:
+    """The candidates of --model auto by held-out colour error."""
+    parts = []
+    for c in sorted(auto["candidates"], key=lambda c: (c["held_out_delta_e2000_mean"] is None,
+                                                       c["held_out_delta_e2000_mean"] or 0)):
+        v = c["held_out_delta_e2000_mean"]
+        parts.append(f"{c['model']} {v:.2f}" if v is not None else f"{c['model']} failed")
+    return f"auto: held-out CIEDE2000 mean: {', '.join(parts)}; chose {auto['chosen']}"
+
+
+def better_model_hint(data, result, judgement: dict, options) -> str | None:
+    """For a poor fit: the other models' in-sample colour error, if one does better."""
+    import numpy as np
+
+    from ..errors import GonioError
+    from ..fit import FITTERS, judge
+    from ..fit import fit as run_fit
+
+    if "delta_e2000_mean" not in judgement:
+        return None
+    best = (judgement["delta_e2000_mean"], result.model)
+    for name in FITTERS:
+        if name == result.model:
+            continue
+        try:
+            other = run_fit(data, name, options)
+        except GonioError:
+            continue
+        j = judge(data, other)
+        if other.result.success and np.isfinite(j.get("delta_e2000_mean", np.inf)) \
+                and j["delta_e2000_mean"] < best[0]:
+            best = (j["delta_e2000_mean"], name)
+    if best[1] == result.model:
+        return None
+    return (f"gonio: note: --model {best[1]} fits these data better (CIEDE2000 mean "
+            f"{best[0]:.2f} in sample); --model auto chooses by held-out angles")
 
 
 EXAMPLE = ("gonio fit red.measurement.json -o red.material.json --exclude-theta-i 70 "
            "--plot red.png")
 
 
-SHORT_HELP = "Fit a reflectance model to a measurement (seeds 000 and 004)."
+SHORT_HELP = "Fit a reflectance model to a measurement and judge it (seeds 000 and 004)."
 
 
 def register(app: typer.Typer) -> None:

@@ -5,37 +5,82 @@ The registry :data:`FITTERS` maps a model name (``--model``) to its fitter; each
 :class:`~.common.ModelFit` with one :class:`~.common.FitReport` per method.
 
 - ``goniochromatic`` (default): seed 000 eq. 5; :mod:`.goniochromatic`
+- ``goniochromatic-diffuse``: eq. 5 plus a Lambertian ρ_d(λ); :mod:`.layered`
+- ``goniochromatic-coat``: eq. 5, ρ_d(λ) and an achromatic GGX clear coat; :mod:`.layered`
 - ``torrance-sparrow``: seed 000 eq. 2 with GGX, Smith G, Schlick F0(λ); :mod:`.torrance_sparrow`
 - ``cook-torrance``: seed 004 eqs. 9–12 per wavelength; :mod:`.cook_torrance`
+
+``auto`` (:data:`AUTO`) fits the candidates and keeps the best on held-out angles
+(:mod:`.auto`); every fit is judged by :mod:`.verdict`.
 """
 
 from __future__ import annotations
 
-from typing import Callable
+from typing import Any, Callable
 
 from ..errors import InputError
 from ..schemas import Material
-from . import cook_torrance, goniochromatic, torrance_sparrow
+from . import cook_torrance, goniochromatic, layered, torrance_sparrow
 from .common import FitData, FitOptions, ModelFit
 
 FITTERS: dict[str, Callable[[FitData, FitOptions], ModelFit]] = {
     "goniochromatic": goniochromatic.fit,
+    "goniochromatic-diffuse": layered.fit_diffuse,
+    "goniochromatic-coat": layered.fit_coat,
     "torrance-sparrow": torrance_sparrow.fit,
     "cook-torrance": cook_torrance.fit,
 }
+
+#: The ``--model`` value that chooses among :data:`FITTERS` by held-out error.
+AUTO = "auto"
+
+#: Every ``--model`` value, for the CLI's help and errors.
+MODEL_CHOICES = tuple(FITTERS) + (AUTO,)
 
 
 def fit(data: FitData, model: str = "goniochromatic",
         options: FitOptions | None = None) -> ModelFit:
     """Fit ``model`` (a key of :data:`FITTERS`) to prepared data."""
     if model not in FITTERS:
-        raise InputError(f"--model {model!r} is unknown", fix=f"use one of {', '.join(FITTERS)}")
+        raise InputError(f"--model {model!r} is unknown",
+                         fix=f"use one of {', '.join(MODEL_CHOICES)}")
     return FITTERS[model](data, options or FitOptions())
 
 
-def to_material(result: ModelFit) -> Material:
-    """The material artifact's content: final parameters plus every method's report."""
-    return Material(result.model, result.wavelength_nm, dict(result.params),
-                    result.result.status,
-                    {"final": result.final, "excluded": result.excluded,
-                     "methods": {k: r.to_dict() for k, r in result.reports.items()}})
+def fit_auto(data: FitData, options: FitOptions | None = None):
+    """(best ModelFit, candidates) of ``--model auto`` (:func:`.auto.fit_auto`)."""
+    from .auto import fit_auto as run
+
+    return run(data, options or FitOptions(), fit)
+
+
+def judge(data: FitData, result: ModelFit, max_mean_delta_e: float | None = None
+          ) -> dict[str, Any]:
+    """The verdict of a fit on its data (:mod:`.verdict`): a dict for the material with
+    ``verdict``, ``reasons`` and the colour figures."""
+    from ..brdf import evaluate
+    from .verdict import THRESHOLDS, fit_colour_errors, verdict
+
+    colour = fit_colour_errors(data, evaluate(result.model, data.cos, result.params))
+    word, reasons = verdict(result.result.success, colour, max_mean_delta_e)
+    out: dict[str, Any] = {"verdict": word, "reasons": reasons,
+                           "thresholds": dict(THRESHOLDS, **(
+                               {"mean_delta_e": max_mean_delta_e}
+                               if max_mean_delta_e is not None else {}))}
+    if colour is not None:
+        out.update(colour.to_dict())
+    return out
+
+
+def to_material(result: ModelFit, judgement: dict[str, Any] | None = None,
+                extra: dict[str, Any] | None = None) -> Material:
+    """The material artifact's content: final parameters, the verdict (its status) and
+    every method's report."""
+    fit_info = {"final": result.final, "excluded": result.excluded,
+                "methods": {k: r.to_dict() for k, r in result.reports.items()}}
+    status = "good" if result.result.success else "failed"
+    if judgement is not None:
+        fit_info["verdict"] = judgement
+        status = judgement["verdict"]
+    fit_info.update(extra or {})
+    return Material(result.model, result.wavelength_nm, dict(result.params), status, fit_info)

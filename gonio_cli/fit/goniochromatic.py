@@ -19,8 +19,9 @@ Methods (reported side by side in the material, so a user sees what refinement b
   with the closed-form step 2 over all configurations inside. This removes the bias of
   step 1, which ignores that the exponential term changes along each θo sweep.
 
-With linear residuals, step 2 is no longer linear in c: ρ keeps its closed form for a
-given c, and c is found by a vectorised golden-section search over all wavelengths.
+With linear or compressive residuals, step 2 is no longer linear in c: ρ keeps its
+closed form for a given c, and c is found per wavelength by a scan and a golden-section
+search, all wavelengths at once (:func:`~.common.profile_c`).
 """
 
 from __future__ import annotations
@@ -32,14 +33,10 @@ import numpy as np
 from ..brdf import (LOG_MAX, dlog_ggx_d_dlog_alpha, goniochromatic,
                     goniochromatic_exponent_arg, log_ggx_d)
 from ..errors import FitError
-from .common import (ALPHA_MAX, ALPHA_MIN, FitData, FitOptions, FitReport,
-                     LinearProfile, ModelFit, Stopwatch, error_figures, golden_section,
-                     minimize_log_alpha, nm_list, scan_log_alpha)
-
-#: Bracket of the golden-section search for c(λ) with linear residuals. |c| = 60 makes
-#: exp(c x) vary by e^27 between normal and 70° incidence, far past any measured material
-#: (seed 000's inks have |c| < 10); a c at this bound is reported as failed.
-C_LIMIT = 60.0
+from .common import (ALPHA_MAX, ALPHA_MIN, C_LIMIT, FitData, FitOptions, FitReport,
+                     LinearProfile, ModelFit, Stopwatch, WARM_ALPHA_FACTOR,
+                     WARM_ALPHA_POINTS, error_figures, minimize_log_alpha, nm_list, profile_c,
+                     scan_log_alpha)
 
 #: Step 1 fits α per angle of incidence only from groups with at least this many
 #: configurations (2 parameters, scale and α, plus one degree of freedom).
@@ -93,6 +90,14 @@ class Step2:
     def cost(self, log_alpha: float) -> float:
         return float(self.costs([log_alpha])[0])
 
+    def log_costs(self, log_alphas) -> np.ndarray:
+        """The log-residual profile cost (G,), whatever the fit's residuals: its minimum
+        starts the search of the other residuals (:data:`~.common.WARM_ALPHA_FACTOR`)."""
+        return self.linear.costs(self.offsets(log_alphas))
+
+    def log_cost(self, log_alpha: float) -> float:
+        return float(self.log_costs([log_alpha])[0])
+
     def solve(self, alpha: float):
         """Returns ``(rho, c, cost, ok)``: (L,), (L,), the total weighted cost over the
         wavelengths that could be fitted, and (L,) bool; ρ = c = 0 where not ok."""
@@ -110,26 +115,12 @@ def solve_spectra(data: FitData, alpha: float):
 
 
 def _solve_spectra_linear(data: FitData, off, x):
-    """Linear residuals: ρ closed form given c; c by golden section per wavelength."""
-    y, w = data.y, data.w
-    base = np.exp(off)[:, None]                      # D/4 per configuration (N, 1)
-
-    def rho_of(c):
-        g = base * np.exp(np.minimum(np.outer(x, c), LOG_MAX))
-        num = np.sum(w * y * g, axis=0)
-        den = np.sum(w * g * g, axis=0)
-        return np.where(den > 0, np.maximum(num, 0.0) / np.where(den > 0, den, 1.0), 0.0), g
-
-    def cost_of(c):
-        rho, g = rho_of(c)
-        return np.sum(w * (y - rho * g) ** 2, axis=0)
-
-    signal = np.any((w > 0) & (y > 0), axis=0)
-    L = y.shape[1]
-    c, cost = golden_section(cost_of, np.full(L, -C_LIMIT), np.full(L, C_LIMIT))
-    rho, _ = rho_of(c)
+    """Linear (and compressive) residuals: ρ closed form given c; c by a scan and a
+    golden-section search per wavelength (:func:`~.common.profile_c`)."""
+    _, rho, c, cost = profile_c(x, np.exp(off), data.y, data.w, diffuse=False)
+    signal = np.any((data.w > 0) & (data.y > 0), axis=0)
     ok = signal & (np.abs(c) < C_LIMIT * (1 - 1e-6)) & np.isfinite(cost)
-    return (np.where(ok, rho, 0.0), np.where(ok, c, 0.0), float(cost[ok].sum()), ok)
+    return (np.where(ok, rho, 0.0), np.where(ok, c, 0.0), float(cost[signal].sum()), ok)
 
 
 # --------------------------------------------------------------------- joint (scipy) --
@@ -325,7 +316,15 @@ def refine(data: FitData, optimizer: str, sw: Stopwatch | None = None) -> FitRep
         evaluations, success = len(grid) + nfev, True
         at_bound = bool(np.isclose(alpha, ALPHA_MIN) or np.isclose(alpha, ALPHA_MAX))
     else:
-        search = minimize_log_alpha(step2.cost, optimizer, costs=step2.costs)
+        if data.residuals == "log":
+            search = minimize_log_alpha(step2.cost, optimizer, costs=step2.costs)
+        else:  # start where the log-residual profile (closed form) has its minimum
+            log_fit = minimize_log_alpha(step2.log_cost, optimizer, costs=step2.log_costs)
+            lo = max(np.log(log_fit.alpha / WARM_ALPHA_FACTOR), np.log(ALPHA_MIN))
+            hi = min(np.log(log_fit.alpha * WARM_ALPHA_FACTOR), np.log(ALPHA_MAX))
+            search = minimize_log_alpha(step2.cost, optimizer, lo=lo, hi=hi,
+                                        points=WARM_ALPHA_POINTS, costs=step2.costs)
+            search.evaluations += log_fit.evaluations
         alpha, evaluations, success, message = (search.alpha, search.evaluations,
                                                 search.success, search.message)
         at_bound = search.at_bound

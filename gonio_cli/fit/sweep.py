@@ -87,7 +87,7 @@ def format_rows(rows: list[SweepRow]) -> str:
     for r in rows:
         lines.append(f"| {r.case} | {r.method} | {r.optimizer} | {r.alpha_error_percent:.3f} "
                      f"| {r.rho_rel_rmse_percent:.2f} | {r.c_rmse:.3f} | {r.log_rmse:.4f} "
-                     f"| {r.time_ms:.1f} |")
+                     f"| {r.time_ms:.3g} |")
     return "\n".join(lines)
 
 
@@ -132,5 +132,5 @@ def format_comparison(rows: list[dict]) -> str:
     for r in rows:
         errs = ", ".join(f"{k} {v:.2f}" for k, v in r["parameter_error_percent"].items())
         lines.append(f"| {r['model']} | {r['optimizer']} | {r['method']} | {errs} "
-                     f"| {r['relative_rmse_percent']:.2f} | {r['time_ms']:.1f} |")
+                     f"| {r['relative_rmse_percent']:.2f} | {r['time_ms']:.3g} |")
     return "\n".join(lines)

@@ -1,0 +1,131 @@
+"""How good a fit is, in the units a user judges colour by, and the verdict it earns.
+
+A fit's relative RMSE says little about what a viewer sees: a glossy peak 2 % off and a
+dark tail 300 % off can give the same number. So every fit is also judged by colour: the
+model's and the data's reflectance factor R = π f at each measured configuration, as
+CIE 1976 L*a*b* under D65 with the 10° observer (what multi-angle instruments report),
+compared by CIEDE2000. A glossy configuration can have R ≫ 1 (L* would pass 100 and lose
+its meaning), so a pair whose data Y exceeds 1 is scaled, model and data alike, until the
+data's Y is 1: the difference then measures colour and relative brightness at that
+configuration. Where the measurement has mirror configurations (θo = θi), the ratio of
+the model's Y to the data's at each of them says whether the specular peak is right.
+
+Verdict (thresholds :data:`THRESHOLDS`, documented in docs/fit.md):
+
+- ``good``: mean CIEDE2000 ≤ 0.7, worst ≤ 1.5, every mirror peak within 0.75–1.33 × the data;
+- ``poor``: the fit ran but misses one of those;
+- ``failed``: the fit could not produce trustworthy parameters (a method's own failure).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .. import spectra
+from .common import MIRROR_TOL_DEG, FitData
+
+#: Limits of a ``good`` fit. Mean CIEDE2000 0.7: about half of a just-noticeable
+#: difference, the level of an instrument's inter-instrument agreement on a matte sample;
+#: worst 1.5: no configuration clearly visibly off; mirror peak within a factor 4/3 (the
+#: accuracy a renderer needs for a highlight's brightness to look right).
+THRESHOLDS = {"mean_delta_e": 0.7, "worst_delta_e": 1.5,
+              "peak_ratio_min": 0.75, "peak_ratio_max": 1.0 / 0.75}
+
+VERDICTS = ("good", "poor", "failed")
+
+#: Colour is computed only on a grid that covers most of the visible: at least 400–700 nm
+#: (the range of multi-angle instruments), where the 10° CMFs hold > 99 % of Y.
+COLOUR_RANGE_NM = (400.0, 700.0)
+
+
+@dataclass
+class ColourErrors:
+    """Colour of the model against the data at the measured configurations."""
+
+    delta_e: np.ndarray               # (N,) CIEDE2000 per configuration
+    theta_i_deg: np.ndarray
+    theta_o_deg: np.ndarray
+    peak_ratio: dict[float, float]    # θi → Y_model / Y_data at θo = θi
+
+    @property
+    def mean(self) -> float:
+        return float(np.mean(self.delta_e))
+
+    @property
+    def worst_index(self) -> int:
+        return int(np.argmax(self.delta_e))
+
+    def to_dict(self) -> dict[str, Any]:
+        k = self.worst_index
+        out: dict[str, Any] = {
+            "delta_e2000_mean": self.mean, "delta_e2000_worst": float(self.delta_e[k]),
+            "worst_colour_configuration": {"theta_i_deg": float(self.theta_i_deg[k]),
+                                           "theta_o_deg": float(self.theta_o_deg[k]),
+                                           "delta_e2000": float(self.delta_e[k])},
+            "colour": "CIEDE2000 of R = pi f, D65, 10 degree observer; pairs with data "
+                      "Y > 1 scaled to data Y = 1"}
+        if self.peak_ratio:
+            out["mirror_peak_y_ratio"] = {f"{t:g}": float(r) for t, r in
+                                          self.peak_ratio.items()}
+        return out
+
+
+def covers_colour(wavelength_nm) -> bool:
+    """True when the grid spans :data:`COLOUR_RANGE_NM` (colour can be judged)."""
+    wl = np.asarray(wavelength_nm, dtype=float)
+    return bool(wl.size >= 2 and wl[0] <= COLOUR_RANGE_NM[0] and wl[-1] >= COLOUR_RANGE_NM[1])
+
+
+def colour_errors(wavelength_nm, theta_i_deg, theta_o_deg, f_data, f_model) -> ColourErrors:
+    """CIEDE2000 (D65, 10°) of π f_model against π f_data per configuration, (N, L) each."""
+    wl = np.asarray(wavelength_nm, dtype=float)
+    white = spectra.reflectance_to_xyz(np.ones(wl.size), wl)
+    xyz_d = spectra.reflectance_to_xyz(np.pi * np.asarray(f_data, dtype=float), wl)
+    xyz_m = spectra.reflectance_to_xyz(np.pi * np.asarray(f_model, dtype=float), wl)
+    y = xyz_d[:, 1]
+    scale = np.where(y > 1.0, 1.0 / np.where(y > 1.0, y, 1.0), 1.0)[:, None]
+    de = spectra.delta_e_2000(spectra.xyz_to_lab(xyz_d * scale, white),
+                              spectra.xyz_to_lab(xyz_m * scale, white))
+    ti = np.asarray(theta_i_deg, dtype=float)
+    to = np.asarray(theta_o_deg, dtype=float)
+    peak: dict[float, float] = {}
+    for t in np.unique(np.round(ti, 6)):
+        k = np.where((np.abs(ti - t) < 1e-6) & (np.abs(to - t) <= MIRROR_TOL_DEG))[0]
+        if k.size and y[k[0]] > 0:
+            peak[float(t)] = float(xyz_m[k[0], 1] / y[k[0]])
+    return ColourErrors(de, ti, to, peak)
+
+
+def fit_colour_errors(data: FitData, f_model) -> ColourErrors | None:
+    """:func:`colour_errors` of a fit on its data; None where the grid misses the visible."""
+    if not covers_colour(data.wavelength_nm):
+        return None
+    return colour_errors(data.wavelength_nm, data.theta_i_deg, data.theta_o_deg, data.y,
+                         f_model)
+
+
+def verdict(success: bool, colour: ColourErrors | None,
+            max_mean_delta_e: float | None = None) -> tuple[str, list[str]]:
+    """("good" | "poor" | "failed", the reasons it is not good). ``max_mean_delta_e``
+    replaces the mean threshold (``gonio fit --max-error``)."""
+    if not success:
+        return "failed", ["the fit failed"]
+    if colour is None:
+        return "poor", [f"colour cannot be judged: the grid does not cover "
+                        f"{COLOUR_RANGE_NM[0]:g}-{COLOUR_RANGE_NM[1]:g} nm"]
+    limit = THRESHOLDS["mean_delta_e"] if max_mean_delta_e is None else max_mean_delta_e
+    reasons = []
+    if colour.mean > limit:
+        reasons.append(f"mean CIEDE2000 {colour.mean:.2f} > {limit:g}")
+    worst = float(colour.delta_e[colour.worst_index])
+    if worst > max(THRESHOLDS["worst_delta_e"], limit):
+        reasons.append(f"worst CIEDE2000 {worst:.2f} > {max(THRESHOLDS['worst_delta_e'], limit):g}")
+    off = {t: r for t, r in colour.peak_ratio.items()
+           if not THRESHOLDS["peak_ratio_min"] <= r <= THRESHOLDS["peak_ratio_max"]}
+    if off:
+        reasons.append("mirror peak off at theta_i " + ", ".join(
+            f"{t:g} (x{r:.2f})" for t, r in off.items()))
+    return ("poor" if reasons else "good"), reasons
