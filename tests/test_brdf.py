@@ -74,6 +74,12 @@ def hand_model(name, ti, to, p):
     if name == "torrance-sparrow":
         g = hand_smith_g1(ti, p["alpha"])[:, None] * hand_smith_g1(to, p["alpha"])[:, None]
         return hand_schlick(td, p["f0"]) * g * hand_ggx(th, p["alpha"]) / (4.0 * ci * co)
+    if name == "goniochromatic-diffuse":
+        return p["rho_d"] / np.pi + hand_model("goniochromatic", ti, to, p)
+    if name == "goniochromatic-coat":
+        coat = hand_model("torrance-sparrow", ti, to,
+                          {"alpha": p["alpha_coat"], "f0": np.array([p["f0_coat"]])})
+        return hand_model("goniochromatic-diffuse", ti, to, p) + p["k_coat"] * coat
     assert name == "cook-torrance"
     g = hand_vgroove(ti[:, None], to[:, None], th, td)
     return p["kd"] / np.pi + (p["ks"] * hand_schlick(td, p["f0"]) * hand_beckmann(th, p["m"])
@@ -88,6 +94,11 @@ def model_params(name, rng):
         "torrance-sparrow": lambda: {"alpha": 0.3, "f0": u(0.02, 1.0)},
         "cook-torrance": lambda: {"kd": u(0.0, 0.5), "ks": u(0.1, 1.0), "m": u(0.1, 0.6),
                                   "f0": u(0.02, 1.0)},
+        "goniochromatic-diffuse": lambda: {"alpha": 0.19, "rho": u(0.05, 1.0),
+                                           "c": u(-5.0, 5.0), "rho_d": u(0.0, 0.8)},
+        "goniochromatic-coat": lambda: {"alpha": 0.19, "rho": u(0.05, 1.0), "c": u(-5.0, 5.0),
+                                        "rho_d": u(0.0, 0.8), "alpha_coat": 0.04,
+                                        "k_coat": 0.7, "f0_coat": 0.05},
     }[name]()
 
 
@@ -254,6 +265,12 @@ EXTREME_PARAMS = [
     ("torrance-sparrow", {"alpha": 1.0, "f0": [0.0, 0.5, 1.0]}),
     ("cook-torrance", {"kd": [0.0, 0.5, 1.0], "ks": [1.0, 1.0, 0.0], "m": [1e-6, 0.3, 1.0],
                        "f0": [1.0, 0.04, 0.5]}),
+    ("goniochromatic-coat", {"alpha": 1e-6, "rho": [0.0, 1.0, 1.0], "c": [1e4, 1e4, -1e4],
+                             "rho_d": [0.0, 1.0, 0.5], "alpha_coat": 1e-6, "k_coat": 10.0,
+                             "f0_coat": 1.0}),
+    ("goniochromatic-coat", {"alpha": 1.0, "rho": [0.0, 1.0, 1e-300], "c": [-1e4, 1e4, 0.0],
+                             "rho_d": [0.0, 0.0, 0.0], "alpha_coat": 1.0, "k_coat": 0.0,
+                             "f0_coat": 0.02}),
 ]
 
 

@@ -24,7 +24,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 MAKE = shutil.which("make")
-COPIED = ("Makefile", "pipelines", "sample_data", "pyproject.toml")
+COPIED = ("Makefile", "pipelines", "sample_data", "pyproject.toml", "requirements.lock")
 
 pytestmark = pytest.mark.skipif(
     MAKE is None, reason="`make` is not on PATH: the pipelines are Makefiles (install GNU make)")
@@ -301,3 +301,8 @@ def test_stamp_is_order_only(tree):
     tree.touch("pyproject.toml")
     assert tree.plan(stamp=str(stamp)) == {str(stamp)}
     assert tree.make("-q", "demo", stamp=str(stamp), ok=(0, 1)).returncode == 1
+    # new pins reinstall too, and rerun nothing else
+    stamp.touch()
+    assert tree.plan(stamp=str(stamp)) == set()
+    tree.touch("requirements.lock")
+    assert tree.plan(stamp=str(stamp)) == {str(stamp)}

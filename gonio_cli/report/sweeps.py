@@ -58,6 +58,12 @@ def lobe_test_materials() -> dict:
                                                      "m": 0.25 * flat, "f0": 0.2 + 0.5 * blue})
     out["Lambertian"] = Material("cook-torrance", WL, {"kd": 0.8 * flat, "ks": 0 * flat,
                                                        "m": 0.3 * flat, "f0": 0 * flat})
+    rho, c = ink_spectra("green", WL)
+    out["ink on paper"] = Material("goniochromatic-diffuse", WL,
+                                   {"alpha": 0.15, "rho": rho, "c": c, "rho_d": 0.3 * flat})
+    out["coated wrap"] = Material("goniochromatic-coat", WL,
+                                  {"alpha": 0.1, "rho": rho, "c": c, "rho_d": 0.02 * flat,
+                                   "alpha_coat": 0.03, "k_coat": 1.0, "f0_coat": 0.04})
     return out
 
 
