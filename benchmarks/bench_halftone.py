@@ -22,7 +22,6 @@ coverage: linear light, gamut-scaled). ``--quick`` runs a 512² image once.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import shutil
@@ -39,6 +38,7 @@ from gonio_cli.halftone import (METHODS, PALETTE, halftone, ink_coverage, prepar
 from gonio_cli.halftone import diffusion, screens
 from gonio_cli.halftone.testimage import print_test_image
 from gonio_cli.imageio import read_image
+import process
 
 ROOT = Path(__file__).resolve().parent.parent
 SAMPLE = ROOT / "sample_data" / "print_image.png"
@@ -87,34 +87,10 @@ def core_table(size: int, repeats: int) -> None:
           f"{prepare_s:.2f} s (not in the times above).")
 
 
-#: A small launcher process: forks and execs the command, waits for it with wait4 and
-#: prints its wall time and peak RSS as JSON. Linux keeps a process's peak RSS across exec,
-#: so the command must not be forked from this (large) benchmark process itself.
-LAUNCHER = """
-import json, os, sys, time
-start = time.perf_counter()
-pid = os.fork()
-if pid == 0:
-    null = os.open(os.devnull, os.O_WRONLY)
-    os.dup2(null, 1)
-    os.execv(sys.argv[1], sys.argv[1:])
-_, status, usage = os.wait4(pid, 0)
-print(json.dumps({"wall_s": time.perf_counter() - start, "maxrss_kib": usage.ru_maxrss,
-                  "status": os.waitstatus_to_exitcode(status)}))
-"""
-
-
 def run_measured(argv: list[str], env: dict[str, str] | None = None) -> tuple[float, float]:
-    """Wall time (s) and peak resident memory (MB) of one process running ``argv``."""
-    done = subprocess.run([sys.executable, "-I", "-S", "-c", LAUNCHER, *argv], env=env,
-                          capture_output=True, text=True)
-    if done.returncode != 0 or not done.stdout.strip():
-        raise SystemExit(f"{argv[0]}: the launcher failed: {done.stderr.strip()}")
-    result = json.loads(done.stdout.strip().splitlines()[-1])
-    if result["status"] != 0:
-        raise SystemExit(f"{' '.join(argv)} failed ({result['status']}): "
-                         f"{done.stderr.strip()}")
-    return result["wall_s"], result["maxrss_kib"] / 1024.0   # ru_maxrss: KiB on Linux
+    """Wall time (s) and peak resident memory (MB) of one process (:mod:`process`)."""
+    wall, peak, _ = process.run_measured(argv, env)
+    return wall, peak
 
 
 def imagemagick() -> tuple[str, str] | None:

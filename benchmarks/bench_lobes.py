@@ -18,8 +18,6 @@ minute. Prints Markdown tables; ``--quick`` runs fewer repeats and lobe counts.
 from __future__ import annotations
 
 import json
-import os
-import subprocess
 import sys
 import tempfile
 import time
@@ -29,6 +27,8 @@ import numpy as np
 
 from gonio_cli import lobes as L
 from gonio_cli.report.sweeps import lobe_test_materials, median_time
+
+import process
 
 #: The materials and the timer are shared with ``gonio report`` (gonio_cli.report.sweeps).
 materials = lobe_test_materials
@@ -94,23 +94,6 @@ def main() -> None:
     whole_process(mat, e8)
 
 
-#: GNU time measures the child alone: the rusage of a child forked from this (large)
-#: process would count the fork's pages before exec as its peak memory.
-GNU_TIME = "/usr/bin/time"
-
-
-def _run(argv: list[str]) -> tuple[float, float, int]:
-    """(wall s, peak resident MB or NaN, exit status) of one command."""
-    if os.access(GNU_TIME, os.X_OK):
-        proc = subprocess.run([GNU_TIME, "-f", "%e %M", *argv], stdout=subprocess.DEVNULL,
-                              stderr=subprocess.PIPE, text=True)
-        wall, peak_kib = proc.stderr.strip().splitlines()[-1].split()
-        return float(wall), float(peak_kib) / 1024.0, proc.returncode
-    t = time.perf_counter()
-    proc = subprocess.run(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    return time.perf_counter() - t, float("nan"), proc.returncode
-
-
 def whole_process(material, exponents) -> None:
     """``gonio lobes fit`` as a user runs it, per solver: the second of two runs."""
     from gonio_cli.schemas import write_material
@@ -128,8 +111,8 @@ def whole_process(material, exponents) -> None:
             argv = [str(gonio), "-q", "lobes", "fit", str(mat_path), "-o", str(out),
                     "--exponents", ",".join(f"{e:.17g}" for e in exponents),
                     "--solver", solver]
-            _run(argv)
-            wall, peak, code = _run(argv)
+            process.run_measured(argv, check=False)
+            wall, peak, code = process.run_measured(argv, check=False)
             if code != 0:
                 print(f"| {solver} | exit {code} | | | | |")
                 continue

@@ -23,7 +23,6 @@ from __future__ import annotations
 import json
 import os
 import statistics
-import subprocess
 import sys
 import tempfile
 import time
@@ -34,22 +33,18 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "tests"))
 
+import process  # noqa: E402  (benchmarks/process.py: whole-process wall time and memory)
+
 SIZE = 512
 TARGETS = {"whole_s": 0.6, "frame_ssaa1_s": 0.040, "frame_ssaa2_s": 0.120,
            "million_s": 5.0, "big_rss_mb": 1024}
 
 
 def write_obj(path: Path, segments: int) -> int:
-    """The built-in UV sphere as an OBJ (v, vt, vn, f v/vt/vn); returns its triangles."""
-    from gonio_cli.render.mesh import uv_sphere
+    """The built-in UV sphere as an OBJ (the tests' writer); returns its triangles."""
+    from test_render_obj import write_sphere_obj
 
-    m = uv_sphere(segments)
-    with open(path, "w") as f:
-        np.savetxt(f, m.vertices, fmt="v %.6f %.6f %.6f")
-        np.savetxt(f, m.uvs, fmt="vt %.6f %.6f")
-        np.savetxt(f, m.normals, fmt="vn %.6f %.6f %.6f")
-        np.savetxt(f, np.repeat(m.faces + 1, 3, axis=1), fmt="f %d/%d/%d %d/%d/%d %d/%d/%d")
-    return len(m.faces)
+    return write_sphere_obj(path, segments)
 
 
 def make_scene(folder: Path, mesh: str, name: str) -> Path:
@@ -74,27 +69,13 @@ def make_scene(folder: Path, mesh: str, name: str) -> Path:
 
 
 def run_process(scene: Path, out: Path, *args, env=None) -> dict:
-    """One ``gonio render`` process: wall s, peak RSS MB, its run report.
-
-    The peak RSS is GNU time's (``/usr/bin/time -f %M``) when it exists: the rusage of a
-    child forked from this (large) process can report the parent's pages. Otherwise the
-    child's own ``os.wait4`` rusage."""
+    """One ``gonio render`` process: wall s, peak RSS MB (:mod:`process`), its run report."""
     report = out / "run.json"
-    cmd = [sys.executable, "-m", "gonio_cli.cli", "-q", "render", str(scene), "-o",
+    cmd = [process.gonio_command(), "-q", "render", str(scene), "-o",
            str(out / "o.png"), "--exr", str(out / "o.exr"), "--report", str(report), *args]
-    rss_file = out / "rss.txt"
-    gnu_time = Path("/usr/bin/time")
-    if gnu_time.exists():
-        cmd = [str(gnu_time), "-f", "%M", "-o", str(rss_file)] + cmd
-    t0 = time.perf_counter()
-    proc = subprocess.Popen(cmd, env=env)
-    _, status, usage = os.wait4(proc.pid, 0)
-    wall = time.perf_counter() - t0
-    if os.waitstatus_to_exitcode(status) != 0:
-        raise SystemExit(f"{' '.join(cmd)} failed")
-    rss_kb = int(rss_file.read_text().split()[-1]) if gnu_time.exists() else usage.ru_maxrss
+    wall, rss_mb, _ = process.run_measured(cmd, env)
     doc = json.loads(report.read_text())
-    return {"wall_s": wall, "rss_mb": rss_kb / 1024, "frame_s": doc["frame_time_s"],
+    return {"wall_s": wall, "rss_mb": rss_mb, "frame_s": doc["frame_time_s"],
             "stages": {s["stage"]: s["time_s"] for s in doc["stages"]}}
 
 

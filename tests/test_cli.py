@@ -183,13 +183,16 @@ SAMPLE = ROOT / "sample_data"
 WAIT_S = 120
 
 
-def interrupt(tmp_path, patch: str, *args) -> subprocess.CompletedProcess:
+def interrupt(tmp_path, patch: str, *args, entry: bool = False) -> subprocess.CompletedProcess:
     """Run ``gonio ARGS`` in a subprocess whose ``patch`` (Python source run before the
-    CLI) makes one step print ``ready`` and wait; send SIGINT once it is ready."""
+    CLI) makes one step print ``ready`` and wait; send SIGINT once it is ready. ``entry``:
+    start from the console entry point (``gonio_cli.__main__``) instead of ``cli.run``."""
     script = tmp_path / "interrupted_gonio.py"
-    script.write_text("import sys, time\n" + textwrap.dedent(patch) + "\n"
-                      "from gonio_cli import cli\n"
-                      f"sys.exit(cli.run({[str(a) for a in args]!r}))\n")
+    run = (f"sys.argv = {['gonio'] + [str(a) for a in args]!r}\n"
+           "from gonio_cli.__main__ import main\nmain()\n") if entry else (
+        "from gonio_cli import cli\n"
+        f"sys.exit(cli.run({[str(a) for a in args]!r}))\n")
+    script.write_text("import sys, time\n" + textwrap.dedent(patch) + "\n" + run)
     proc = subprocess.Popen([sys.executable, str(script)], cwd=tmp_path, text=True,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     try:
@@ -461,9 +464,7 @@ def test_a_numpy_value_in_a_stage_message_prints_as_a_number():
 def test_ctrl_c_during_start_up_imports_is_one_line(tmp_path):
     """Interrupted while the entry point still imports the CLI (typer here): the line
     every interrupt gets and status 130, no traceback."""
-    script = tmp_path / "start.py"
-    script.write_text(textwrap.dedent(f"""
-        import sys, time
+    res = interrupt(tmp_path, f"""
         class _Slow:
             def find_spec(self, name, path=None, target=None):
                 if name == "typer":
@@ -471,19 +472,6 @@ def test_ctrl_c_during_start_up_imports_is_one_line(tmp_path):
                     time.sleep({WAIT_S})
                 return None
         sys.meta_path.insert(0, _Slow())
-        sys.argv = ["gonio", "--version"]
-        from gonio_cli.__main__ import main
-        main()
-        """))
-    proc = subprocess.Popen([sys.executable, str(script)], text=True,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-    try:
-        assert proc.stdout.readline() == "ready\n"
-        proc.send_signal(signal.SIGINT)
-        out, err = proc.communicate(timeout=WAIT_S)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.communicate()
-    assert proc.returncode == 130
-    assert err == "gonio: interrupted; nothing was written\n"
+        """, "--version", entry=True)
+    assert res.returncode == 130
+    assert res.stderr == "gonio: interrupted; nothing was written\n"

@@ -19,14 +19,16 @@ from gonio_cli.render.obj import read_obj
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def write_sphere_obj(path: Path, segments: int = 24) -> None:
-    """The built-in UV sphere as an OBJ with v, vt, vn and f v/vt/vn (6 decimals)."""
+def write_sphere_obj(path: Path, segments: int = 24) -> int:
+    """The built-in UV sphere as an OBJ with v, vt, vn and f v/vt/vn (6 decimals); returns
+    its triangles (also the render benchmark's meshes)."""
     m = uv_sphere(segments)
     with open(path, "w") as f:
         np.savetxt(f, m.vertices, fmt="v %.6f %.6f %.6f")
         np.savetxt(f, m.uvs, fmt="vt %.6f %.6f")
         np.savetxt(f, m.normals, fmt="vn %.6f %.6f %.6f")
         np.savetxt(f, np.repeat(m.faces + 1, 3, axis=1), fmt="f %d/%d/%d %d/%d/%d %d/%d/%d")
+    return len(m.faces)
 
 
 def corners(vertices, faces, attr=None):
