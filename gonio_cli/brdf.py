@@ -10,7 +10,8 @@ Seed 000 (Pranovich et al. 2024): eq. 1 (half vector, in :mod:`gonio_cli.geometr
 eq. 2 (Torrance–Sparrow), eq. 3 (GGX D), eq. 4 (the goniochromatic term E), eq. 5 (the
 goniochromatic BRDF), eq. 6 (cos((θi+θo)/2), in :mod:`gonio_cli.geometry`), eq. 7 (eq. 5
 at the mirror configuration). Seed 004 (Ďurikovič & Mihálik 2013): eq. 9 (Beckmann D),
-eq. 10 (V-groove G), eq. 11 (Cook–Torrance), eq. 12 (Schlick's Fresnel).
+eq. 10 (V-groove G), eq. 11 (Cook–Torrance, also summed over two or three lobes), eq. 12
+(Schlick's Fresnel).
 """
 
 from __future__ import annotations
@@ -220,6 +221,32 @@ def cook_torrance(cos: Cosines, kd, ks, m, f0) -> np.ndarray:
     return kd / np.pi + spec * cook_torrance_specular_geometry(cos, m)
 
 
+def cook_torrance_lobes(cos: Cosines, kd, f0, lobes) -> np.ndarray:
+    """Cook–Torrance with several Beckmann lobes (a clear coat and flake lobes), sr⁻¹:
+
+    f = kd(λ)/π + Σ_j ks_j F(θd; F0(λ)) D(θh; m_j) G / (π cos θi cos θo),
+
+    seed 004 eq. (11) per lobe (:func:`cook_torrance` with kd = 0 for every lobe after the
+    first), one spectral F0 shared by the lobes. ``kd``, ``f0``: (..., n_λ); ``lobes``:
+    [(ks_j, m_j)] scalars.
+    """
+    (ks, m), rest = lobes[0], lobes[1:]
+    f = cook_torrance(cos, kd, float(ks), float(m), f0)
+    for ks, m in rest:
+        f = f + cook_torrance(cos, 0.0, float(ks), float(m), f0)
+    return f
+
+
+def cook_torrance_2(cos: Cosines, kd, f0, ks_1, m_1, ks_2, m_2) -> np.ndarray:
+    """:func:`cook_torrance_lobes` with two lobes (``cook-torrance-2``), m_1 ≤ m_2."""
+    return cook_torrance_lobes(cos, kd, f0, ((ks_1, m_1), (ks_2, m_2)))
+
+
+def cook_torrance_3(cos: Cosines, kd, f0, ks_1, m_1, ks_2, m_2, ks_3, m_3) -> np.ndarray:
+    """:func:`cook_torrance_lobes` with three lobes (``cook-torrance-3``), m_1 ≤ m_2 ≤ m_3."""
+    return cook_torrance_lobes(cos, kd, f0, ((ks_1, m_1), (ks_2, m_2), (ks_3, m_3)))
+
+
 # ------------------------------------------------------------------ real surfaces --
 
 def lambertian(rho_d) -> np.ndarray:
@@ -281,6 +308,11 @@ MODELS: dict[str, Model] = {
                                  ("alpha", "alpha_coat", "k_coat", "f0_coat"),
                                  ("rho", "c", "rho_d"), goniochromatic_coat,
                                  "seed 000 eq. 5 + Lambertian + GGX clear coat"),
+    "cook-torrance-2": Model("cook-torrance-2", ("ks_1", "m_1", "ks_2", "m_2"), ("kd", "f0"),
+                             cook_torrance_2, "seed 004 eqs. 9-12, two Beckmann lobes"),
+    "cook-torrance-3": Model("cook-torrance-3", ("ks_1", "m_1", "ks_2", "m_2", "ks_3", "m_3"),
+                             ("kd", "f0"), cook_torrance_3,
+                             "seed 004 eqs. 9-12, three Beckmann lobes"),
 }
 
 

@@ -80,6 +80,12 @@ def hand_model(name, ti, to, p):
         coat = hand_model("torrance-sparrow", ti, to,
                           {"alpha": p["alpha_coat"], "f0": np.array([p["f0_coat"]])})
         return hand_model("goniochromatic-diffuse", ti, to, p) + p["k_coat"] * coat
+    if name in ("cook-torrance-2", "cook-torrance-3"):
+        # seed 004 eq. 11 summed over the lobes (ks_j, m_j), one F0(λ)
+        lobes = sum(p[f"ks_{j}"] * hand_beckmann(th, p[f"m_{j}"])
+                    for j in range(1, int(name[-1]) + 1))
+        g = hand_vgroove(ti[:, None], to[:, None], th, td)
+        return p["kd"] / np.pi + hand_schlick(td, p["f0"]) * lobes * g / (np.pi * ci * co)
     assert name == "cook-torrance"
     g = hand_vgroove(ti[:, None], to[:, None], th, td)
     return p["kd"] / np.pi + (p["ks"] * hand_schlick(td, p["f0"]) * hand_beckmann(th, p["m"])
@@ -99,6 +105,11 @@ def model_params(name, rng):
         "goniochromatic-coat": lambda: {"alpha": 0.19, "rho": u(0.05, 1.0), "c": u(-5.0, 5.0),
                                         "rho_d": u(0.0, 0.8), "alpha_coat": 0.04,
                                         "k_coat": 0.7, "f0_coat": 0.05},
+        "cook-torrance-2": lambda: {"kd": u(0.0, 0.5), "f0": u(0.02, 1.0), "ks_1": 0.1,
+                                    "m_1": 0.05, "ks_2": 0.6, "m_2": 0.3},
+        "cook-torrance-3": lambda: {"kd": u(0.0, 0.5), "f0": u(0.02, 1.0), "ks_1": 0.1,
+                                    "m_1": 0.05, "ks_2": 0.4, "m_2": 0.2, "ks_3": 0.3,
+                                    "m_3": 0.5},
     }[name]()
 
 

@@ -11,7 +11,8 @@ OPTIMIZER_NAMES = ("nlopt-bobyqa", "nlopt-lbfgs", "scipy-least-squares")
 #: Mirrors gonio_cli.fit.MODEL_CHOICES and fit.common.RESIDUALS (the help must not import
 #: the fit package: a test checks these against the registries).
 MODEL_NAMES = ("goniochromatic", "goniochromatic-diffuse", "goniochromatic-coat",
-               "torrance-sparrow", "cook-torrance", "auto")
+               "torrance-sparrow", "cook-torrance", "cook-torrance-2", "cook-torrance-3",
+               "auto")
 RESIDUAL_NAMES = ("compressive", "log", "linear")
 
 

@@ -9,6 +9,8 @@ The registry :data:`FITTERS` maps a model name (``--model``) to its fitter; each
 - ``goniochromatic-coat``: eq. 5, ρ_d(λ) and an achromatic GGX clear coat; :mod:`.layered`
 - ``torrance-sparrow``: seed 000 eq. 2 with GGX, Smith G, Schlick F0(λ); :mod:`.torrance_sparrow`
 - ``cook-torrance``: seed 004 eqs. 9–12 per wavelength; :mod:`.cook_torrance`
+- ``cook-torrance-2``, ``cook-torrance-3``: seed 004 eq. 11 with two or three Beckmann lobes
+  (a clear coat and flake lobes), kd(λ), F0(λ); :mod:`.cook_torrance_lobes`
 
 ``auto`` (:data:`AUTO`) fits the candidates and keeps the best on held-out angles
 (:mod:`.auto`); every fit is judged by :mod:`.verdict`.
@@ -20,7 +22,7 @@ from typing import Any, Callable
 
 from ..errors import InputError
 from ..schemas import Material
-from . import cook_torrance, goniochromatic, layered, torrance_sparrow
+from . import cook_torrance, cook_torrance_lobes, goniochromatic, layered, torrance_sparrow
 from .common import FitData, FitOptions, ModelFit
 
 FITTERS: dict[str, Callable[[FitData, FitOptions], ModelFit]] = {
@@ -29,6 +31,8 @@ FITTERS: dict[str, Callable[[FitData, FitOptions], ModelFit]] = {
     "goniochromatic-coat": layered.fit_coat,
     "torrance-sparrow": torrance_sparrow.fit,
     "cook-torrance": cook_torrance.fit,
+    "cook-torrance-2": cook_torrance_lobes.fit_2,
+    "cook-torrance-3": cook_torrance_lobes.fit_3,
 }
 
 #: The ``--model`` value that chooses among :data:`FITTERS` by held-out error.

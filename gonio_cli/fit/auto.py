@@ -22,7 +22,7 @@ from .verdict import colour_errors, covers_colour
 
 #: Models ``auto`` tries, cheapest first (a tie keeps the earlier, simpler one).
 CANDIDATES = ("goniochromatic", "goniochromatic-diffuse", "torrance-sparrow",
-              "cook-torrance", "goniochromatic-coat")
+              "cook-torrance", "cook-torrance-2", "cook-torrance-3", "goniochromatic-coat")
 
 
 @dataclass

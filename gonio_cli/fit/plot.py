@@ -139,7 +139,9 @@ def plot_fit(path: str | os.PathLike, measurement: Measurement, material: Materi
     axes[1].set_xlabel(x_label)
     wl = material.wavelength_nm
     spectral = {k: v for k, v in material.params.items() if np.ndim(v) == 1}
-    scalars = ", ".join(f"{k} = {v:.4g}" for k, v in material.params.items() if np.ndim(v) == 0)
+    parts = [f"{k} = {v:.4g}" for k, v in material.params.items() if np.ndim(v) == 0]
+    # three scalars a line, so a many-lobe model's title stays inside the figure
+    scalars = "\n".join(", ".join(parts[i:i + 3]) for i in range(0, len(parts), 3))
     ax = axes[2]
     for i, (name, values) in enumerate(spectral.items()):
         target = ax if i == 0 else ax.twinx() if i == 1 else ax
@@ -147,7 +149,8 @@ def plot_fit(path: str | os.PathLike, measurement: Measurement, material: Materi
                     color=f"C{i}")
         target.set_ylabel(name if i < 2 else target.get_ylabel())
     ax.set_xlabel("wavelength (nm)")
-    ax.set_title(f"spectral parameters ({scalars})" if scalars else "spectral parameters")
+    ax.set_title(f"spectral parameters\n{scalars}" if scalars else "spectral parameters",
+                 fontsize=9)
     handles = [h for a in fig.axes[2:] for h in a.get_lines()]
     ax.legend(handles, [h.get_label() for h in handles], fontsize=8)
     with atomic_path(path) as tmp:

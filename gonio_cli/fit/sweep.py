@@ -102,7 +102,17 @@ def _comparison_truths(wl: np.ndarray) -> dict[str, dict]:
         "goniochromatic-diffuse": dict(_ink(wl), rho_d=0.05 + 0.1 * x),
         "goniochromatic-coat": dict(_ink(wl), rho_d=0.05 + 0.1 * x, alpha_coat=0.03,
                                     k_coat=1.0, f0_coat=0.04),
+        "cook-torrance-2": dict(_paint(wl), ks_1=0.1, m_1=0.05, ks_2=0.6, m_2=0.3),
+        "cook-torrance-3": dict(_paint(wl), ks_1=0.1, m_1=0.05, ks_2=0.4, m_2=0.2,
+                                ks_3=0.3, m_3=0.5),
     }
+
+
+def _paint(wl: np.ndarray) -> dict:
+    """A blue metallic paint's spectra for the lobed Cook–Torrance models: a blue base
+    kd(λ) and a flake F0(λ) rising towards the red."""
+    x = (wl - wl[0]) / (wl[-1] - wl[0])
+    return {"kd": 0.02 + 0.15 * np.exp(-0.5 * ((wl - 470.0) / 50.0) ** 2), "f0": 0.5 + 0.4 * x}
 
 
 def _ink(wl: np.ndarray) -> dict:
@@ -113,7 +123,8 @@ def _ink(wl: np.ndarray) -> dict:
 
 #: Models whose fitter has one optimiser of its own (the ``--optimizer`` choice does not
 #: apply): swept once, with the compressive residual they are meant for.
-_SINGLE_OPTIMIZER = {"goniochromatic-diffuse", "goniochromatic-coat"}
+_SINGLE_OPTIMIZER = {"goniochromatic-diffuse", "goniochromatic-coat", "cook-torrance-2",
+                     "cook-torrance-3"}
 
 
 def comparison_sweep(noise: float = 0.02, repeats: int = 5,
