@@ -192,7 +192,11 @@ def interrupt(tmp_path, patch: str, *args, entry: bool = False) -> subprocess.Co
            "from gonio_cli.__main__ import main\nmain()\n") if entry else (
         "from gonio_cli import cli\n"
         f"sys.exit(cli.run({[str(a) for a in args]!r}))\n")
-    script.write_text("import sys, time\n" + textwrap.dedent(patch) + "\n" + run)
+    # Python installs its SIGINT handler only where SIGINT is not ignored at start, and a
+    # shell's background job (CI, `make test &`) starts with it ignored: install it here.
+    script.write_text("import signal, sys, time\n"
+                      "signal.signal(signal.SIGINT, signal.default_int_handler)\n"
+                      + textwrap.dedent(patch) + "\n" + run)
     proc = subprocess.Popen([sys.executable, str(script)], cwd=tmp_path, text=True,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     try:
