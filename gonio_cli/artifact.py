@@ -163,7 +163,8 @@ def _to_jsonable(obj: Any) -> Any:
     if isinstance(obj, (list, tuple)):
         return [_to_jsonable(v) for v in obj]
     if isinstance(obj, np.ndarray):
-        return _to_jsonable(obj.tolist())
+        # numbers come out of tolist() as Python numbers already: no walk over elements
+        return obj.tolist() if obj.dtype.kind in "biuf" else _to_jsonable(obj.tolist())
     if isinstance(obj, np.bool_):
         return bool(obj)
     if isinstance(obj, np.integer):
