@@ -14,6 +14,9 @@ MODEL_NAMES = ("goniochromatic", "goniochromatic-diffuse", "goniochromatic-coat"
                "torrance-sparrow", "cook-torrance", "cook-torrance-2", "cook-torrance-3",
                "auto")
 RESIDUAL_NAMES = ("compressive", "log", "linear")
+#: The default model; only its poor fits try the other models for a hint (a model chosen
+#: on purpose, e.g. the standard model for a comparison, is not second-guessed).
+DEFAULT_MODEL = "goniochromatic"
 
 
 def fit(
@@ -21,7 +24,7 @@ def fit(
                                       help="A gonio.measurement file (gonio ingest)."),
     output: Path = typer.Option(..., "--output", "-o", metavar="MATERIAL.json",
                                 help="The gonio.material file to write."),
-    model: str = typer.Option("goniochromatic", "--model", "-m", metavar="NAME",
+    model: str = typer.Option(DEFAULT_MODEL, "--model", "-m", metavar="NAME",
                               help=f"One of: {', '.join(MODEL_NAMES)} (auto: every model, "
                                    "the best on held-out angles of incidence)."),
     refine: bool = typer.Option(True, "--refine/--no-refine",
@@ -137,7 +140,8 @@ def fit(
     if model == "auto":
         log.info(auto_line(extra["auto"]))
     log.info(verdict_line(output, result, judgement))
-    if judgement["verdict"] == "poor" and model != "auto":
+    if judgement["verdict"] == "poor" and model == DEFAULT_MODEL:
+        # the product's own model: say whether another one does better (fits them all)
         hint = better_model_hint(data, result, judgement, options)
         if hint:
             log.info(hint)
