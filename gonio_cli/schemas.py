@@ -171,10 +171,6 @@ class Material:
     STATUSES = {1: ("success", "failed"), 2: ("good", "poor", "failed")}
     FIELDS = ("model", "wavelength_nm", "status", "fit")
 
-    @property
-    def trusted(self) -> bool:
-        """True for a fit whose verdict is good (v2) or success (v1)."""
-        return self.status in ("good", "success")
 
     def to_payload(self) -> dict[str, Any]:
         out: dict[str, Any] = {"model": self.model, "status": self.status,

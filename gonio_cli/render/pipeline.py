@@ -162,7 +162,7 @@ def build_surfaces(scene: Scene, stats: Stats) -> list:
         if path not in materials:
             with _SceneKey(scene, key, path):
                 m = read_material(path)
-            if not m.trusted:
+            if m.status == "failed":  # a poor one was said so when it was fitted
                 log.warn(f"{path}: a fit with status {m.status!r} is rendered")
             materials[path] = on_grid(m, scene.grid_nm, path)
         return materials[path]
