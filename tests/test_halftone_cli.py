@@ -178,7 +178,8 @@ BAD = {
     "two channels": (lambda d: _image(d / "ga.exr", 2), [], "2 channels"),
     "transparent": (lambda d: _image(d / "rgba.exr", 4, 0.5), [], "transparent"),
     "unknown method": (lambda d: SAMPLE, ["-m", "atkinson"],
-                       "floyd-steinberg, jarvis, stucki, bayer, clustered, blue-noise"),
+                       "floyd-steinberg, jarvis, stucki, bayer, clustered, clustered-3x3, "
+                       "blue-noise"),
     "size zero": (lambda d: SAMPLE, ["--size", "0x100"], "no pixels"),
     "size zero height": (lambda d: SAMPLE, ["--size", "100x0"], "no pixels"),
     "size garbage": (lambda d: SAMPLE, ["--size", "big"], "WIDTHxHEIGHT"),

@@ -9,7 +9,8 @@ import typer
 
 #: Methods and gamut modes shown in --help; the core's registries are the truth and
 #: refuse anything else (kept here only so that --help needs no core import).
-METHOD_NAMES = ("floyd-steinberg", "jarvis", "stucki", "bayer", "clustered", "blue-noise")
+METHOD_NAMES = ("floyd-steinberg", "jarvis", "stucki", "bayer", "clustered", "clustered-3x3",
+                "blue-noise")
 GAMUT_NAMES = ("scale", "clip")
 COMPRESSION_NAMES = ("none", "fast", "balanced", "small")     # imageio.COMPRESSION
 
@@ -69,8 +70,9 @@ def halftone(
                                              help="bayer: matrix size, a power of two "
                                                   "(default 8)."),
     cell_size: Optional[int] = typer.Option(None, "--cell-size", metavar="N",
-                                            help="clustered: cell size in pixels "
-                                                 "(default 3, seed 000's example)."),
+                                            help="clustered: cell in pixels, even "
+                                                 "(default 8; dots N/sqrt(2) px apart at "
+                                                 "45 degrees)."),
     mask_size: Optional[int] = typer.Option(None, "--mask-size", metavar="N",
                                             help="blue-noise: void-and-cluster mask size "
                                                  "(default 64)."),

@@ -50,18 +50,22 @@ REPORT_SCHEMA_VERSION = 1
 @dataclass(frozen=True)
 class Parameter:
     """An integer option of a method: default, allowed range, whether it must be a power
-    of two, and its help text (the CLI flag is ``--`` + name with ``-`` for ``_``)."""
+    of two or a multiple of some step, and its help text (the CLI flag is ``--`` + name
+    with ``-`` for ``_``)."""
 
     default: int
     lo: int
     hi: int
     help: str
     power_of_two: bool = False
+    multiple_of: int = 1
 
     def check(self, name: str, value: int) -> int:
         flag = "--" + name.replace("_", "-")
-        check = screens.check_power_of_two if self.power_of_two else screens.check_range
-        check(int(value), flag, self.lo, self.hi)
+        if self.power_of_two:
+            screens.check_power_of_two(int(value), flag, self.lo, self.hi)
+        else:
+            screens.check_range(int(value), flag, self.lo, self.hi, self.multiple_of)
         return int(value)
 
 
@@ -99,7 +103,12 @@ def _bayer(coverage: np.ndarray, bayer_size: int) -> tuple[np.ndarray, dict]:
 
 
 def _clustered(coverage: np.ndarray, cell_size: int) -> tuple[np.ndarray, dict]:
-    ranks = screens.clustered_ranks(cell_size)
+    ranks = screens.clustered_dot_ranks(cell_size)
+    return screens.threshold_stack(coverage, screens.ranks_to_thresholds(ranks)), {}
+
+
+def _clustered_3x3(coverage: np.ndarray) -> tuple[np.ndarray, dict]:
+    ranks = screens.clustered_ranks(screens.SEED_000_CELL_PX)
     return screens.threshold_stack(coverage, screens.ranks_to_thresholds(ranks)), {}
 
 
@@ -136,11 +145,19 @@ METHODS: dict[str, Method] = {m.name: m for m in (
            "recursive dispersed-dot threshold matrix", _bayer,
            {"bayer_size": Parameter(8, 2, 64, "Bayer matrix size (power of two).",
                                     power_of_two=True)}),
-    Method("clustered", "ordered dither", "seed 000, Printing application (3 × 3 example)",
-           "clustered dots growing from each cell's centre (R core, G and B rings)",
+    Method("clustered", "ordered dither",
+           "Ulichney 1987, Digital Halftoning (MIT Press); ISO 32000-1 Table 130, Round",
+           "round dots on a 45° lattice growing from their centres (R core, G and B "
+           "rings), in a supercell of ≥ 1024 levels",
            _clustered,
-           {"cell_size": Parameter(3, 2, 32, "Clustered-dot cell size in pixels "
-                                             "(cell² + 1 tone levels).")}),
+           {"cell_size": Parameter(8, 4, 32, "Clustered-dot cell in pixels, even: dots "
+                                             "every N px across and down plus one at each "
+                                             "cell centre (45°, N/√2 px apart, N²/2 "
+                                             "pixels per dot).", multiple_of=2)}),
+    Method("clustered-3x3", "ordered dither", "seed 000, Printing application (3 × 3 example)",
+           "seed 000's illustration: one 3 × 3 cell growing from its centre, 10 levels "
+           "per ink (steps of 1/9)",
+           _clustered_3x3),
     Method("blue-noise", "ordered dither", "Ulichney 1993, Proc. SPIE 1913, 332-343",
            "void-and-cluster blue-noise threshold mask (generated once, cached)",
            _blue_noise,

@@ -7,9 +7,17 @@ is stacked: ink R owns [0, r), G owns [r, r + g), B owns [r + g, r + g + b) and 
 is bare substrate, so a pixel gets the ink whose interval holds its threshold
 (:func:`threshold_stack`). Exactly one state per pixel by construction; over a whole tile
 of a flat patch ink k covers the fraction of ranks in its interval, within 1/(n m) of its
-coverage. R takes the lowest thresholds, G the next, B the next: with a dispersed screen
-(Bayer, blue noise) each band of ranks is itself dispersed; with a clustered dot the inks
-grow as concentric rings (R core, G ring, B ring) in every cell.
+coverage, and an ink of zero coverage owns an empty interval, so it never appears. R takes
+the lowest thresholds, G the next, B the next: with a dispersed screen (Bayer, blue noise)
+each band of ranks is itself dispersed; with a clustered dot the inks grow as concentric
+rings (R core, G ring, B ring) in every dot.
+
+The clustered-dot screen (:func:`clustered_dot_ranks`) is a production one: round
+("Euclidean") dots on a 45° lattice, tiled into a supercell of at least
+:data:`CLUSTERED_SUPERCELL_MIN_PX` ² pixels whose dots take their next pixel in turn, in a
+dispersed order, so it holds over a thousand levels whatever the dot size.
+:func:`clustered_ranks` is seed 000's illustration, a single square cell whose ranks grow
+from its centre (3 × 3: ten levels).
 
 References
 ----------
@@ -17,9 +25,15 @@ B. E. Bayer, "An optimum method for two-level rendition of continuous-tone pictu
 IEEE International Conference on Communications, 26-11 to 26-15, 1973.
 R. Ulichney, "The void-and-cluster method for dither array generation", Proc. SPIE 1913,
 Human Vision, Visual Processing, and Digital Display IV, 332-343, 1993.
+R. Ulichney, *Digital Halftoning*, MIT Press, 1987 (clustered-dot ordered dither, 45°
+screens).
+ISO 32000-1:2008 (PDF 1.7), Table 130, predefined spot function ``Round`` (the
+"Euclidean" dot).
 """
 
 from __future__ import annotations
+
+from functools import lru_cache
 
 import numpy as np
 
@@ -39,6 +53,22 @@ VOID_AND_CLUSTER_SEED = 0
 #: Bumped whenever the generator changes, so a cached mask of an older generator is
 #: never read (it is part of the cache file name).
 VOID_AND_CLUSTER_VERSION = 1
+
+#: Seed 000's illustrative clustered cell ("a square of 3×3 pixels"): ten levels per ink.
+SEED_000_CELL_PX = 3
+
+#: The clustered-dot screen is tiled into a supercell at least this many pixels wide:
+#: 32² = 1024 ranks, so a flat patch over whole tiles is within 1/1024 ≈ 0.1 % of its
+#: coverage per ink whatever the dot size (a single 8 × 8 cell would give 1/64 ≈ 1.6 %,
+#: a 3 × 3 cell 1/9 ≈ 11 %), while the tile stays small (at most 60² for cells to 32).
+CLUSTERED_SUPERCELL_MIN_PX = 32
+
+#: Decimals to which the dot-order energies (sums of at most a few hundred Gaussians,
+#: float64 rounding ~1e-13) are rounded before comparing, so that dots placed alike by the
+#: lattice's symmetry tie exactly and the lower index wins on every machine; distinct
+#: energies closer than 1e-9 also tie, which only decides which of two equally far dots
+#: goes first.
+ENERGY_DECIMALS = 9
 
 
 def ranks_to_thresholds(ranks: np.ndarray) -> np.ndarray:
@@ -62,9 +92,11 @@ def bayer_ranks(size: int) -> np.ndarray:
 
 
 def clustered_ranks(cell: int) -> np.ndarray:
-    """A clustered-dot cell (cell, cell) int: ranks grow outwards from the cell centre
-    (distance, then angle, then index on ties), so a level of k/cell² fills the k pixels
-    nearest the centre — seed 000's example: 0.3 of R in a 3 × 3 cell fills 3 pixels.
+    """A square clustered-dot cell (cell, cell) int: ranks grow outwards from the cell
+    centre (distance, then angle, then index on ties), so a level of k/cell² fills the k
+    pixels nearest the centre — seed 000's example: 0.3 of R in a 3 × 3 cell fills 3
+    pixels. It has only cell² + 1 levels (:data:`SEED_000_CELL_PX`: ten, steps of 1/9);
+    :func:`clustered_dot_ranks` is the screen that keeps tone.
     """
     yy, xx = np.mgrid[0:cell, 0:cell].astype(float)
     centre = (cell - 1) / 2.0
@@ -74,6 +106,109 @@ def clustered_ranks(cell: int) -> np.ndarray:
     ranks = np.empty(cell * cell, dtype=np.int64)
     ranks[order] = np.arange(cell * cell)
     return ranks.reshape(cell, cell)
+
+
+def _euclidean_dot_key(su: np.ndarray, sv: np.ndarray, half: int) -> np.ndarray:
+    """Growth order of a round ("Euclidean") dot, integer, smallest first.
+
+    ``su``, ``sv``: a pixel's offset from its dot centre along the lattice axes
+    (dx + dy, dx − dy), in [−half, half); the dot's cell is the square |su|, |sv| ≤ half
+    (a diamond in pixels), its corners the centres of the holes. Inside |su| + |sv| ≤ half
+    (half the cell) the key is the squared distance from the dot centre (su² + sv² =
+    2 (dx² + dy²)) minus half², ≤ 0; outside it is half² minus the squared distance from
+    the nearest hole centre, > 0. So a dot grows round from its centre, the dots meet at
+    50 % (a checkerboard of squares) and the holes then shrink round: the negated spot
+    function ``Round`` of ISO 32000-1, Table 130, in integers (no ties broken by rounding).
+    """
+    u, v = np.abs(su), np.abs(sv)
+    inside = u + v <= half
+    return np.where(inside, u * u + v * v - half * half,
+                    half * half - (half - u) ** 2 - (half - v) ** 2)
+
+
+def _dispersed_order(points: np.ndarray, size: int, sigma: float) -> np.ndarray:
+    """An order of ``points`` (D, 2) on a (size, size) torus in which every prefix is
+    spread out: starting with point 0, repeatedly the point farthest (toroidal distance)
+    from those already taken; among equally far points, the one of least Gaussian energy
+    (σ = ``sigma`` px) from them — the "largest void" of Ulichney's (1993) void and
+    cluster — then the lowest index. Returns the position of each point in the order,
+    (D,) int. Distances are exact (integer squares); energies are rounded to
+    :data:`ENERGY_DECIMALS` before comparing, so that points placed alike by the lattice's
+    symmetry tie exactly and the order is the same on every machine."""
+    delta = np.abs(points[:, None, :] - points[None, :, :])
+    delta = np.minimum(delta, size - delta)
+    d2 = (delta ** 2).sum(axis=2)
+    gaussian = np.exp(-d2 / (2.0 * sigma ** 2))
+    n = len(points)
+    position = np.full(n, -1, dtype=np.int64)
+    energy = np.zeros(n)
+    nearest = np.full(n, np.iinfo(np.int64).max)
+    chosen = 0
+    for step in range(n):
+        position[chosen] = step
+        energy += gaussian[chosen]
+        nearest = np.minimum(nearest, d2[chosen])
+        free = position < 0
+        if not free.any():
+            break
+        farthest = free & (nearest == nearest[free].max())
+        chosen = int(np.argmin(np.where(farthest, np.round(energy, ENERGY_DECIMALS),
+                                        np.inf)))
+    return position
+
+
+@lru_cache(maxsize=8)
+def clustered_dot_ranks(cell: int, supercell_min_px: int | None = None
+                        ) -> np.ndarray:
+    """A clustered-dot screen that keeps tone: round dots on a 45° lattice in a supercell.
+
+    Parameters
+    ----------
+    cell : int
+        Even, ≥ 2: the dot lattice repeats every ``cell`` pixels across and down, with a
+        second dot at the centre of each ``cell`` × ``cell`` square — dots on a 45°
+        lattice, ``cell``/√2 px apart, ``cell``²/2 pixels per dot.
+    supercell_min_px : int, optional
+        The tile is the smallest multiple of ``cell`` at least this wide
+        (default :data:`CLUSTERED_SUPERCELL_MIN_PX`).
+
+    Returns
+    -------
+    ranks : (T, T) int
+        A permutation of 0 … T² − 1, T = ⌈supercell_min_px / cell⌉ · cell. The rank of a
+        pixel is (its order within its dot) · D + (its dot's turn), D = 2 T²/cell² dots:
+        every dot grows by the Euclidean-dot order (:func:`_euclidean_dot_key`, angle on
+        ties: a spiral), and all dots take their k-th pixel before any takes its
+        (k + 1)-th, in a dispersed order of the dots (:func:`_dispersed_order`). At any
+        level the dots differ by at most one pixel, and a flat patch over whole tiles is
+        within 1/T² of its coverage (T² + 1 levels, ≥ 1025 by default). Built in
+        1–3 ms and kept (read-only) for the next call with the same arguments.
+    """
+    minimum = CLUSTERED_SUPERCELL_MIN_PX if supercell_min_px is None else supercell_min_px
+    half = cell // 2
+    size = -(-minimum // cell) * cell
+    y, x = np.mgrid[0:size, 0:size]
+    s, d = x + y, x - y
+    su = (s + half) % cell - half          # offset from the dot centre, lattice axes
+    sv = (d + half) % cell - half          # (s and d, hence su and sv, share parity)
+    # the dot a pixel belongs to: its centre pixel (x0, y0), x0 ± y0 = (s − su), (d − sv)
+    x0 = ((s - su + d - sv) // 2) % size
+    y0 = ((s - su - d + sv) // 2) % size
+    centres, dot = np.unique(np.stack([y0.ravel(), x0.ravel()], axis=1), axis=0,
+                             return_inverse=True)
+    dot = dot.ravel()
+    # order within a dot: every dot has the same offsets, so rank the offsets once
+    key = _euclidean_dot_key(su, sv, half).ravel()
+    angle = np.arctan2(sv, su).ravel()
+    offset = ((su + half) * cell + (sv + half)).ravel()
+    first = dot == 0
+    table = np.empty(cell * cell, dtype=np.int64)
+    own = np.lexsort((offset[first], angle[first], key[first]))
+    table[offset[first][own]] = np.arange(own.size)
+    turn = _dispersed_order(centres, size, VOID_AND_CLUSTER_SIGMA * cell / np.sqrt(2.0))
+    ranks = (table[offset] * len(centres) + turn[dot]).reshape(size, size)
+    ranks.flags.writeable = False
+    return ranks
 
 
 def _toroidal_gaussian(size: int, sigma: float) -> np.ndarray:
@@ -194,8 +329,16 @@ def check_power_of_two(value: int, option: str, lo: int, hi: int) -> None:
                          fix=f"use one of {', '.join(str(1 << k) for k in range(lo.bit_length() - 1, hi.bit_length()))}")
 
 
-def check_range(value: int, option: str, lo: int, hi: int) -> None:
-    """Refuse an integer option outside [lo, hi]."""
+def check_range(value: int, option: str, lo: int, hi: int, multiple_of: int = 1) -> None:
+    """Refuse an integer option outside [lo, hi] or not a multiple of ``multiple_of``."""
     if not lo <= value <= hi:
         raise InputError(f"{option} {value} is outside [{lo}, {hi}]",
-                         fix=f"use an integer from {lo} to {hi}")
+                         fix=f"use {_integers(multiple_of)} from {lo} to {hi}")
+    if value % multiple_of:
+        raise InputError(f"{option} {value} is not a multiple of {multiple_of}",
+                         fix=f"use {_integers(multiple_of)} from {lo} to {hi}")
+
+
+def _integers(multiple_of: int) -> str:
+    return {1: "an integer", 2: "an even integer"}.get(multiple_of,
+                                                      f"a multiple of {multiple_of}")
