@@ -50,6 +50,24 @@ def ggx_d(cos_theta_h, alpha) -> np.ndarray:
     return np.exp(log_ggx_d(cos_theta_h, alpha))
 
 
+def ggx_d_into(cos_theta_h, alpha: float, scratch) -> np.ndarray:
+    """:func:`ggx_d` in the input's dtype, into buffers from ``scratch(name, n)`` (the
+    renderer's float32 hot path): D = α² / (π (α² cos²θh + sin²θh)²), seed 000
+    eq. (3), sin²θh = (1 − cos θh)(1 + cos θh) (no cancellation at cos θh → 1); cos θh in
+    [0, 1], α ≥ 0.05 in float32 (the renderer's ``FLOAT32_MIN_ALPHA``) (D ≤ 1/(π α²), no overflow)."""
+    m = cos_theta_h.shape[0]
+    t = cos_theta_h.dtype.type
+    a2 = alpha * alpha
+    d = np.multiply(cos_theta_h, cos_theta_h, out=scratch("ggx", m))
+    d *= t(a2)
+    s = np.subtract(t(1), cos_theta_h, out=scratch("ggx_s", m))
+    u = np.add(cos_theta_h, t(1), out=scratch("ggx_u", m))
+    s *= u
+    d += s
+    d *= d
+    return np.divide(t(a2 / np.pi), d, out=d)
+
+
 def log_ggx_d(cos_theta_h, alpha) -> np.ndarray:
     """log of seed 000 eq. (3), finite for α down to 1e-150 and at cos θh = 1.
 
@@ -77,6 +95,27 @@ def dlog_ggx_d_dlog_alpha(cos_theta_h, alpha) -> np.ndarray:
 def goniochromatic_exponent_arg(cos_theta_i, cos_theta_o) -> np.ndarray:
     """1 − cos((θi + θo)/2), the factor c(λ) multiplies in seed 000 eq. (4)."""
     return 1.0 - cos_half_sum(cos_theta_i, cos_theta_o)
+
+
+def goniochromatic_exponent_arg_into(cos_theta_i, cos_theta_o, scratch) -> np.ndarray:
+    """:func:`goniochromatic_exponent_arg` in the inputs' dtype, into buffers from
+    ``scratch(name, n)`` (the renderer's float32 hot path): x = 1 − cos((θi+θo)/2)
+    = 1 − (√((1 + cos θi)(1 + cos θo)) − √((1 − cos θi)(1 − cos θo)))/2 (seed 000 eq. 6),
+    cosines in [0, 1] (as :func:`gonio_cli.geometry.cosines_from_dots_into` leaves them)."""
+    m = cos_theta_i.shape[0]
+    one = cos_theta_i.dtype.type(1)
+    p = np.add(cos_theta_i, one, out=scratch("x", m))
+    q = np.add(cos_theta_o, one, out=scratch("x_q", m))
+    p *= q
+    np.sqrt(p, out=p)
+    np.subtract(one, cos_theta_i, out=q)
+    r = np.subtract(one, cos_theta_o, out=scratch("x_r", m))
+    q *= r
+    np.sqrt(q, out=q)
+    p -= q
+    p *= cos_theta_i.dtype.type(-0.5)
+    p += one
+    return p
 
 
 def log_goniochromatic(cos: Cosines, alpha, rho, c) -> np.ndarray:

@@ -84,6 +84,41 @@ def cosines_from_dots(cos_i, cos_o, cos_io) -> Cosines:
     return Cosines(clip(cos_i), clip(cos_o), clip(cos_h), clip(cos_d))
 
 
+def cosines_from_dots_into(cos_i, cos_o, cos_io, scratch, cos_d: bool = True) -> Cosines:
+    """:func:`cosines_from_dots` (seed 000 eq. 1) in the inputs' dtype (float32 in the
+    renderer's hot path, ~6× faster than the float64 form), into buffers from
+    ``scratch(name, n)``: cos θh = (N·ωi + N·ωo)/‖ωi + ωo‖, cos θd = (1 + ωi·ωo)/‖ωi + ωo‖,
+    ‖ωi + ωo‖² = 2 + 2 ωi·ωo, with the same guard (‖ωi + ωo‖² ≤ HALF_SQ_EPS: cos θh = 1,
+    cos θd = cos θi) and clamps to [0, 1]. ``cos_d=False`` leaves cos θd out (None)."""
+    m = cos_i.shape[0]
+    one = cos_i.dtype.type(1)
+    sq = np.multiply(cos_io, cos_i.dtype.type(2), out=scratch("sq", m))
+    sq += cos_i.dtype.type(2)
+    degenerate = sq <= HALF_SQ_EPS
+    if degenerate.any():
+        sq[degenerate] = one
+    else:
+        degenerate = None
+    inv = np.sqrt(sq, out=sq)
+    np.divide(one, inv, out=inv)
+    ch = np.add(cos_i, cos_o, out=scratch("cos_h", m))
+    ch *= inv
+    cd = None
+    if cos_d:
+        cd = np.add(cos_io, one, out=scratch("cos_d", m))
+        cd *= inv
+    if degenerate is not None:
+        ch[degenerate] = one
+        if cd is not None:
+            cd[degenerate] = cos_i[degenerate]
+    clipped = []
+    for name, v in (("cos_i", cos_i), ("cos_o", cos_o), ("", ch), ("", cd)):
+        if v is not None:
+            v = np.clip(v, 0, one, out=scratch(name, m) if name else v)
+        clipped.append(v)
+    return Cosines(*clipped)
+
+
 def cosines(wi: np.ndarray, wo: np.ndarray, normal=(0.0, 0.0, 1.0)) -> Cosines:
     """The :class:`Cosines` of direction pairs (..., 3) about ``normal`` (..., 3)."""
     wi = np.asarray(wi, dtype=float)

@@ -27,20 +27,25 @@ Orientation: each triangle's C_k are multiplied by σ = sign(P0 · N), after whi
 shows the triangle (hit at depth > 0, all b_k ≥ 0) iff min_k e_k ≥ 0, whichever way the
 triangle faces and even when it crosses the eye's plane.
 
-Batching (no Python loop over triangles or pixels): boxes larger than :data:`TILE` are
-cut into tiles; boxes are grouped by size class (:data:`SIZE_CLASSES` per axis, so a
-box is tested over a window at most 1.5× its extent per axis); each class is one set of
-(ch, cw, n) float32 arrays — boxes on the last axis so every broadcast operation runs
-long inner loops — holding the three edge functions (one add each), their minimum, and
-1/z (linear on screen) at the hits. Float32 has a 24-bit mantissa, like a hardware depth
-buffer; watertightness does not depend on precision. The depth test is one scatter-min
-``np.minimum.at`` per class of a 64-bit key ((complemented float32 bits of 1/z) << 32 |
-back-face bit << 31 | triangle), which resolves depth and the winning triangle at once
-and prefers a front face on an exact tie (a silhouette edge shared with a back face).
-Only the winners are then interpolated, in float64: position, smooth normal, view, uv and
-the uv footprint. On this project's shared 2-core machine a 512² frame of the
-20 448-triangle default sphere takes ~5 ms set-up, ~12 ms visibility and ~19 ms
-interpolation, ~40 ms in all (``benchmarks/bench_render_raster.py``, best of 10).
+Batching (no Python loop over triangles or pixels): each triangle's box is cut into
+rows; along a row every e_k is linear in the column, so the pixels that show the
+triangle form one span, found per (triangle, row) pair in float64 (:func:`_scan`).
+Pixels farther from an edge than the float32 round-off of its test are taken without
+testing; the few within it get the test itself in float32 (the same numbers as testing
+every pixel of the box, so the watertight edges stay watertight). Float32 has a 24-bit
+mantissa, like a hardware depth buffer. The depth test is a scatter-min
+``np.minimum.at`` of a 64-bit key ((complemented float32 bits of 1/z) << 32 | back-face
+bit << 31 | triangle), which resolves depth and the winning triangle at once and prefers
+a front face on an exact tie (a silhouette edge shared with a back face). Front faces go
+first; a back face whose box lies behind them on a min-pyramid of their 1/z (hierarchical
+z) is skipped — same keys, most back faces of a closed mesh never tested. Only the
+winners are then interpolated, in the G-buffer's dtype (the pipeline: float32), into
+(c, n) component arrays: normal, view, and position, uv and its footprint when asked.
+On this project's shared 2-core machine (loaded by other jobs), a 512² frame of the
+20 448-triangle OBJ sphere (warm process, median of 9) took ~5 ms set-up, ~17 ms
+visibility and ~7 ms interpolation at ssaa 1, ~4, ~31 and ~19 ms at ssaa 2: 0.89× and
+0.56× (visibility), 0.50× and 0.39× (interpolation) the earlier windowed, float64-
+interpolating rasterizer's, measured beside it.
 
 The uv footprint is max(|∂uv/∂x|, |∂uv/∂y|) in uv units per pixel, from the analytic
 screen derivatives of the perspective-correct barycentrics (exact, not finite differences
@@ -64,17 +69,11 @@ from . import Camera, GBuffer, Mesh
 #: triangles with all vertices nearer are culled. Small against any scene scale, large
 #: enough that 1 / depth stays far from float overflow.
 NEAR = 1e-4
-#: Boxes larger than TILE pixels in either direction are cut into TILE × TILE tiles, so
-#: one big (or near-plane-crossing, full-screen) triangle costs no more memory per array
-#: than many small ones.
-TILE = 64
-#: Window sizes (pixels, per axis) of the size classes: a box of extent b is tested over
-#: the smallest class ≥ b, so at most 1.5× (1.33× on average) the box per axis is wasted,
-#: with few classes (≤ 12² groups of boxes, each one vectorised pass).
-SIZE_CLASSES = np.array([1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, TILE])
-#: Most candidate pixels per vectorised chunk: three reused 2 M-float32 scratch arrays
-#: (24 MB) plus the hits' indices and keys (≤ ~50 MB at full coverage).
-CHUNK_CANDIDATES = 1 << 21
+#: Most candidate pixels per vectorised chunk of :func:`_scan`: ~10 arrays of them
+#: (≤ ~80 MB), e.g. a whole 1024² frame in one chunk.
+CHUNK_CANDIDATES = 1 << 20
+#: Most (triangle, box row) pairs per chunk of :func:`_scan`: ~15 arrays of them (≤ ~30 MB).
+CHUNK_ROWS = 1 << 18
 #: A triangle whose plane passes this close to the eye (|P0 · N| / (|P0| |N|), the sine
 #: of the angle between the view ray and the plane) is seen edge-on and covers no pixel.
 EDGE_ON_SINE = 1e-9
@@ -200,108 +199,274 @@ def _setup(pc: np.ndarray, faces: np.ndarray, handedness: float, w: int, h: int,
     C = np.stack([Cx[:, tri], Cy[:, tri], Cz[:, tri]], axis=1) * sigma   # (3 edges, 3, n)
     # back face ⟺ the world normal points away from the eye ⟺ handedness · P0 · N > 0
     return {"tri": tri, "C": C, "N": C[0] + C[1] + C[2], "q": np.abs(p0n[tri]),
-            "back": handedness * p0n[tri] > 0,
+            "back": handedness * p0n[tri] > 0, "whole": whole[tri],
             "x0": x0[tri].astype(np.int64), "y0": y0[tri].astype(np.int64),
             "bw": (x1 - x0 + 1)[tri].astype(np.int64), "bh": (y1 - y0 + 1)[tri].astype(np.int64)}
 
 
-def _tiles(x0, y0, bw, bh):
-    """Cut boxes larger than TILE into TILE × TILE tiles: (owner, x0, y0, bw, bh) per tile."""
-    nx = (bw + TILE - 1) // TILE
-    ny = (bh + TILE - 1) // TILE
-    nt = nx * ny
-    owner = np.repeat(np.arange(len(bw)), nt)
-    k = np.arange(len(owner)) - np.repeat(np.cumsum(nt) - nt, nt)
-    ky, kx = np.divmod(k, nx[owner])
-    tx0 = x0[owner] + kx * TILE
-    ty0 = y0[owner] + ky * TILE
-    return (owner, tx0, ty0, np.minimum(bw[owner] - kx * TILE, TILE),
-            np.minimum(bh[owner] - ky * TILE, TILE))
-
-
-def _size_class(extent: np.ndarray) -> np.ndarray:
-    """Index of the smallest of SIZE_CLASSES ≥ extent (extent ≤ TILE)."""
-    return np.searchsorted(SIZE_CLASSES, extent)
-
-
-def _visibility(st, w, h, F) -> np.ndarray:
+def _visibility(st, w, h, F, hiz: bool = True) -> np.ndarray:
     """Depth test over all candidate pixels: (H·W,) int64 keys, _KEY_EMPTY where empty.
 
-    Boxes (tiles) are grouped by size class (ch, cw); a group of n boxes is one
-    (ch, cw, n) array per quantity, built by broadcasting per-box coefficients against the
-    class's pixel offsets (no per-pixel gathers). A window is shifted left / up inside the
-    image when it would stick out, so every candidate is a real pixel; each appears once per
-    box. Keys are (0x7FFFFFFF − float32 bits of 1/z) << 32 | back << 31 | kept triangle
+    Keys are (0x7FFFFFFF − float32 bits of 1/z) << 32 | back << 31 | kept triangle
     index, so ``np.minimum.at`` keeps the nearest triangle and prefers front faces on
-    exact ties (silhouettes).
+    exact ties (silhouettes). Candidates are generated by :func:`_scan` (row spans).
+
+    With ``hiz`` the front faces go first; then a back face is skipped when a min-pyramid
+    of their 1/z (hierarchical z, :func:`_hidden_back_faces`) shows it behind them over
+    its whole box — on a closed mesh seen from outside, most back faces (70 % of the
+    default sphere's). The keys are the same either way.
     """
     keys = np.full(h * w, _KEY_EMPTY, dtype=np.int64)
-    owner, x0, y0, bw, bh = _tiles(st["x0"], st["y0"], st["bw"], st["bh"])
-    cls = _size_class(bh) * len(SIZE_CLASSES) + _size_class(bw)
-    order = np.argsort(cls, kind="stable")
-    cls_sorted = cls[order]
-    starts = np.flatnonzero(np.r_[True, cls_sorted[1:] != cls_sorted[:-1]])
-    ends = np.r_[starts[1:], len(order)]
-    C = st["C"].astype(np.float32)                                # (3 edges, 3, n)
-    # 1 / depth = (d · N) / q is linear on screen too: its coefficients per triangle
-    inv_z = (st["N"] / st["q"]).astype(np.float32)                # (3, n)
-    tri_bits = np.arange(len(st["q"]), dtype=np.int64) | (st["back"].astype(np.int64) << 31)
-    cx, cy = np.float32(w / 2.0 - 0.5), np.float32(h / 2.0 - 0.5)
-    inv_f = np.float32(1.0 / F)
-    inv_near = np.float32(1.0 / NEAR)
-    # scratch buffers reused by every chunk (fresh arrays would page-fault each time)
-    scratch = np.empty((3, CHUNK_CANDIDATES), np.float32)
-    offsets: dict[tuple[int, int], np.ndarray] = {}
-
-    def window_offsets(ch: int, cw: int) -> np.ndarray:
-        """(ch · cw,) flat-image offsets of a window's pixels from its top-left one."""
-        if (ch, cw) not in offsets:
-            offsets[ch, cw] = (np.arange(ch)[:, None] * w + np.arange(cw)).ravel()
-        return offsets[ch, cw]
-
-    for a, b in zip(starts, ends):                                # one pass per size class
-        ch = min(int(SIZE_CLASSES[cls_sorted[a] // len(SIZE_CLASSES)]), h)
-        cw = min(int(SIZE_CLASSES[cls_sorted[a] % len(SIZE_CLASSES)]), w)
-        step = max(1, CHUNK_CANDIDATES // (ch * cw))
-        for c0 in range(a, b, step):                              # memory-bounded chunks
-            sel = order[c0:min(b, c0 + step)]
-            own = owner[sel]
-            n = len(sel)
-            size = n * ch * cw
-            wx0 = np.minimum(x0[sel], w - cw)                     # keep the window on screen
-            wy0 = np.minimum(y0[sel], h - ch)
-            # boxes on the last axis: (ch, cw, n) arrays, so that every broadcast
-            # operation runs long inner loops over boxes (not over a window's few columns)
-            dx = (np.arange(cw, dtype=np.float32)[:, None]
-                  + (wx0 - cx).astype(np.float32)) * inv_f       # (cw, n)
-            dy = ((cy - wy0).astype(np.float32)
-                  - np.arange(ch, dtype=np.float32)[:, None]) * inv_f   # (ch, n)
-            Ck = C[:, :, own]                                     # (3 edges, 3, n)
-            # e_k = d · C_k = dx C_k.x + (dy C_k.y + C_k.z): one full-size add per edge;
-            # inside ⟺ min_k e_k ≥ 0 (C oriented in _setup)
-            m = scratch[0, :size].reshape(ch, cw, n)
-            e = scratch[1, :size].reshape(ch, cw, n)
-            np.add(dx * Ck[0, 0], (dy * Ck[0, 1] + Ck[0, 2])[:, None, :], out=m)
-            for k in (1, 2):
-                np.add(dx * Ck[k, 0], (dy * Ck[k, 1] + Ck[k, 2])[:, None, :], out=e)
-                np.minimum(m, e, out=m)
-            idx = np.flatnonzero(m.reshape(-1) >= 0.0)
-            if len(idx) == 0:
-                continue
-            iz = inv_z[:, own]                                    # (3, n)
-            rz = scratch[2, :size].reshape(ch, cw, n)
-            np.add(dx * iz[0], (dy * iz[1] + iz[2])[:, None, :], out=rz)
-            rem, j = np.divmod(idx, n)                            # offset in window, box
-            rz_hit = rz.reshape(-1)[idx]
-            pix_hit = (wy0 * w + wx0)[j] + window_offsets(ch, cw)[rem]
-            tb = tri_bits[own[j]]
-            ok = (rz_hit > 0.0) & (rz_hit < inv_near)            # in front of the near plane
-            if not ok.all():
-                rz_hit, pix_hit, tb = rz_hit[ok], pix_hit[ok], tb[ok]
-            # nearest = largest 1/z: its float32 bits grow with it, so store their complement
-            key = ((np.int64(0x7FFFFFFF) - rz_hit.view(np.int32)).astype(np.int64) << 32) | tb
-            np.minimum.at(keys, pix_hit, key)
+    coef = (st["C"].astype(np.float32),                             # (3 edges, 3, n)
+            # 1 / depth = (d · N) / q is linear on screen too: its coefficients
+            (st["N"] / st["q"]).astype(np.float32),                 # (3, n)
+            np.arange(len(st["q"]), dtype=np.int64) | (st["back"].astype(np.int64) << 31))
+    f32 = np.float32
+    dx_col = (np.arange(w, dtype=f32) - f32(w / 2.0 - 0.5)) * f32(1.0 / F)  # dx of each column
+    hits = _HitBuffers(dx_col)                                # shared by the two passes
+    back = st["back"]
+    if hiz and back.any() and not back.all():
+        _scan(st, keys, np.flatnonzero(~back), coef, hits, w, h, F)
+        hidden = _hidden_back_faces(st, keys, w, h, F)
+        _scan(st, keys, np.flatnonzero(back & ~hidden), coef, hits, w, h, F)
+    else:
+        _scan(st, keys, np.arange(len(back)), coef, hits, w, h, F)
     return keys
+
+
+#: Relative float32 round-off allowed for a linear form dx a + (dy b + c) of float32
+#: coefficients evaluated in float32 (the edge functions and 1/z of a hit): ≤ ~4
+#: roundings of the sum of its absolute terms, with a margin of 4×.
+FLOAT32_FORM_TOLERANCE = 16 * float(np.finfo(np.float32).eps)
+
+
+def _hidden_back_faces(st, keys, w, h, F) -> np.ndarray:
+    """(n,) bool: kept back faces whose every possible hit lies behind the hits already in
+    ``keys`` (hierarchical z; Greene et al. 1993).
+
+    The 1/z of a triangle's plane is linear on screen, so over its box grown by one pixel
+    (hits just outside the box by round-off included) it is at most its largest corner
+    value, plus :data:`FLOAT32_FORM_TOLERANCE` of the sum of absolute terms for float32
+    round-off. Each level of a min-pyramid of the 1/z in ``keys`` (0 where empty: never
+    hides) holds the smallest 1/z of 2^L × 2^L pixels; the level whose cells are at least
+    the grown box's extent covers it with ≤ 2 × 2 cells. A triangle is hidden if its bound
+    is below their minimum: then at each of its hits the pixel holds a nearer face, which
+    the key comparison would keep. Whole-screen boxes (near-plane crossing) never are.
+    """
+    bits = (np.int64(0x7FFFFFFF) - (keys >> 32)).astype(np.int32)
+    rz = bits.view(np.float32)
+    rz[keys == _KEY_EMPTY] = 0.0
+    levels = [rz.reshape(h, w)]
+    while max(levels[-1].shape) > 1:
+        a = levels[-1]
+        hh, ww = a.shape
+        if hh % 2 or ww % 2:                                  # pad with "empty"
+            a = np.pad(a, ((0, hh % 2), (0, ww % 2)))
+        levels.append(np.minimum(np.minimum(a[0::2, 0::2], a[1::2, 0::2]),
+                                 np.minimum(a[0::2, 1::2], a[1::2, 1::2])))
+    cand = np.flatnonzero(st["back"] & ~st["whole"])
+    hidden = np.zeros(len(st["q"]), bool)
+    if cand.size == 0:
+        return hidden
+    gx0 = np.maximum(st["x0"][cand] - 1, 0)
+    gy0 = np.maximum(st["y0"][cand] - 1, 0)
+    gx1 = np.minimum(st["x0"][cand] + st["bw"][cand], w - 1)
+    gy1 = np.minimum(st["y0"][cand] + st["bh"][cand], h - 1)
+    iz = st["N"][:, cand] / st["q"][cand]                     # 1/z = d · iz, float64
+    dx = (np.stack([gx0, gx1]) + 0.5 - w / 2.0) / F           # (2, m) extreme columns
+    dy = (h / 2.0 - 0.5 - np.stack([gy0, gy1])) / F
+    bound = (np.maximum(dx[0] * iz[0], dx[1] * iz[0]) + np.maximum(dy[0] * iz[1], dy[1] * iz[1])
+             + iz[2])
+    bound += FLOAT32_FORM_TOLERANCE * (np.abs(dx).max(0) * np.abs(iz[0])
+                                       + np.abs(dy).max(0) * np.abs(iz[1]) + np.abs(iz[2]))
+    extent = np.maximum(gx1 - gx0, gy1 - gy0) + 1
+    level = np.ceil(np.log2(extent)).astype(np.int64)
+    front_min = np.full(cand.size, np.inf)
+    for L in np.flatnonzero(np.bincount(level)):              # ≤ log2(size) levels
+        at = np.flatnonzero(level == L)
+        grid = levels[L]
+        cx0, cx1 = gx0[at] >> L, gx1[at] >> L
+        cy0, cy1 = gy0[at] >> L, gy1[at] >> L
+        front_min[at] = np.minimum(np.minimum(grid[cy0, cx0], grid[cy0, cx1]),
+                                   np.minimum(grid[cy1, cx0], grid[cy1, cx1]))
+    hidden[cand] = bound < front_min
+    return hidden
+
+
+def _chunks(sizes: np.ndarray, limit: int):
+    """Consecutive slices of ``sizes`` whose sums stay ≤ ``limit`` (or one item each)."""
+    ends = np.cumsum(sizes)
+    start = 0
+    while start < len(sizes):
+        base = ends[start - 1] if start else 0
+        stop = max(int(np.searchsorted(ends, base + limit, side="right")), start + 1)
+        yield slice(start, stop)
+        start = stop
+
+
+def _scan(st, keys, sel, coef, hits, w, h, F) -> None:
+    """Edge tests of the kept triangles ``sel`` and the scatter-min of their hits' keys
+    into ``keys`` (:func:`_visibility`), one row span per triangle and box row.
+
+    Along a row the edge function e_k = dx C_k.x + r_k (r_k = dy C_k.y + C_k.z, the
+    float32 form every pixel's test evaluates) is linear in the column, so the pixels
+    where all three are ≥ 0 form one span; in float64 each edge's root is affine in the
+    row. Columns farther from every root than the float32 round-off of the test
+    (:data:`FLOAT32_FORM_TOLERANCE` of its absolute terms) have a sure outcome and are
+    taken (or left) without testing; the few within it get the float32 test itself, so
+    the result is that of testing every pixel of the box in float32 — shared edges give
+    exactly negated e and stay watertight. Triangles go in chunks of :data:`CHUNK_ROWS`
+    box rows, hits in chunks of :data:`CHUNK_CANDIDATES` through reused buffers (fresh
+    arrays would page-fault), which bounds the memory (a near-plane triangle's box is
+    the whole screen).
+    """
+    if sel.size == 0:
+        return
+    C, inv_z, tri_bits = coef
+    f32 = np.float32
+    cx, cy = f32(w / 2.0 - 0.5), f32(h / 2.0 - 0.5)
+    inv_f = f32(1.0 / F)
+    dx_col = hits.dx_col
+    # column of the root of e_k on row y: cx − (F C.z + (cy − y) C.y) / C.x = A + B y,
+    # and the round-off of the test in columns, TOL (F |dx|max + |root − cx|), bounded
+    # over the box's rows; a lower edge (C.x > 0: col ≥ root) surely passes from root +
+    # slack and surely fails below root − slack, an upper edge (C.x < 0) the mirror
+    # image; ±inf offsets leave the other role's bounds alone, and flat edges (C.x = 0,
+    # e constant along the row) are handled apart
+    Cx, Cy, Cz = (C[:, i].astype(np.float64) for i in range(3))   # (3 edges, n)
+    lower, upper = Cx > 0, Cx < 0
+    flat = ~(lower | upper)
+    safe_cx = np.where(flat, 1.0, Cx)
+    A = float(cx) - (F * Cz + float(cy) * Cy) / safe_cx
+    B = np.where(flat, 0.0, Cy / safe_cx)
+    y0, y1 = st["y0"], st["y0"] + st["bh"] - 1
+    slack = (FLOAT32_FORM_TOLERANCE * np.maximum(np.abs(A + B * y0 - float(cx)),
+                                                 np.abs(A + B * y1 - float(cx)))
+             + FLOAT32_FORM_TOLERANCE * (w / 2.0 + 1.0))
+    A_sure_lo = np.where(lower, A + slack, -np.inf)
+    A_out_lo = np.where(lower, A - slack, -np.inf)
+    A_sure_hi = np.where(upper, A - slack, np.inf)
+    A_out_hi = np.where(upper, A + slack, np.inf)
+    any_flat = flat.any(axis=0)
+    bh_all = st["bh"][sel]
+    for part in _chunks(bh_all, CHUNK_ROWS):
+        tris, bh = sel[part], bh_all[part]
+        n_pairs = int(bh.sum())
+        tri_p = np.repeat(tris, bh)                               # (triangle, row) pairs
+        row_p = np.arange(n_pairs) - np.repeat(np.cumsum(bh) - bh - st["y0"][tris], bh)
+        x0 = st["x0"][tri_p].astype(np.float64)
+        sure_lo, out_lo = x0, x0.copy()
+        sure_hi = x0 + (st["bw"][tri_p] - 1)
+        out_hi = sure_hi.copy()
+        row_f = row_p.astype(np.float64)
+        by, t = np.empty(n_pairs), np.empty(n_pairs)
+        for k in range(3):
+            np.take(B[k], tri_p, out=by, mode="clip")
+            by *= row_f
+            for A_k, bound, op in ((A_sure_lo, sure_lo, np.maximum), (A_out_lo, out_lo, np.maximum),
+                                   (A_sure_hi, sure_hi, np.minimum), (A_out_hi, out_hi, np.minimum)):
+                np.take(A_k[k], tri_p, out=t, mode="clip")
+                t += by
+                op(bound, t, out=bound)
+        empty = None
+        flat_p = np.flatnonzero(any_flat[tri_p])
+        for k in range(3) if flat_p.size else ():
+            at = flat_p[flat[k][tri_p[flat_p]]]
+            if at.size:                          # e = r exactly on the row: pass iff r ≥ 0
+                dy = (cy - row_p[at].astype(f32)) * inv_f
+                r = dy * C[k, 1][tri_p[at]] + C[k, 2][tri_p[at]]
+                bad = at[r < 0]
+                empty = bad if empty is None else np.concatenate([empty, bad])
+        lo, hi = np.ceil(out_lo, out=out_lo), np.floor(out_hi, out=out_hi)
+        li = np.maximum(np.ceil(sure_lo, out=sure_lo), lo, out=sure_lo)
+        ui = np.minimum(np.floor(sure_hi, out=sure_hi), hi, out=sure_hi)
+        none = lo > hi
+        if empty is not None:
+            none[empty] = True
+        lo[none], hi[none] = 1.0, 0.0
+        no_sure = none | (li > ui)
+        li[no_sure], ui[no_sure] = hi[no_sure] + 1, hi[no_sure]   # test the whole span
+        # the tested runs [lo, li) and (ui, hi], then hits: the sure runs [li, ui]
+        left_n, right_n = (li - lo).astype(np.int64), (hi - ui).astype(np.int64)
+        tested = np.flatnonzero(left_n + right_n)
+        pair_t = col_t = np.zeros(0, np.int64)
+        if tested.size:
+            pair_t = np.concatenate([np.repeat(tested, left_n[tested]),
+                                     np.repeat(tested, right_n[tested])])
+            first = np.concatenate([lo[tested], ui[tested] + 1]).astype(np.int64)
+            n_t = np.concatenate([left_n[tested], right_n[tested]])
+            col_t = (np.arange(len(pair_t)) - np.repeat(np.cumsum(n_t) - n_t, n_t)
+                     + np.repeat(first, n_t))
+            tp = tri_p[pair_t]
+            dy = (cy - row_p[pair_t].astype(f32)) * inv_f
+            dx = dx_col[col_t]
+            m = None
+            for k in range(3):                                    # the float32 test
+                e = dx * C[k, 0][tp]
+                e += dy * C[k, 1][tp] + C[k, 2][tp]
+                m = e if m is None else np.minimum(m, e, out=m)
+            keep = m >= 0.0
+            pair_t, col_t = pair_t[keep], col_t[keep]
+        # per pair: the 1/z row constant (dy iz.y + iz.z, as each hit adds it), the
+        # pixel of column 0, the key's low bits
+        dy_p = (cy - row_p.astype(f32)) * inv_f
+        pairs = {"rz_const": dy_p * inv_z[1][tri_p] + inv_z[2][tri_p],
+                 "iz0": inv_z[0][tri_p], "base": row_p * w, "bits": tri_bits[tri_p]}
+        sure_n = (ui - li + 1).astype(np.int64)
+        li = li.astype(np.int64)
+        for cpart in _chunks(sure_n, CHUNK_CANDIDATES):
+            n = int(sure_n[cpart].sum())
+            run = np.repeat(np.arange(cpart.start, cpart.stop), sure_n[cpart])
+            col = hits.buffer("col", n, np.int64)
+            np.take(np.cumsum(sure_n[cpart]) - sure_n[cpart] - li[cpart], run - cpart.start,
+                    out=col, mode="clip")
+            np.subtract(hits.arange(n), col, out=col)             # li + (i − start)
+            hits.scatter(keys, run, col, pairs)
+        if pair_t.size:
+            hits.scatter(keys, pair_t, col_t, pairs)
+
+
+class _HitBuffers:
+    """Reused buffers for the hits of :func:`_scan` (fresh arrays of ~10⁵–10⁶ elements
+    page-fault on every chunk) and their key scatter."""
+
+    def __init__(self, dx_col: np.ndarray):
+        self.dx_col = dx_col
+        self._buffers: dict[str, np.ndarray] = {}
+
+    def buffer(self, name: str, n: int, dtype) -> np.ndarray:
+        buf = self._buffers.get(name)
+        if buf is None or buf.shape[0] < n:
+            buf = self._buffers[name] = (np.arange(n, dtype=dtype) if name == "arange"
+                                         else np.empty(n, dtype))
+        return buf[:n]
+
+    def arange(self, n: int) -> np.ndarray:
+        return self.buffer("arange", n, np.int64)
+
+    def scatter(self, keys: np.ndarray, run: np.ndarray, col: np.ndarray, pairs: dict) -> None:
+        """Hits at (pair ``run``, column ``col``): 1/z = dx iz.x + (dy iz.y + iz.z) in
+        float32 (as a test over the box computes it), key = (0x7FFFFFFF − its bits) << 32
+        | back << 31 | triangle, scatter-min into ``keys``."""
+        n = run.shape[0]
+        # mode="clip" (the indices are valid): with "raise" np.take buffers its output
+        rz = np.take(self.dx_col, col, out=self.buffer("rz", n, np.float32), mode="clip")
+        tmp = self.buffer("tmp", n, np.float32)
+        rz *= np.take(pairs["iz0"], run, out=tmp, mode="clip")
+        rz += np.take(pairs["rz_const"], run, out=tmp, mode="clip")
+        pix = np.take(pairs["base"], run, out=self.buffer("pix", n, np.int64), mode="clip")
+        pix += col
+        tb = np.take(pairs["bits"], run, out=self.buffer("tb", n, np.int64), mode="clip")
+        if not (rz.min() > 0.0 and rz.max() < np.float32(1.0 / NEAR)):   # near plane
+            ok = (rz > 0.0) & (rz < np.float32(1.0 / NEAR))
+            rz, pix, tb = rz[ok], pix[ok], tb[ok]
+            n = rz.shape[0]
+        # nearest = largest 1/z: its float32 bits grow with it, so store their complement
+        key = np.subtract(np.int64(0x7FFFFFFF), rz.view(np.int32),
+                          out=self.buffer("key", n, np.int64))
+        key <<= 32
+        key |= tb
+        np.minimum.at(keys, pix, key)
 
 
 def rasterize(camera: Camera, meshes: list[Mesh], ssaa: int = 1, uv: bool = True, *,
@@ -385,29 +550,35 @@ def rasterize_timed(camera: Camera, meshes: list[Mesh], ssaa: int = 1, uv: bool 
             pix = np.flatnonzero(keys != _KEY_EMPTY)
             k = keys[pix] & _TRI_INDEX_MASK                   # winning kept-triangle per pixel
             del keys
-            if h * w < 2 ** 31:                               # halve the index memory
-                pix = pix.astype(np.int32)
-            k = k.astype(np.int32)
-    # the attribute buffers: dense images, or one row per covered sample
-    shape = (len(pix),) if compact else (h, w)
-    zeros = np.zeros if not compact else np.empty
-    gb.position = zeros(shape + (3,), dtype) if position else None
-    gb.normal = zeros(shape + (3,), dtype)
-    gb.view = zeros(shape + (3,), dtype)
-    if has_uv:
-        gb.uv = zeros(shape + (2,), dtype)
-        gb.uv_footprint = zeros(shape, dtype)
+    # the attribute buffers: dense images, or one row per covered sample — stored as the
+    # transpose of (c, n) arrays, so each component is contiguous for the shading
     if compact:
-        gb.pixels = pix
+        def buffer(c):
+            return np.empty((c, len(pix)), dtype).T if c else np.empty(len(pix), dtype)
+    else:
+        def buffer(c):
+            return np.zeros((h, w, c) if c else (h, w), dtype)
+    gb.position = buffer(3) if position else None
+    gb.normal = buffer(3)
+    gb.view = buffer(3)
+    if has_uv:
+        gb.uv = buffer(2)
+        gb.uv_footprint = buffer(0)
+    if compact:                                               # int32 halves the memory
+        gb.pixels = pix.astype(np.int32) if h * w < 2 ** 31 else pix
     if len(pix):
         t0 = time.perf_counter()
-        if len(st["tri"]) > len(pix):        # more triangles than winners: keep winners only
-            won, k = np.unique(k, return_inverse=True)
-            k = k.ravel()
+        # the plane table only for triangles that won a pixel (on a closed mesh the back
+        # faces win none): a mask and a running count renumber them
+        used = np.zeros(len(st["tri"]), bool)
+        used[k] = True
+        won = np.flatnonzero(used)
+        if len(won) < len(used):
+            k = (np.cumsum(used) - 1)[k]
             st = {key: (v[..., won] if key in ("C", "N") else v[won]) for key, v in st.items()
                   if key in ("tri", "C", "N", "q", "back")}
-        _interpolate(gb, pix, k, st, _plane_table(st, vnormals, faces, uvs), obj, eye,
-                     basis, w, h, F)
+        _interpolate(gb, pix, k, st, _plane_table(st, vnormals, faces, uvs, dtype), obj,
+                     eye, basis, w, h, F)
         times["interpolation"] = time.perf_counter() - t0
     return gb, times
 
@@ -432,84 +603,155 @@ def _setup_blocked(pc, faces, handedness, w, h, F) -> dict:
             for key in parts[0]}
 
 
-def _plane_table(st, vnormals, faces, uvs) -> np.ndarray:
-    """Per kept triangle, the vectors that interpolate its attributes: (K, 3, n) float64.
+#: Smallest corner-normal length for which a triangle's interpolated normals are known to
+#: stay longer than :data:`MIN_NORMAL_LENGTH`: if no two corner normals point apart
+#: (n_i · n_j ≥ 0), |Σ b_k n_k|² = Σ b_i b_j n_i · n_j ≥ Σ b_k² |n_k|² ≥ min |n_k|² / 3.
+SAFE_NORMAL_LENGTH = 1e-6
+
+
+def _plane_table(st, vnormals, faces, uvs, dtype=np.float64) -> tuple[np.ndarray, np.ndarray]:
+    """Per kept triangle, the vectors that interpolate its attributes, and which
+    triangles need the short-normal check.
 
     An attribute A with corner values A_k interpolates perspective-correctly as
     A = Σ_k e_k A_k / Σ_k e_k = (d · G_A) / (d · N) with G_A = Σ_k C_k A_k, so per pixel
-    it costs one dot product with d = (dx, dy, 1). Rows: 0 N, 1–3 G of the normal's x, y,
-    z (sign-flipped on back faces), then 4–5 G of u, v when the meshes have uvs. The
-    triangle axis is last so that gathering winners gives contiguous rows.
+    it costs one dot product with d = (dx, dy, 1). Returns ``table`` (3 K, n) in
+    ``dtype`` — rows 3a, 3a + 1, 3a + 2 the x, y, z of G for attribute a: 0–2 the
+    normal's x, y, z (sign-flipped on back faces), 3 N (the plane: d · N = Σ e), then 4–5
+    u, v when the meshes have uvs; the triangle axis last so that gathering winners gives
+    contiguous rows — and ``risky`` (n,) bool: triangles whose corner normals may cancel
+    (:data:`SAFE_NORMAL_LENGTH`).
     """
     corners = faces[st["tri"]].T                              # (3 corners, n)
     attrs = [vnormals[:, i] for i in range(3)] + ([uvs[:, 0], uvs[:, 1]] if uvs is not None
                                                   else [])
     C = st["C"]
     flip = np.where(st["back"], -1.0, 1.0)
-    table = np.empty((1 + len(attrs), 3, C.shape[2]))
-    table[0] = st["N"]
+    table = np.empty((1 + len(attrs), 3, C.shape[2]), dtype)
+    table[3] = st["N"]
+    cn = []
     for a, values in enumerate(attrs):                        # ≤ 5 attributes
         corner_values = values[corners]                       # (3 corners, n)
         if a < 3:
             corner_values = corner_values * flip
-        table[1 + a] = (C[0] * corner_values[0] + C[1] * corner_values[1]
-                        + C[2] * corner_values[2])
-    return table
+            cn.append(corner_values)
+        table[a if a < 3 else a + 1] = (C[0] * corner_values[0] + C[1] * corner_values[1]
+                                        + C[2] * corner_values[2])
+    def dot(i, j):                                            # corner normals n_i · n_j
+        return cn[0][i] * cn[0][j] + cn[1][i] * cn[1][j] + cn[2][i] * cn[2][j]
+
+    risky = ~((np.minimum(np.minimum(dot(0, 1), dot(1, 2)), dot(2, 0)) >= 0)
+              & (np.minimum(np.minimum(dot(0, 0), dot(1, 1)), dot(2, 2))
+                 >= SAFE_NORMAL_LENGTH ** 2))
+    return table.reshape(-1, C.shape[2]), risky
 
 
-def _interpolate(gb, pix, k, st, table, obj, eye, basis, w, h, F) -> None:
+def _interpolate(gb, pix, k, st, plane, obj, eye, basis, w, h, F) -> None:
     """Fill the G-buffer at covered pixels ``pix`` (flat) won by kept triangles ``k``.
 
     Values are A = (d · G_A) / (d · N) (:func:`_plane_table`); a uv's screen derivatives
     are ∂A/∂x = (G_A.x − A N.x) / (F d · N) and ∂A/∂y = −(G_A.y − A N.y) / (F d · N).
-    Pixels go in blocks of :data:`INTERP_BLOCK` so the temporaries stay in cache.
+    The arithmetic is in the table's dtype (the pipeline: float32, which the G-buffer
+    stores anyway), in blocks of :data:`INTERP_BLOCK` pixels so the temporaries stay in
+    cache; d · N is formed only where depth, uv or a risky normal needs it.
     """
+    table, risky = plane
+    object_of = obj[st["tri"]]
+    ids = gb.object_id.reshape(-1)
+    if object_of.min() == object_of.max():                  # one object: no gather
+        ids[pix] = object_of[0]
+    else:
+        ids[pix] = object_of[k]
+    # the rows of the table this frame reads: normal, then the plane N where depth, uv
+    # or a risky normal needs d · N, then u, v
+    n_attr = table.shape[0] // 3
+    risky_any = bool(risky.any())
+    need_plane = gb.position is not None or gb.uv is not None or risky_any
+    attrs = [0, 1, 2] + ([3] if need_plane else []) + ([4, 5] if n_attr > 4 else [])
+    rows_of = np.concatenate([[3 * a, 3 * a + 1, 3 * a + 2] for a in attrs])
+    table = np.ascontiguousarray(table[rows_of])
     for start in range(0, len(pix), INTERP_BLOCK):
         block = slice(start, start + INTERP_BLOCK)
-        _interpolate_block(gb, pix[block], k[block], st, table, obj, eye, basis, w, h, F,
-                           block)
+        _interpolate_block(gb, pix[block], k[block], st, table, attrs,
+                           risky if risky_any else None, eye, basis, w, h, F, block)
 
 
-def _interpolate_block(gb, pix, k, st, table, obj, eye, basis, w, h, F, rows) -> None:
+def _interpolate_block(gb, pix, k, st, table, attrs, risky, eye, basis, w, h, F,
+                       rows) -> None:
     """:func:`_interpolate` for one block of pixels (``rows``: their rows in a compact
-    G-buffer)."""
-    row, col = np.divmod(pix, w)
-    dx = (col + 0.5 - w / 2.0) / F
-    dy = (h / 2.0 - 0.5 - row) / F
-    g = np.take(table.reshape(-1, table.shape[-1]), k, axis=1).reshape(
-        table.shape[0], 3, len(k))                            # (K, 3, N) contiguous rows
-    dot = g[:, 0] * dx + g[:, 1] * dy + g[:, 2]               # (K, N): d · G
-    # d · N > 0 at every winner in exact arithmetic; a float32 edge test can pass a pixel
-    # where the float64 sum rounds to ≤ 0 (a triangle seen almost edge-on): floor it
-    N_len = np.sqrt(g[0, 0] ** 2 + g[0, 1] ** 2 + g[0, 2] ** 2)
-    s = np.maximum(dot[0], MIN_RAY_PLANE_COS * N_len)
-    depth = st["q"][k] / s
-    ray = basis[:, 0, None] * dx + basis[:, 1, None] * dy + basis[:, 2, None]  # (3, N) world
-    inv_len = 1.0 / np.sqrt(ray[0] ** 2 + ray[1] ** 2 + ray[2] ** 2)
-    # normal: Σ e_k n_k (the positive factor 1 / Σe does not change the direction)
-    n = dot[1:4]
-    ln = np.sqrt(n[0] ** 2 + n[1] ** 2 + n[2] ** 2)
-    bad = ln <= MIN_NORMAL_LENGTH * s
-    if bad.any():   # opposite corner normals cancel (broken mesh): use the view direction
-        n[:, bad] = -ray[:, bad] * inv_len[bad]
-        ln[bad] = 1.0
-    gb.object_id.reshape(-1)[pix] = obj[st["tri"][k]]
-    # compact: contiguous rows of this block; dense: the pixels' places in the image
-    at = rows if gb.pixels is not None else pix
-    values = {"normal": n / ln, "view": -ray * inv_len}
-    if gb.position is not None:
-        values["position"] = eye[:, None] + depth * ray
-    if gb.uv is not None:
-        uv = dot[4:6] / s
-        scale = 1.0 / (F * s)
-        fx = (g[4:6, 0] - uv * g[0, 0]) * scale
-        fy = (g[4:6, 1] - uv * g[0, 1]) * scale
-        values["uv"] = uv
-        gb.uv_footprint.reshape(-1)[at] = np.sqrt(np.maximum(
-            fx[0] ** 2 + fx[1] ** 2, fy[0] ** 2 + fy[1] ** 2))
-    for name, v in values.items():                            # (c, N) → rows (N, c)
+    G-buffer); ``table`` holds the rows of the attributes ``attrs`` (:func:`_plane_table`
+    numbering), ``risky`` is None when no triangle can have a short normal."""
+    t = table.dtype.type
+    # image row and column: floor((pix + ½) / w) in float64 is exact (the fraction stays
+    # ≥ ½ / w from an integer) and much faster than an integer division
+    row = np.floor((pix + 0.5) * (1.0 / w))
+    col = pix - row * w
+    dx = col.astype(table.dtype)
+    dx += t(0.5 - w / 2.0)
+    dx *= t(1.0 / F)
+    dy = row.astype(table.dtype)
+    np.subtract(t(h / 2.0 - 0.5), dy, out=dy)
+    dy *= t(1.0 / F)
+    need_plane = 3 in attrs
+    g = np.take(table, k, axis=1)                             # (3 · attrs, m) contiguous
+    dot = {}
+    for j, a in enumerate(attrs):                             # d · G_a
+        v = g[3 * j] * dx
+        v += g[3 * j + 2]
+        tmp = g[3 * j + 1] * dy
+        v += tmp
+        dot[a] = v
+    n = np.stack([dot[0], dot[1], dot[2]])                    # Σ e_k n_k (positive factor)
+    ln = np.sqrt(np.einsum("im,im->m", n, n))
+    if need_plane:
+        # d · N > 0 at every winner in exact arithmetic; a float32 edge test can pass a
+        # pixel where the sum rounds to ≤ 0 (a triangle seen almost edge-on): floor it
+        gN = g[3 * attrs.index(3):3 * attrs.index(3) + 3]
+        s = np.maximum(dot[3], t(MIN_RAY_PLANE_COS) * np.sqrt(np.einsum("im,im->m", gN, gN)))
+    ray = basis[:, 0, None].astype(table.dtype) * dx          # (3, m) world ray, |(dx,dy,1)|
+    ray += basis[:, 1, None].astype(table.dtype) * dy
+    ray += basis[:, 2, None].astype(table.dtype)
+    inv_len = dx * dx
+    inv_len += dy * dy
+    inv_len += t(1)
+    np.sqrt(inv_len, out=inv_len)
+    np.divide(t(-1), inv_len, out=inv_len)                    # −1 / |ray|: the view
+    view = ray * inv_len
+    if risky is not None:   # opposite corner normals cancel (broken mesh): the view instead
+        bad = risky[k] & (ln <= t(MIN_NORMAL_LENGTH) * s)
+        if bad.any():
+            n[:, bad] = view[:, bad]
+            ln[bad] = 1.0
+    n /= ln
+    # compact: contiguous columns of this block; dense: the pixels' places in the image
+    compact = gb.pixels is not None
+
+    def store(name, v):
         target = getattr(gb, name)
-        target.reshape(-1, v.shape[0])[at] = v.T
+        if compact:
+            if v.ndim == 1:
+                target[rows] = v
+            else:
+                target.T[:, rows] = v
+        elif v.ndim == 1:
+            target.reshape(-1)[pix] = v
+        else:
+            target.reshape(-1, v.shape[0])[pix] = v.T
+
+    store("normal", n)
+    store("view", view)
+    if gb.position is not None:
+        depth = st["q"][k] / s                                # along d = (dx, dy, 1)
+        store("position", eye[:, None] + depth * ray)
+    if gb.uv is not None:
+        gu = 3 * attrs.index(4)
+        uv = np.stack([dot[4], dot[5]]) / s
+        scale = 1.0 / (F * s)
+        fx = (g[[gu, gu + 3]] - uv * g[3 * attrs.index(3)]) * scale
+        fy = (g[[gu + 1, gu + 4]] - uv * g[3 * attrs.index(3) + 1]) * scale
+        store("uv", uv)
+        store("uv_footprint", np.sqrt(np.maximum(fx[0] ** 2 + fx[1] ** 2,
+                                                 fy[0] ** 2 + fy[1] ** 2)))
 
 
 def downsample(image: np.ndarray, ssaa: int, dtype=np.float64) -> np.ndarray:

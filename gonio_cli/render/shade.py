@@ -61,6 +61,11 @@ C_s(λ) = Σc rgb_c B_c(λ) is ``sparkle_color`` as a reflectance through the Ma
 basis (docs/conventions.md, without the D65 factor: (1, 1, 1) is 1 at every λ). No environment
 light on sparkles (a glint of the sky would need the texture in the lobe sums).
 
+Precision: the direct-light loop computes in the G-buffer's dtype (the pipeline: float32)
+for the goniochromatic table kernel with α ≥ :data:`FLOAT32_MIN_ALPHA`, in float64 for
+every other term (from the same float32 G-buffer rows), through reused scratch buffers
+and component rows (3, n), and returns rows whose columns are contiguous.
+
 Only what reaches the picture is computed: the pixels of each object, lit pixels per
 light, inks with coverage, and no environment work without an environment
 (:mod:`.environment`), no sparkle work without a sparkle texture.
@@ -74,10 +79,10 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from ..brdf import (cook_torrance_specular_geometry, ggx_d, goniochromatic_exponent_arg,
-                    schlick_fresnel, torrance_sparrow)
+from ..brdf import (cook_torrance_specular_geometry, ggx_d_into,
+                    goniochromatic_exponent_arg_into, schlick_fresnel, torrance_sparrow)
 from ..errors import InputError
-from ..geometry import Cosines, cosines_from_dots, reflect
+from ..geometry import Cosines, cosines_from_dots, cosines_from_dots_into, reflect
 from ..schemas import Lobes, Material
 from . import GBuffer, Light, Stats
 
@@ -95,9 +100,18 @@ TABLE_MAX_SIZE = 65537
 #: between entries. 1e-5 is ~1e-3 CIEDE2000 units, far below what a print shows.
 TABLE_REL_TOL = 1e-5
 
-#: Pixels per block of the direct-light loop: ~30 float64 temporaries of 8192 pixels
-#: (~2 MB) stay in a typical L2/L3 cache; whole-image arrays (262k pixels) do not.
-BLOCK = 8192
+#: Pixels per block of the direct-light loop: its ~16 reused scratch arrays of 16 384
+#: float32 (1 MB; 2 MB in float64) stay in a typical L2 cache, whole-image arrays (262k
+#: pixels, 1 M at ssaa 2) do not, and a block's ~60 array operations amortise the ~1 µs
+#: Python cost of each (measured on the 512² sphere: 8192 and 32 768 are ~10 % slower).
+BLOCK = 16384
+
+#: Smallest GGX α whose goniochromatic table kernel runs in float32: the float32 G-buffer
+#: normal and float32 dot products leave ~4e-7 of round-off in sin²θh = (1 − cos θh)(1 +
+#: cos θh), which moves D (seed 000 eq. 3, denominator α² cos²θh + sin²θh) by ~4e-7 / α²
+#: relative on its peak: ≤ 1.6e-4 from α = 0.05 (far below a visible colour difference).
+#: Sharper lobes take float64 (from the same float32 G-buffer rows).
+FLOAT32_MIN_ALPHA = 0.05
 
 #: Pixels per block of the exact path: a block's (n, n_λ) spectra take ~21 MB in float64.
 EXACT_BLOCK = 65536
@@ -237,24 +251,54 @@ def goniochromatic_table(rho: np.ndarray, c: np.ndarray, weights: np.ndarray,
 
 
 class TableLookup:
-    """Linear interpolation of a (n_x, 3) table over x ∈ [0, 1], stored as value and slope
-    per interval, packed as one 48-byte record per interval so that a lookup is one
-    gather (``np.take`` of records: 17 µs per 8192 pixels against 2 × 19 µs for two
-    row gathers) and one multiply-add per channel."""
+    """Linear interpolation of a (n_x, 3) table over x ∈ [0, 1]: per interval its value
+    and slope, one contiguous (3, n_x − 1) array of each in the dtype of the lookup (a
+    float32 lookup reads float32 tables: half the bytes, the same ~1e-7 relative error the
+    G-buffer has), so a lookup is six 1-D gathers from tables that stay in L1/L2."""
 
     def __init__(self, table: np.ndarray):
+        table = np.asarray(table, dtype=np.float64)
         self.size = table.shape[0]
         self.n = table.shape[0] - 1
-        packed = np.ascontiguousarray(np.concatenate([table[:-1], np.diff(table, axis=0)], 1))
-        self.records = packed.view(np.dtype((np.void, packed.itemsize * 6))).ravel()
+        self._tables = {np.dtype(np.float64): (np.ascontiguousarray(table[:-1].T),
+                                               np.ascontiguousarray(np.diff(table, axis=0).T))}
+
+    def tables(self, dtype) -> tuple[np.ndarray, np.ndarray]:
+        """(value, slope), each (3, n_x − 1) in ``dtype``."""
+        dtype = np.dtype(dtype)
+        if dtype not in self._tables:
+            self._tables[dtype] = tuple(t.astype(dtype) for t in self._tables[np.dtype(np.float64)])
+        return self._tables[dtype]
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
         """(n,) x → (n, 3); x is clamped to [0, 1]."""
-        pos = np.clip(x, 0.0, 1.0) * self.n
-        i = np.minimum(pos.astype(np.intp), self.n - 1)
-        t = pos - i
-        rec = np.take(self.records, i).view(np.float64).reshape(-1, 6)
-        return rec[:, :3] + t[:, None] * rec[:, 3:]
+        x = np.asarray(x, dtype=float)
+        out = np.zeros((3, x.size))
+        self.accumulate(x, np.ones_like(x), out, _Scratch(x.dtype, x.size))
+        return out.T
+
+    def accumulate(self, x: np.ndarray, g: np.ndarray, out: np.ndarray, scratch) -> None:
+        """out[c] += g · T_c(x) for the three channels c: x, g (m,) ; out (3, m), all of
+        one dtype; x clamped to [0, 1] (NaN reads entry 0: the NaN of g carries it)."""
+        m = x.shape[0]
+        value, slope = self.tables(x.dtype)
+        pos = np.multiply(x, x.dtype.type(self.n), out=scratch("pos", m))
+        np.fmax(pos, 0, out=pos)                             # fmax/fmin: NaN → 0
+        np.fmin(pos, self.n, out=pos)
+        fl = np.floor(pos, out=scratch("floor", m))
+        np.fmin(fl, self.n - 1, out=fl)                      # x = 1: the last interval, t = 1
+        i = scratch("index", m, np.intp)
+        np.copyto(i, fl, casting="unsafe")
+        t = np.subtract(pos, fl, out=pos)
+        gt = np.multiply(g, t, out=t)
+        a = scratch("gathered", m)
+        for c in range(3):
+            np.take(value[c], i, out=a, mode="clip")   # "raise" would buffer out
+            a *= g
+            out[c] += a
+            np.take(slope[c], i, out=a, mode="clip")
+            a *= gt
+            out[c] += a
 
 
 def table_lookup(table: np.ndarray, x: np.ndarray) -> np.ndarray:
@@ -283,16 +327,28 @@ def _exact_kernel(material, weights: np.ndarray) -> Kernel:
 
 
 def _goniochromatic_kernel(material: Material, weights: np.ndarray) -> Kernel:
-    """Seed 000 eq. 5 through :func:`goniochromatic_table`: D/4 · E cos θi · T(x)."""
+    """Seed 000 eq. 5 through :func:`goniochromatic_table`: D/4 · E cos θi · T(x), in the
+    dtype of the cosines, accumulated in place (``kernel.accumulate``)."""
     p = material.params
     lookup = TableLookup(goniochromatic_table(p["rho"], p["c"], weights))
-    alpha = p["alpha"]
+    alpha = float(p["alpha"])
+
+    def accumulate(cos, scale, out, scratch):
+        """out (3, m) += XYZ of the m pixels (cos_theta_d is not read)."""
+        x = goniochromatic_exponent_arg_into(cos.cos_theta_i, cos.cos_theta_o, scratch)
+        g = ggx_d_into(cos.cos_theta_h, alpha, scratch)
+        g *= g.dtype.type(0.25)
+        g *= scale
+        lookup.accumulate(x, g, out, scratch)
 
     def kernel(cos, scale, directions):
-        x = goniochromatic_exponent_arg(cos.cos_theta_i, cos.cos_theta_o)
-        g = ggx_d(cos.cos_theta_h, alpha) * (0.25 * scale)
-        return g[:, None] * lookup(x)
+        ci = np.asarray(cos.cos_theta_i)
+        out = np.zeros((3, ci.shape[0]), ci.dtype)
+        accumulate(cos, np.asarray(scale, ci.dtype), out, _Scratch(ci.dtype, ci.shape[0]))
+        return out.T
 
+    kernel.accumulate = accumulate
+    kernel.needs_cos_d = False
     kernel.table_size = lookup.size
     kernel.cheap = True
     return kernel
@@ -341,6 +397,23 @@ TABLE_KERNELS: dict[str, Callable[[Material, np.ndarray], Kernel | None]] = {
     "torrance-sparrow": _torrance_sparrow_kernel,
     "cook-torrance": _cook_torrance_kernel,
 }
+
+
+#: Table kernels that run in float32 on a float32 G-buffer (STYLE 3), with the condition
+#: on the material; every other kernel works in float64 (from the same G-buffer rows).
+SINGLE_PRECISION: dict[str, Callable[[Material], bool]] = {
+    "goniochromatic": lambda m: float(m.params["alpha"]) >= FLOAT32_MIN_ALPHA,
+}
+
+
+def work_dtype(material, spectral: str, gbuffer_dtype, substrate: bool = False) -> np.dtype:
+    """The dtype :func:`_direct` computes a term in: the G-buffer's (float32 in the
+    pipeline) for a :data:`SINGLE_PRECISION` table kernel, float64 otherwise."""
+    if (np.dtype(gbuffer_dtype) == np.float32 and not substrate and spectral == "table"
+            and isinstance(material, Material) and material.model in SINGLE_PRECISION
+            and SINGLE_PRECISION[material.model](material)):
+        return np.dtype(np.float32)
+    return np.dtype(np.float64)
 
 
 def make_kernel(material, weights: np.ndarray, spectral: str = "table") -> Kernel:
@@ -408,6 +481,32 @@ def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1] + a[:, 2] * b[:, 2]
 
 
+# ------------------------------------------------------------- per-pixel forms in place --
+#
+# The direct-light loop evaluates per pixel and light seed 000 eq. 1 (the half-vector
+# cosines from three dot products), eq. 6 (the argument of the goniochromatic exponent)
+# and eq. 3 (GGX D). :mod:`gonio_cli.geometry` and :mod:`gonio_cli.brdf` hold them for the
+# fits: float64 whatever comes in, fresh temporaries, log forms for α down to 1e-150. The
+# forms below are the same expressions in the dtype of their inputs (float32 on the
+# render's G-buffer) written into reused buffers — measured 6× faster on a 512² frame —
+# and tests/test_render_shade.py checks them against the shared functions.
+
+class _Scratch:
+    """Named 1-D buffers of one dtype, reused by every block of the direct-light loop
+    (fresh arrays would page-fault and leave the cache): ``scratch(name, m)`` is the
+    first m elements of the buffer ``name`` (another dtype: its third argument)."""
+
+    def __init__(self, dtype, size: int):
+        self.dtype, self.size = np.dtype(dtype), max(int(size), 1)
+        self._buffers: dict[str, np.ndarray] = {}
+
+    def __call__(self, name: str, m: int, dtype=None) -> np.ndarray:
+        buf = self._buffers.get(name)
+        if buf is None or buf.shape[0] < m:
+            buf = self._buffers[name] = np.empty(max(m, self.size), dtype or self.dtype)
+        return buf[:m]
+
+
 # --------------------------------------------------------------------------------- shade --
 
 class _Pixels:
@@ -430,6 +529,14 @@ class _Pixels:
     def block(self, name: str, b: slice) -> np.ndarray:
         a = self.flat[name]
         return a[b] if self.flat_index is None else a[self.flat_index[b]]
+
+    def block_rows(self, name: str, b: slice, dtype) -> np.ndarray:
+        """One block of an attribute as (c, m) contiguous component rows in ``dtype``: a
+        view when the G-buffer stores it so (compact rows from the rasterizer) and the
+        object covers every row, else one gather or copy."""
+        t = self.flat[name].T                                 # (c, rows)
+        rows = t[:, b] if self.flat_index is None else t[:, self.flat_index[b]]
+        return np.ascontiguousarray(rows, dtype=dtype)
 
     def get(self, name: str) -> np.ndarray:
         if name not in self._cache:
@@ -485,7 +592,7 @@ def shade_rows(gbuffer: GBuffer, surfaces: Sequence[Surface], lights: Sequence[L
         raise InputError(f"spectral path {spectral!r} is unknown",
                          fix=f"use one of {', '.join(SPECTRAL_PATHS)}")
     wl = np.asarray(wavelength_nm, dtype=float)
-    out = np.zeros((gbuffer.rows, 3), dtype)
+    out = _rows_buffer(gbuffer.rows, dtype)
     counts: dict[str, Any] = {"spectral": spectral, "pixels": 0, "lit_pixel_lights": 0,
                               "ink_pixels": {}, "inks_skipped": 0, "table_sizes": [],
                               "environment_pixels": 0}
@@ -563,12 +670,14 @@ def shade_rows(gbuffer: GBuffer, surfaces: Sequence[Surface], lights: Sequence[L
             terms.append((surface.material, False, None, px))
 
         whole = px.flat_index is None                     # the object covers every row
-        obj_xyz = out if whole else np.zeros((index.size, 3), dtype)
+        obj_xyz = out if whole else _rows_buffer(index.size, dtype)
         for material, is_substrate, weight, tp in terms:
+            work = work_dtype(material, spectral, gbuffer.normal.dtype, is_substrate)
             if weight is None and tp.sel is None:         # accumulate in place
-                _direct(material, is_substrate, tp, lights, kernel_of, counts, obj_xyz)
+                _direct(material, is_substrate, tp, lights, kernel_of, counts, obj_xyz,
+                        dtype=work)
                 continue
-            acc = _direct(material, is_substrate, tp, lights, kernel_of, counts)
+            acc = _direct(material, is_substrate, tp, lights, kernel_of, counts, dtype=work)
             if weight is not None:
                 acc *= weight[:, None]
             if tp.sel is None:
@@ -604,45 +713,87 @@ def shade_rows(gbuffer: GBuffer, surfaces: Sequence[Surface], lights: Sequence[L
 
 
 def _direct(material, is_substrate: bool, tp: _Pixels, lights: Sequence[Light],
-            kernel_of, counts: dict, acc: np.ndarray | None = None) -> np.ndarray:
+            kernel_of, counts: dict, acc: np.ndarray | None = None,
+            dtype=np.float64) -> np.ndarray:
     """XYZ (n, 3) of one term of f (a material, an ink or the substrate) under the lights,
-    added to ``acc`` (a new float64 array if None).
+    added to ``acc`` (a new array if None: the (3, n) rows of :func:`_rows_buffer`).
 
-    Pixels are processed in blocks of :data:`BLOCK` so that the ~30 temporaries of the
-    per-pixel arithmetic stay in the CPU cache (twice as fast as whole-image arrays here).
+    Computed in ``dtype`` (:func:`work_dtype`) from the G-buffer's normal, view (and
+    position) as (3, m) component rows, in blocks of :data:`BLOCK` pixels whose
+    temporaries are :class:`_Scratch` buffers reused by every block, so they stay in the
+    CPU cache. Kernels with ``accumulate`` add into ``acc`` in place.
     """
+    dtype = np.dtype(dtype)
     if acc is None:
-        acc = np.zeros((tp.size, 3))
+        acc = _rows_buffer(tp.size, dtype)
+    acc_t = acc.T                                             # (3, n): contiguous rows
+    scratch = _Scratch(dtype, min(BLOCK, tp.size))
     point = any(L.kind == "point" for L in lights)
     for start in range(0, tp.size, BLOCK):
         b = slice(start, start + BLOCK)
-        n_b, v_b = tp.block("normal", b), tp.block("view", b)
-        co_b = _dot(n_b, v_b)
-        p_b = tp.block("position", b) if point else None
+        n_b, v_b = tp.block_rows("normal", b, dtype), tp.block_rows("view", b, dtype)
+        m = n_b.shape[1]
+        co_b = _dot_rows(n_b, v_b, scratch("dot_o", m), scratch)
+        seen = np.greater(co_b, 0, out=scratch("seen", m))  # 1 where N·ωo > 0, else 0
+        p_b = tp.block_rows("position", b, np.float64) if point else None
         for light in lights:
-            wi, e = incident(light, p_b)
-            cos_i = _dot(n_b, wi)
-            scale = np.where((cos_i > 0) & (co_b > 0), cos_i * e, 0.0)
-            lit = scale > 0
+            wi, e = incident(light, None if p_b is None else p_b.T)
+            if wi.ndim == 1:                                  # directional: one ωi
+                wi_b = wi.astype(dtype)
+                cos_i = np.dot(wi_b, n_b, out=scratch("dot_i", m))
+                cos_io = np.dot(wi_b, v_b, out=scratch("dot_io", m))
+                e = dtype.type(e)
+            else:                                             # point: ωi per pixel
+                wi_b = np.ascontiguousarray(wi.T, dtype)
+                cos_i = _dot_rows(n_b, wi_b, scratch("dot_i", m), scratch)
+                cos_io = _dot_rows(v_b, wi_b, scratch("dot_io", m), scratch)
+                e = e.astype(dtype)
+            # E cos θi where lit (N·ωi > 0) and seen (N·ωo > 0), else 0 (fmax: NaN → 0)
+            scale = np.fmax(cos_i, 0, out=scratch("scale", m))
+            scale *= e
+            scale *= seen
+            lit = np.greater(scale, 0, out=scratch("lit", m, np.bool_))
             n_lit = int(np.count_nonzero(lit))
             counts["lit_pixel_lights"] += n_lit
             if n_lit == 0:
                 continue
             kernel = kernel_of(material, light, is_substrate)
-            cos = cosines_from_dots(cos_i, co_b, _dot(v_b, wi))
+            cos = cosines_from_dots_into(cos_i, co_b, cos_io, scratch,
+                                cos_d=getattr(kernel, "needs_cos_d", True))
+            accumulate = getattr(kernel, "accumulate", None)
+            if accumulate is not None:
+                accumulate(cos, scale, acc_t[:, b], scratch)
+                continue
 
-            def directions(sel=None, wi=wi, n_b=n_b, v_b=v_b):
-                w = np.broadcast_to(wi, n_b.shape)
+            def directions(sel=None, wi=wi_b, n_b=n_b, v_b=v_b):
+                w = np.broadcast_to(wi.T, n_b.T.shape) if wi.ndim == 2 else \
+                    np.broadcast_to(wi, n_b.T.shape)
                 if sel is None:
-                    return w, v_b, n_b
-                return w[sel], v_b[sel], n_b[sel]
+                    return w, v_b.T, n_b.T
+                return w[sel], v_b.T[sel], n_b.T[sel]
 
-            if kernel.cheap or n_lit == lit.size:
-                acc[b] += kernel(cos, scale, directions)
+            if kernel.cheap or n_lit == m:
+                acc_t[:, b] += kernel(cos, scale, directions).T
             else:
                 acc[b][lit] += kernel(Cosines(*(a[lit] for a in cos)), scale[lit],
                                       lambda lit=lit, d=directions: d(lit))
     return acc
+
+
+def _rows_buffer(n: int, dtype) -> np.ndarray:
+    """Zeros (n, 3) whose columns are contiguous: the transpose of a (3, n) array, so
+    per-channel accumulation runs on contiguous rows (and ``.T`` gives them back)."""
+    return np.zeros((3, n), dtype).T
+
+
+def _dot_rows(a: np.ndarray, b: np.ndarray, out: np.ndarray, scratch) -> np.ndarray:
+    """Σ_k a[k] b[k] of (3, m) component rows into ``out`` (m,)."""
+    tmp = scratch("dot_tmp", a.shape[1])
+    np.multiply(a[0], b[0], out=out)
+    for k in (1, 2):
+        np.multiply(a[k], b[k], out=tmp)
+        out += tmp
+    return out
 
 
 def mirror_peak(material, wavelength_nm: np.ndarray) -> float:
