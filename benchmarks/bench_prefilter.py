@@ -4,7 +4,9 @@ against time per method and resolution.
     .venv/bin/python benchmarks/bench_prefilter.py [--quick] [--map SKY.hdr]
 
 1. The target: a 2048 × 1024 map, 8 exponents from 1 to 1e4, ``auto`` (with its
-   spot checks), under 5 s in total.
+   spot checks), under 5 s in total; then the same run with every texel weighed at its
+   centre (no area integration of hot texels or narrow lobes), to show what the area
+   integration costs.
 2. ``brute`` beside ``auto`` on a 128 × 64 map (where brute is feasible): time and the
    relative error of ``auto`` against it (99th percentile and maximum over texels).
 3. Error against time on a 512 × 256 map: ``ring`` with working maps 0–3 octaves finer
@@ -21,6 +23,7 @@ texels. Smaller maps are made from it by area (gonio_cli.envmap.downsample).
 
 from __future__ import annotations
 
+import contextlib
 import sys
 from pathlib import Path
 
@@ -72,6 +75,39 @@ def target_run(big, exponents) -> None:
     verdict = "meets" if total < TARGET_S else "MISSES"
     print(f"\nTotal {total:.2f} s for {len(results)} maps including spot checks "
           f"({verdict} the {TARGET_S:g} s target).")
+
+
+@contextlib.contextmanager
+def midpoint_only():
+    """Every texel weighed at its centre (one quadrature node), as before hot texels and
+    narrow lobes were integrated over texel areas: for the cost comparison only."""
+    names = ("HOT_MIN_NODES", "HOT_NODES_PER_SIGMA", "KINK_NODES", "MIDPOINT_MAX_TEXEL_SIGMA")
+    saved = [getattr(pf, n) for n in names]
+    for n, v in zip(names, (1, 0.0, 0, np.inf)):
+        setattr(pf, n, v)
+    try:
+        yield
+    finally:
+        for n, v in zip(names, saved):
+            setattr(pf, n, v)
+
+
+def area_cost(big, exponents) -> None:
+    """The target run with and without the area integration (lower of two runs each)."""
+    runs = {}
+    for label in ("area", "midpoint", "area", "midpoint"):
+        with midpoint_only() if label == "midpoint" else contextlib.nullcontext():
+            results, total = timed(pf.prefilter, big, exponents)
+        best = runs.get(label)
+        if best is None or total < best[1]:
+            runs[label] = (results, total)
+    (area, t_area), (mid, t_mid) = runs["area"], runs["midpoint"]
+    table(["E", "area-integrated (s)", "texel centres (s)"],
+          [[f"{a.exponent:.4g}", f"{a.time_s:.2f}", f"{m.time_s:.2f}"]
+           for a, m in zip(area, mid)])
+    print(f"\nTotal {t_area:.2f} s with the area integration, {t_mid:.2f} s without "
+          f"(spot checks included; lower of two runs each): it costs "
+          f"{t_area - t_mid:.2f} s.")
 
 
 def whole_process(big, exponents) -> None:
@@ -137,6 +173,8 @@ def main(argv: list[str] | None = None) -> None:
     print(f"## gonio prefilter: {name} at 2048×1024, {len(exponents)} exponents 1…1e4\n")
     target_run(big, exponents)
     whole_process(big, exponents)
+    print("\n## the cost of integrating hot texels and narrow lobes over texel areas\n")
+    area_cost(big, exponents)
     small = envmap.downsample(big, 16)
     print("\n## brute beside auto (ring) on the same map at 128×64\n")
     brute_beside(small, [1.0, 10.0, 100.0, 1000.0] if quick else

@@ -73,13 +73,41 @@ def row_solid_angles(height: int, width: int) -> np.ndarray:
     -------
     (H,) float64 — steradians.
     """
-    edges = np.cos(np.pi * np.arange(height + 1) / height)
-    return (edges[:-1] - edges[1:]) * (2.0 * np.pi / width)
+    edges = np.pi * np.arange(height + 1) / height
+    return band_solid_angles(edges[:-1], edges[1:], 2.0 * np.pi / width)
+
+
+def band_solid_angles(theta_top, theta_bottom, phi_width) -> np.ndarray:
+    """Solid angle of the patches θ ∈ [θ_top, θ_bottom], φ over ``phi_width`` rad.
+
+    The exact integral ∫∫ sin θ dθ dφ = (cos θ_top − cos θ_bottom) · Δφ (every texel and
+    sub-texel solid angle in gonio comes from here). Arguments broadcast; (...) float64 sr.
+    """
+    return (np.cos(theta_top) - np.cos(theta_bottom)) * phi_width
 
 
 def solid_angles(height: int, width: int) -> np.ndarray:
     """Solid angle of every texel: (H, W) float64, steradians, summing to 4π."""
     return np.broadcast_to(row_solid_angles(height, width)[:, None], (height, width)).copy()
+
+
+def direction_to_spherical(directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Polar angle θ and azimuth φ of directions, the inverse of :func:`spherical_to_direction`.
+
+    Parameters
+    ----------
+    directions : (..., 3) float
+        Directions (need not be normalised; a zero vector gives the zenith).
+
+    Returns
+    -------
+    theta, phi : (...) float64 — radians, θ in [0, π], φ in [0, 2π).
+    """
+    d = np.asarray(directions, dtype=float)
+    norm = np.linalg.norm(d, axis=-1)
+    safe = np.where(norm > 0.0, norm, 1.0)
+    cos_theta = np.clip(np.where(norm > 0.0, d[..., 1] / safe, 1.0), -1.0, 1.0)
+    return np.arccos(cos_theta), np.mod(np.arctan2(d[..., 0], -d[..., 2]), 2.0 * np.pi)
 
 
 def direction_to_pixel(directions: np.ndarray, height: int, width: int) -> np.ndarray:
@@ -98,12 +126,7 @@ def direction_to_pixel(directions: np.ndarray, height: int, width: int) -> np.nd
     -------
     (..., 2) float64 — row in [−½, H − ½], col in [−½, W − ½).
     """
-    d = np.asarray(directions, dtype=float)
-    norm = np.linalg.norm(d, axis=-1)
-    safe = np.where(norm > 0.0, norm, 1.0)
-    cos_theta = np.clip(np.where(norm > 0.0, d[..., 1] / safe, 1.0), -1.0, 1.0)
-    theta = np.arccos(cos_theta)
-    phi = np.mod(np.arctan2(d[..., 0], -d[..., 2]), 2.0 * np.pi)
+    theta, phi = direction_to_spherical(directions)
     row = theta * height / np.pi - 0.5
     col = phi * width / (2.0 * np.pi) - 0.5
     return np.stack([row, col], axis=-1)

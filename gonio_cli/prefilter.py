@@ -8,19 +8,25 @@ a lat-long map indexed by the reflected direction R (glossy and directionally di
 terms, seed 001 eqs. 7–8) or by the normal N for E = 1 (the diffuse map, eq. 9). A
 constant map stays the same constant for every E.
 
-Both integrals are the same quadrature over the texels of the input map (texel centre
-ω_j, exact solid angle Ω_j, :mod:`gonio_cli.envmap`):
+Each input texel is taken as constant over its area (the "area-true" average), so both
+integrals are sums over the texels j of the input map of the lobe integrated over the texel:
 
-    P_E(r) = Σ_j L_j Ω_j k(r·ω_j) / Σ_j Ω_j k(r·ω_j),   k(c) = exp(E log c) for c > 0, else 0,
+    P_E(r) = Σ_j L_j ∫_j k(r·ω) dω / Σ_j ∫_j k(r·ω) dω,   k(c) = exp(E log c) for c > 0, else 0,
 
-with k divided by its largest value for each output texel (it cancels), so that nothing
-underflows to 0/0 for E up to 10⁴ and beyond, and nothing overflows.
+with k divided by its value at the nearest texel centre for each output texel (it
+cancels), so that nothing underflows to 0/0 for E up to 10⁴ and beyond, and nothing
+overflows. The texel integrals (:func:`texel_weights`) are Gauss–Legendre sums whose node
+weights add up to the texel's exact solid angle (a constant map stays constant): the
+texel centre alone (the midpoint rule) where that is within ~0.1 %, more nodes where the
+lobe changes steeply across a texel, always for hot texels (a sun 10⁵ × the sky, whose
+weight is the whole answer near it; :data:`HOT_NODES_PER_SIGMA`) and for lobes narrower
+than two texels (:data:`MIDPOINT_MAX_TEXEL_SIGMA`).
 
 Methods (registry :data:`METHODS`, chosen per exponent by ``auto``):
 
 ``brute``
-    The quadrature above, every input texel for every output texel, in blocks. The exact
-    reference (cost H_o W_o H W).
+    The sums above, every input texel (within the lobe's band) for every output texel,
+    in blocks. The exact reference (cost H_o W_o H W).
 ``ring``
     The same quadrature, computed ring by ring. For an output row θ_a and an input row θ_b
     the weight depends on φ only through φ_out − φ_in, so the sum over a ring is a
@@ -29,7 +35,8 @@ Methods (registry :data:`METHODS`, chosen per exponent by ``auto``):
     (:func:`gonio_cli.envmap.downsample`) to a *working* map :data:`WORKING_LEVELS`
     octaves finer than the output; texels brighter than :data:`HOT_RATIO` × the median
     (a sun) are taken out first and convolved at full input resolution, so a sun 10⁵ × the
-    sky is not moved by the reduction. Output samples at the coarser φ grid are read off
+    sky is not moved by the reduction; in the denominator their share is their area
+    integral, as in ``brute``. Output samples at the coarser φ grid are read off
     the fine convolution exactly (the output width divides the working width). All
     weights are non-negative, so the output is non-negative: nothing rings.
 
@@ -41,6 +48,7 @@ Each exponent gets the output resolution its lobe width calls for
 from __future__ import annotations
 
 import dataclasses
+import functools
 import time
 from typing import Callable, Iterable
 
@@ -286,10 +294,220 @@ def lobe_weights(one_minus_cos: np.ndarray, exponent: float, log_peak) -> np.nda
     return arg
 
 
+# -------------------------------------------------------------------- texel integrals --
+
+#: Each input texel is constant over its area, so its weight is the lobe integrated over
+#: the texel, by Gauss–Legendre quadrature with n × n nodes (n = 1: the centre, the
+#: midpoint rule). Hot texels (a sun 10⁵ × the sky) need it most: their weight is the
+#: whole answer near them, and across one texel the lobe can change by e^10 (E = 512 on a
+#: 64 × 32 map) or have its kink at the terminator (E = 1). Hot texels get
+#: HOT_NODES_PER_SIGMA nodes per axis for every lobe σ of texel size, at least
+#: HOT_MIN_NODES: on a 64 × 32 sky with a sun 10⁵ × the sky the maps of E = 1…512 are
+#: then within 0.25 % (p99) of the area-true average (tests/test_prefilter.py).
+HOT_NODES_PER_SIGMA = 2.0
+HOT_MIN_NODES = 3
+#: For E < 2 the lobe has a kink at the terminator (max(0, c)^E with c crossing 0), where
+#: Gauss–Legendre converges only as 1/n²: hot texels the terminator crosses get this many
+#: nodes per axis instead (a few texels per output row, so the price is small).
+KINK_NODES = 15
+#: Other texels (contrast ≤ HOT_RATIO) keep the midpoint rule while a texel spans at most
+#: MIDPOINT_MAX_TEXEL_SIGMA lobe σ (Δ/σ ≤ 0.5: the midpoint weights of a textured sky
+#: are then within 0.3 % of the area average), and get NODES_PER_SIGMA nodes per σ beyond.
+MIDPOINT_MAX_TEXEL_SIGMA = 0.5
+NODES_PER_SIGMA = 1.5
+#: Texels across which log k changes by less than this keep the midpoint rule whatever
+#: their node count (its relative error is then ≲ 0.15²/24 ≈ 1e-3): on large maps only
+#: the texels near a narrow lobe's peak or far down its flanks need nodes.
+NODE_SLOPE_MAX = 0.15
+#: At most this many nodes per axis: for a lobe narrower than 1/4 of a hot texel (E over
+#: 2.6·10⁴ on a 256 × 128 map, over 10⁶ on 2048 × 1024) the quadrature no longer resolves
+#: the lobe; numerator and denominator still use the same nodes, so a constant map stays
+#: constant and a lobe centred on a texel still returns it.
+MAX_NODES = 9
+
+
+def texel_angle(height: int, width: int) -> float:
+    """The larger side of a texel of an H × W map, in radians: max(π/H, 2π/W)."""
+    return max(np.pi / height, 2.0 * np.pi / width)
+
+
+def texel_nodes(exponent: float, texel: float, hot: bool) -> int:
+    """Gauss–Legendre nodes per axis for texels ``texel`` rad wide under lobe E
+    (:data:`HOT_NODES_PER_SIGMA`, :data:`MIDPOINT_MAX_TEXEL_SIGMA`)."""
+    x = texel / lobe_sigma(exponent)
+    if hot:
+        n = max(HOT_MIN_NODES, np.ceil(HOT_NODES_PER_SIGMA * x))
+    else:
+        n = 1 if x <= MIDPOINT_MAX_TEXEL_SIGMA else np.ceil(NODES_PER_SIGMA * x)
+    n = int(min(MAX_NODES, n))
+    return n + 1 - n % 2  # odd: the texel's centre is a node, so the weight of the
+    # nearest texel (the peak) never underflows, however narrow the lobe
+
+
+@functools.lru_cache(maxsize=None)
+def _gauss_legendre(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Gauss–Legendre nodes on [−½, ½] and weights summing to 1."""
+    x, w = np.polynomial.legendre.leggauss(n)
+    return 0.5 * x, 0.5 * w
+
+
+def one_minus_cos(theta_a, theta_b, hav_dphi, dtype=np.float64) -> np.ndarray:
+    """1 − cos γ between directions (θ_a, φ_a) and (θ_b, φ_b), broadcast, in ``dtype``:
+    2 sin²((θ_a − θ_b)/2) + 2 sin θ_a sin θ_b sin²((φ_a − φ_b)/2), exact with no
+    cancellation for small γ (``hav_dphi`` is sin²((φ_a − φ_b)/2))."""
+    a = (2.0 * np.sin(0.5 * (np.subtract(theta_a, theta_b))) ** 2).astype(dtype)
+    b = (2.0 * np.sin(theta_a) * np.sin(theta_b)).astype(dtype)
+    return a + b * np.asarray(hav_dphi).astype(dtype)
+
+
+def texel_weights(theta_a, theta_b, dphi, height: int, width: int, exponent: float,
+                  log_peak, nodes: int, dtype=np.float64, kink_nodes: int = 0) -> np.ndarray:
+    """The lobe weight integrated over whole input texels: Σ_nodes Ω_node k(r·ω_node).
+
+    Parameters
+    ----------
+    theta_a : float or (...) float
+        Polar angle of the output direction r (rad); broadcast with the next two.
+    theta_b : (...) float
+        Polar angle of the centres of the input texels' rows.
+    dphi : (...) float
+        φ_a − φ_b from the texel centres (rad).
+    height, width : int
+        The input grid: texels are π/H × 2π/W.
+    exponent, log_peak
+        As :func:`lobe_weights` (the weights are k / k_peak).
+    nodes : int
+        Gauss–Legendre nodes per axis (:func:`texel_nodes`); 1 gives k at the texel
+        centre times its solid angle, the midpoint rule.
+    kink_nodes : int
+        For E < 2, texels the terminator (r·ω = 0) crosses get this many nodes instead,
+        if more (:data:`KINK_NODES`).
+
+    Returns
+    -------
+    (...) ``dtype`` — ∫_texel k dω / k_peak (sr); the node weights of a texel sum exactly
+    to its solid angle (:func:`gonio_cli.envmap.band_solid_angles`), so a constant map
+    stays constant for any ``nodes``.
+    """
+    dtheta, dphi_w = np.pi / height, 2.0 * np.pi / width
+    args = (theta_a, theta_b, dphi, log_peak)
+    if nodes == 1 and not (exponent < 2.0 and kink_nodes > 1):
+        return _node_sum(*args, dtheta, dphi_w, exponent, 1, dtype)
+    shape = np.broadcast_shapes(*(np.shape(v) for v in args))
+    gamma = 2.0 * np.arcsin(np.sqrt(0.5 * np.minimum(
+        one_minus_cos(theta_a, theta_b, np.sin(0.5 * np.asarray(dphi)) ** 2), 2.0)))
+    # |∇γ| ≤ 1 per radian: no point of the texel is nearer r than γ − its half diagonal
+    half_diag = 0.5 * np.hypot(dtheta, dphi_w)
+    total = np.array(np.broadcast_to(_node_sum(*args, dtheta, dphi_w, exponent, 1, dtype),
+                                     shape))
+    if nodes > 1:
+        # Nodes only where the midpoint rule is not already within ~0.1 %: where log k
+        # changes by more than NODE_SLOPE_MAX across the texel (its slope E tan γ, its
+        # curvature ~E near the peak), and the texel can reach KERNEL_CUTOFF of the peak.
+        near = np.maximum(gamma - half_diag, 0.0)
+        with np.errstate(divide="ignore"):
+            reach = exponent * (np.log(np.maximum(np.cos(near), 0.0)) - log_peak) \
+                >= np.log(KERNEL_CUTOFF)
+            slope = exponent * np.tan(np.minimum(gamma, 0.5 * np.pi)) + np.sqrt(exponent)
+        steep = reach & ((gamma >= 0.5 * np.pi) | (slope * 2.0 * half_diag > NODE_SLOPE_MAX))
+        _integrate(total, np.broadcast_to(steep, shape), args, dtheta, dphi_w, exponent,
+                   nodes, dtype)
+    if exponent < 2.0 and kink_nodes > nodes:
+        # the terminator crosses texels within a half diagonal of γ = π/2
+        cross = np.broadcast_to(np.abs(gamma - 0.5 * np.pi) <= half_diag, shape)
+        _integrate(total, cross, args, dtheta, dphi_w, exponent, kink_nodes, dtype)
+    return total
+
+
+def _integrate(total: np.ndarray, where: np.ndarray, args, dtheta: float, dphi_w: float,
+               exponent: float, nodes: int, dtype) -> None:
+    """Set ``total[where]`` to :func:`_node_sum` of the selected texels only."""
+    if not where.any():
+        return
+    picked = [np.broadcast_to(np.asarray(v, np.float64), total.shape)[where] for v in args]
+    # all nodes of a chunk of texels at once: (texels, n, n) arrays, ≤ BRUTE_BLOCK elements
+    x = _gauss_legendre(nodes)[0]
+    step = max(1, BRUTE_BLOCK // nodes ** 2)
+    sums = np.empty(picked[0].size, dtype)
+    for i in range(0, sums.size, step):
+        ta, tb, dphi, peak = (v[i:i + step, None, None] for v in picked)
+        sums[i:i + step] = _node_sum(ta, tb, dphi, peak, dtheta, dphi_w, exponent, nodes,
+                                     dtype, x[:, None], x[None, :]).sum(axis=(1, 2))
+    total[where] = sums
+
+
+def _node_sum(theta_a, theta_b, dphi, log_peak, dtheta: float, dphi_w: float,
+              exponent: float, nodes: int, dtype, x_theta=None, x_phi=None) -> np.ndarray:
+    """Σ over n × n Gauss–Legendre nodes of texels Δθ × Δφ_w of Ω_node k(r·ω_node), the
+    node weights of each texel scaled to sum exactly to its solid angle.
+
+    By default a loop over the nodes; given ``x_theta`` and ``x_phi`` (the nodes as arrays
+    broadcasting along new axes), one pass over all of them, returning every node's term
+    (the caller sums those axes)."""
+    x, wq = _gauss_legendre(nodes)
+    theta_b = np.asarray(theta_b, dtype=np.float64)
+    if x_theta is not None:
+        w_theta, w_phi = wq.reshape(np.shape(x_theta)), wq.reshape(np.shape(x_phi))
+        t = theta_b + x_theta * dtheta
+        wt = w_theta * np.sin(t)
+        scale = envmap.band_solid_angles(theta_b - 0.5 * dtheta, theta_b + 0.5 * dtheta,
+                                         dphi_w) / wt.sum(axis=-2, keepdims=True)
+        hav = np.sin(0.5 * (np.asarray(dphi) + x_phi * dphi_w)) ** 2
+        k = lobe_weights(one_minus_cos(theta_a, t, hav, dtype), exponent, log_peak)
+        k *= (wt * scale * w_phi).astype(dtype)
+        return k
+    sub_theta = [theta_b + xi * dtheta for xi in x]
+    sub_w = [wi * np.sin(t) for wi, t in zip(wq, sub_theta)]
+    scale = envmap.band_solid_angles(theta_b - 0.5 * dtheta, theta_b + 0.5 * dtheta,
+                                     dphi_w) / sum(sub_w)
+    havs = [np.sin(0.5 * (np.asarray(dphi) + xj * dphi_w)) ** 2 for xj in x]
+    total = None
+    for t, wt in zip(sub_theta, sub_w):
+        for hav, wj in zip(havs, wq):
+            k = lobe_weights(one_minus_cos(theta_a, t, hav, dtype), exponent, log_peak)
+            k *= (wt * scale * wj).astype(dtype)
+            if total is None:
+                total = k
+            else:
+                total += k
+    return total
+
+
 # ------------------------------------------------------------------------------ brute --
 
+def _texel_sums(pixels: np.ndarray, rows: np.ndarray, hot_mask: np.ndarray,
+                theta_a: np.ndarray, phi_a: np.ndarray, exponent: float
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """Σ_j L_j ∫_j k and Σ_j ∫_j k over the texels of input ``rows`` for output directions
+    (θ_a, φ_a) (B,): (B, C) and (B,), k divided by the nearest texel centre's value.
+    Hot texels (``hot_mask``, (H, W)) are integrated with their own node count."""
+    h, w, _ = pixels.shape
+    tb = envmap.pixel_theta(h)[rows][None, :, None]
+    ta = np.asarray(theta_a, float)[:, None, None]
+    dphi = np.asarray(phi_a, float)[:, None, None] - envmap.pixel_phi(w)[None, None, :]
+    nearest = one_minus_cos(ta, tb, np.sin(0.5 * dphi) ** 2).min(axis=(1, 2), keepdims=True)
+    if np.any(nearest >= 1.0):
+        raise InputError("the map is too small: an output direction sees no texel",
+                         fix="use a map with more texels")
+    log_peak = np.log1p(-nearest)
+    size = texel_angle(h, w)
+    nodes, hot_nodes = texel_nodes(exponent, size, False), texel_nodes(exponent, size, True)
+    wgt = texel_weights(ta, tb, dphi, h, w, exponent, log_peak, nodes)
+    hot = hot_mask[rows]
+    hot_r = np.nonzero(hot.any(axis=1))[0]
+    if hot_r.size:
+        got = texel_weights(ta, tb[:, hot_r], dphi, h, w, exponent, log_peak, hot_nodes,
+                            kink_nodes=KINK_NODES)
+        wgt[:, hot_r] = np.where(hot[hot_r], got, wgt[:, hot_r])
+    b = wgt.shape[0]
+    num = wgt.reshape(b, -1) @ pixels[rows].reshape(-1, pixels.shape[2])
+    return num, wgt.reshape(b, -1).sum(axis=1)
+
+
 def brute_at(pixels: np.ndarray, exponent: float, directions: np.ndarray) -> np.ndarray:
-    """P_E at given directions from every input texel (the exact quadrature).
+    """P_E at given directions from every input texel, each integrated over its area
+    (:func:`texel_weights`; hot texels, :func:`hot_rows`, with more nodes). Rows beyond
+    :func:`band_halfwidth` (weight < KERNEL_CUTOFF of the peak) are left out.
 
     Parameters
     ----------
@@ -305,26 +523,26 @@ def brute_at(pixels: np.ndarray, exponent: float, directions: np.ndarray) -> np.
     (N, C) float64.
     """
     h, w, c = pixels.shape
-    d_in = envmap.pixel_directions(h, w).reshape(-1, 3)
-    omega = envmap.solid_angles(h, w).reshape(-1)
-    values = pixels.reshape(-1, c).astype(np.float64)
-    out = np.empty((len(directions), c))
-    block = max(1, BRUTE_BLOCK // d_in.shape[0])
-    for start in range(0, len(directions), block):
-        u = 1.0 - directions[start:start + block] @ d_in.T
-        nearest = u.min(axis=1, keepdims=True)
-        if np.any(nearest >= 1.0):
-            raise InputError("the map is too small: an output direction sees no texel",
-                             fix="use a map with more texels")
-        wgt = lobe_weights(u, exponent, np.log1p(-nearest))
-        wgt *= omega
-        out[start:start + block] = (wgt @ values) / wgt.sum(axis=1, keepdims=True)
+    values = pixels.astype(np.float64)
+    theta_a, phi_a = envmap.direction_to_spherical(directions)
+    _, hot = hot_rows(values)
+    theta_b = envmap.pixel_theta(h)
+    reach = band_halfwidth(exponent) + np.pi / h
+    out = np.empty((len(theta_a), c))
+    block = max(1, BRUTE_BLOCK // (h * w))
+    for start in range(0, len(theta_a), block):
+        sl = slice(start, start + block)
+        rows = np.nonzero((theta_b >= theta_a[sl].min() - reach)
+                          & (theta_b <= theta_a[sl].max() + reach))[0]
+        num, den = _texel_sums(values, rows, hot, theta_a[sl], phi_a[sl], exponent)
+        out[sl] = num / den[:, None]
     return out
 
 
 def prefilter_brute(pixels: np.ndarray, exponent: float, levels: int,
                     inputs=None) -> tuple[np.ndarray, tuple]:
-    """``brute``: every input texel for every output texel (H/2^k × W/2^k output)."""
+    """``brute``: every input texel, integrated over its area, for every output texel
+    (H/2^k × W/2^k output)."""
     h, w, _ = pixels.shape
     ho, wo = h // 2 ** levels, w // 2 ** levels
     dirs = envmap.pixel_directions(ho, wo).reshape(-1, 3)
@@ -344,36 +562,37 @@ class _Rings:
     """Input rows for :func:`_ring_convolve`, all of one width W (a multiple of W_o)."""
 
     theta: np.ndarray       # (n,) polar angle of each row
-    omega: np.ndarray       # (n,) solid angle of one texel of each row
+    height: int             # rows of the whole grid (texels are π/height × 2π/width)
     spectra: np.ndarray     # (W//2+1, C, n) rfft of the row values along φ (rows last:
     width: int              # a band of rows is a contiguous slice for batched matmul)
 
     @classmethod
-    def of(cls, theta, omega, values, dtype):
+    def of(cls, theta, height, values, dtype):
         import scipy.fft
 
         spec = scipy.fft.rfft(values.astype(dtype), axis=1, workers=-1)
-        return cls(theta, omega, np.ascontiguousarray(spec.transpose(1, 2, 0)),
+        return cls(theta, height, np.ascontiguousarray(spec.transpose(1, 2, 0)),
                    values.shape[1])
 
     def phase(self, wo: int) -> tuple[int, np.ndarray]:
-        """s = W / W_o and sin²(Δφ_n / 2), Δφ_n = 2πn/W + π(s − 1)/W (n = 0…W−1): the
-        azimuth from input centre j + ½ to output centre s·c + s/2 for n = s·c − j."""
+        """s = W / W_o and Δφ_n = 2πn/W + π(s − 1)/W (n = 0…W−1): the azimuth from input
+        centre j + ½ to output centre s·c + s/2 for n = s·c − j."""
         s = self.width // wo
-        dphi = 2.0 * np.pi * np.arange(self.width) / self.width + np.pi * (s - 1) / self.width
-        return s, np.sin(0.5 * dphi) ** 2
+        return s, 2.0 * np.pi * np.arange(self.width) / self.width + np.pi * (s - 1) / self.width
 
-    def row(self, theta_a: float, rows: np.ndarray, hav_dphi: np.ndarray, exponent: float,
-            log_peak: float, dtype) -> tuple[np.ndarray, float] | None:
-        """Weights of ``rows`` for output row θ_a: (kernel (n, W) including Ω, its sum)."""
+    def nodes(self, exponent: float, hot: bool) -> int:
+        """Quadrature nodes per axis of these rows' texels (:func:`texel_nodes`)."""
+        return texel_nodes(exponent, texel_angle(self.height, self.width), hot)
+
+    def row(self, theta_a: float, rows: np.ndarray, dphi: np.ndarray, exponent: float,
+            log_peak: float, dtype, nodes: int, kink_nodes: int = 0
+            ) -> tuple[np.ndarray, float] | None:
+        """Weights of ``rows`` for output row θ_a: (kernel (n, W), each texel's lobe
+        integral :func:`texel_weights`, and its sum)."""
         if rows.size == 0:
             return None
-        # 1 − cos γ = 2 sin²(Δθ/2) + 2 sin θ_a sin θ_b sin²(Δφ/2): exact, no cancellation
-        u = (2.0 * np.sin(0.5 * (theta_a - self.theta[rows])) ** 2).astype(dtype)[:, None] \
-            + (2.0 * np.sin(theta_a) * np.sin(self.theta[rows])).astype(dtype)[:, None] \
-            * hav_dphi.astype(dtype)[None, :]
-        kern = lobe_weights(u, exponent, log_peak)
-        kern *= self.omega[rows].astype(dtype)[:, None]
+        kern = texel_weights(theta_a, self.theta[rows][:, None], dphi[None, :], self.height,
+                             self.width, exponent, log_peak, nodes, dtype, kink_nodes)
         return kern, float(kern.sum(dtype=np.float64))
 
 
@@ -386,11 +605,24 @@ def _convolve_row(kern_spec: np.ndarray, spectra: np.ndarray, width: int, s: int
     return scipy.fft.irfft(spec, n=width, axis=0)[::s]
 
 
+def _nearest_hav(rings: _Rings, dphi: np.ndarray, nodes: int) -> float:
+    """sin²(δ/2) of the smallest azimuth δ between an output centre and a quadrature node
+    of ``rings`` (nodes > 1 reach to within the texel's half width of its centre)."""
+    d = np.minimum(np.mod(dphi, 2.0 * np.pi), 2.0 * np.pi - np.mod(dphi, 2.0 * np.pi)).min()
+    if nodes > 1:
+        d = max(0.0, d - np.pi / rings.width)
+    return float(np.sin(0.5 * d) ** 2)
+
+
 def _band(theta_a: float, rings: _Rings, exponent: float, log_peak: float,
-          min_hav_dphi: float) -> np.ndarray:
-    """Rows of ``rings`` whose nearest texel has weight ≥ KERNEL_CUTOFF for row θ_a."""
-    u = 2.0 * np.sin(0.5 * (theta_a - rings.theta)) ** 2 \
-        + 2.0 * np.sin(theta_a) * np.sin(rings.theta) * min_hav_dphi
+          min_hav_dphi: float, nodes: int = 1) -> np.ndarray:
+    """Rows of ``rings`` whose nearest texel (its nearest node) has weight ≥ KERNEL_CUTOFF
+    for row θ_a."""
+    gap = np.abs(theta_a - rings.theta)
+    if nodes > 1:
+        gap = np.maximum(0.0, gap - 0.5 * np.pi / rings.height)
+    u = one_minus_cos(gap, 0.0, 0.0) + 2.0 * np.sin(theta_a) * np.sin(rings.theta) \
+        * min_hav_dphi
     ok = u < 1.0
     logc = np.log1p(-np.where(ok, u, 0.0))
     return np.nonzero(ok & (exponent * (logc - log_peak) >= np.log(KERNEL_CUTOFF)))[0]
@@ -409,39 +641,56 @@ def _ring_convolve(work: _Rings, hot: _Rings | None, ho: int, wo: int, exponent:
     (:meth:`_Rings.phase`), so the numerator over a ring is the circular convolution
     Σ_j L_j g(i − j), read exactly at i = s·c. The working grid is symmetric about the
     equator, so the kernel of output row a serves row H_o − 1 − a with the rows mirrored.
-    The denominator is the working grid's (the whole sphere's) weight sum.
+    The denominator is the working grid's (the whole sphere's) weight sum, in which the
+    hot texels' share (their weights with the working grid's nodes) is replaced by their
+    area integrals (hot nodes), the same weights as in the numerator, as ``brute`` has.
     """
     import scipy.fft
 
     theta_o = envmap.pixel_theta(ho)
     n_work = work.theta.size
     out = np.zeros((ho, wo, work.spectra.shape[1]))
-    s_w, hav_w = work.phase(wo)
-    hot_phase = hot.phase(wo) if hot is not None else None
+    s_w, dphi_w = work.phase(wo)
+    nodes_w = work.nodes(exponent, hot=False)
+    centre_hav_w = _nearest_hav(work, dphi_w, 1)
+    near_hav_w = _nearest_hav(work, dphi_w, nodes_w)
+    if hot is not None:
+        s_h, dphi_h = hot.phase(wo)
+        nodes_h = hot.nodes(exponent, hot=True)
+        near_hav_h = _nearest_hav(hot, dphi_h, nodes_h)
     for a in range((ho + 1) // 2):
         ta = theta_o[a]
-        u_near = 2.0 * np.sin(0.5 * (ta - work.theta)) ** 2 \
-            + 2.0 * np.sin(ta) * np.sin(work.theta) * hav_w.min()
+        u_near = one_minus_cos(ta, work.theta, centre_hav_w)
         if u_near.min() >= 1.0:
             raise InputError("the map is too small: an output direction sees no texel",
                              fix="use a map with more texels")
         log_peak = float(np.log1p(-u_near.min()))
-        band = _span(_band(ta, work, exponent, log_peak, hav_w.min()))
-        kern, den = work.row(ta, np.arange(n_work)[band], hav_w, exponent, log_peak, dtype)
+        band = _span(_band(ta, work, exponent, log_peak, near_hav_w, nodes_w))
+        kern, den = work.row(ta, np.arange(n_work)[band], dphi_w, exponent, log_peak, dtype,
+                             nodes_w)
         kern_spec = np.ascontiguousarray(scipy.fft.rfft(kern, axis=1).T)
         mirror = slice(n_work - band.stop, n_work - band.start)
         for t, spectra, ks in ((a, work.spectra[:, :, band], kern_spec),
                                (ho - 1 - a, work.spectra[:, :, mirror],
                                 np.ascontiguousarray(kern_spec[:, ::-1]))):
             num = _convolve_row(ks, spectra, work.width, s_w)
+            den_t = den
             if hot is not None:
-                s_h, hav_h = hot_phase
-                hot_band = _band(theta_o[t], hot, exponent, log_peak, hav_h.min())
-                got = hot.row(theta_o[t], hot_band, hav_h, exponent, log_peak, np.float64)
+                hot_band = _band(theta_o[t], hot, exponent, log_peak, near_hav_h, nodes_h)
+                got = hot.row(theta_o[t], hot_band, dphi_h, exponent, log_peak, np.float64,
+                              nodes_h, KINK_NODES)
                 if got is not None:
-                    num = num + _convolve_row(scipy.fft.rfft(got[0], axis=1).T,
-                                              hot.spectra[:, :, hot_band], hot.width, s_h)
-            out[t] = num / den
+                    add = _convolve_row(scipy.fft.rfft(got[0], axis=1).T,
+                                        hot.spectra[:, :, hot_band], hot.width, s_h)
+                    mid = hot.row(theta_o[t], hot_band, dphi_h, exponent, log_peak,
+                                  np.float64, nodes_w)[0]
+                    mid = _convolve_row(scipy.fft.rfft(mid, axis=1).T,
+                                        hot.spectra[:, -1:, hot_band], hot.width, s_h)[:, 0]
+                    num = num + add[:, :-1]
+                    # the other texels' weight is ≥ 0; max() only removes round-off
+                    den_t = np.maximum(den - mid, 0.0) + add[:, -1]
+                    den_t = np.where(den_t > 0.0, den_t, den)[:, None]
+            out[t] = num / den_t
             if t == ho - 1 - t:
                 break
     return out
@@ -466,35 +715,39 @@ def hot_rows(pixels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return rows, mask & keep[:, None]
 
 
-def split_hot(pixels: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
-    """The map without its hot texels, and the hot rows (values only at hot texels).
+def split_hot(pixels: np.ndarray) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+    """The map without its hot texels, the hot rows and the hot-texel mask.
 
     Returns
     -------
     residual : (H, W, C) float64
     rows : (n,) int or None
+    mask : (H, W) bool — :func:`hot_rows`.
     """
     rows, mask = hot_rows(pixels)
     if rows.size == 0:
-        return pixels, None
+        return pixels, None, mask
     residual = pixels.copy()
     residual[rows] = np.where(mask[rows][:, :, None], 0.0, pixels[rows])
-    return residual, rows
+    return residual, rows, mask
 
 
 class RingInputs:
     """What ``ring`` prepares once per map and reuses for every exponent: the hot rows
-    (float64 spectra at input resolution) and the working maps by reduction factor."""
+    (float64 spectra at input resolution, with the hot mask as a last channel) and the
+    working maps by reduction factor."""
 
     def __init__(self, pixels: np.ndarray):
         self.pixels = pixels
         h, w, _ = pixels.shape
-        self.residual, rows = split_hot(pixels)
+        self.residual, rows, mask = split_hot(pixels)
         self.hot = None
         if rows is not None:
-            self.hot = _Rings.of(envmap.pixel_theta(h)[rows],
-                                 envmap.row_solid_angles(h, w)[rows],
-                                 (pixels[rows] - self.residual[rows]), np.float64)
+            # the hot values and, as one more channel, the mask (for the denominator)
+            self.hot = _Rings.of(envmap.pixel_theta(h)[rows], h,
+                                 np.concatenate([pixels[rows] - self.residual[rows],
+                                                 mask[rows][:, :, None]], axis=2),
+                                 np.float64)
         self._work: dict[int, _Rings] = {}
         self._maps: dict[int, np.ndarray] = {1: self.residual}
 
@@ -510,8 +763,7 @@ class RingInputs:
         if factor not in self._work:
             m = self.reduced(factor)
             hw, ww = m.shape[:2]
-            self._work[factor] = _Rings.of(envmap.pixel_theta(hw),
-                                           envmap.row_solid_angles(hw, ww), m, RING_DTYPE)
+            self._work[factor] = _Rings.of(envmap.pixel_theta(hw), hw, m, RING_DTYPE)
         return self._work[factor]
 
 
@@ -610,29 +862,28 @@ def spot_check(pixels: np.ndarray, result: np.ndarray, exponent: float,
     """
     h, w, c = pixels.shape
     ho, wo = result.shape[:2]
-    theta, phi = envmap.pixel_theta(h), envmap.pixel_phi(w)
+    theta = envmap.pixel_theta(h)
     half = band_halfwidth(exponent)
     lum = result.max(axis=2).reshape(-1)
     rng = np.random.default_rng(seed)
     picks = [int(lum.argmin()), int(lum.argmax())]
     picks += [int(i) for i in rng.permutation(lum.size)[:CHECK_TEXELS] if i not in picks]
     theta_o, phi_o = envmap.pixel_theta(ho), envmap.pixel_phi(wo)
-    omega = envmap.row_solid_angles(h, w)
+    _, hot = hot_rows(pixels)
+    size = texel_angle(h, w)
+    cost = np.where(hot.any(axis=1), texel_nodes(exponent, size, True) ** 2, 0) \
+        + texel_nodes(exponent, size, False) ** 2
     worst, spent, done = 0.0, 0, 0
     for i in picks[:CHECK_TEXELS]:
         r, col = divmod(i, wo)
         rows = np.nonzero(np.abs(theta - theta_o[r]) <= half + np.pi / h)[0]
-        if done >= 2 and spent + rows.size * w > CHECK_BUDGET:
+        evals = int(cost[rows].sum()) * w
+        if done >= 2 and spent + evals > CHECK_BUDGET:
             break
-        # 1 − cos γ by the haversine form, as in ring (exact, no cancellation)
-        u = (2.0 * np.sin(0.5 * (theta[rows] - theta_o[r])) ** 2)[:, None] \
-            + (2.0 * np.sin(theta[rows]) * np.sin(theta_o[r]))[:, None] \
-            * (np.sin(0.5 * (phi - phi_o[col])) ** 2)[None, :]
-        wgt = lobe_weights(u, exponent, np.log1p(-u.min()))
-        wgt *= omega[rows, None]
-        truth = np.einsum("rw,rwc->c", wgt, pixels[rows]) / wgt.sum()
-        worst = max(worst, float(relative_errors(result[r, col], truth)))
-        spent += rows.size * w
+        num, den = _texel_sums(pixels, rows, hot, theta_o[r:r + 1], phi_o[col:col + 1],
+                               exponent)
+        worst = max(worst, float(relative_errors(result[r, col], num[0] / den[0])))
+        spent += evals
         done += 1
     return worst, done
 
