@@ -259,6 +259,40 @@ def xyz_to_linear_srgb(xyz) -> np.ndarray:
     return np.asarray(xyz, dtype=float) @ xyz_to_linear_srgb_matrix().T
 
 
+#: Cone-response matrices of von Kries chromatic adaptation transforms (XYZ → sharpened
+#: cone space, rows L, M, S), published constants. ``bradford``: Lam 1985 as linearised for
+#: ICC.1:2010 Annex E (the CAT of ICC colour management, hence of proofing); ``cat16``:
+#: Li et al. 2017, "Comprehensive colour appearance model (CAM16)", Color Res. Appl. 42.
+#: tests/test_render_proof.py checks both against colour-science.
+CAT_MATRICES = {
+    "bradford": np.array([[0.8951, 0.2664, -0.1614],
+                          [-0.7502, 1.7135, 0.0367],
+                          [0.0389, -0.0685, 1.0296]]),
+    "cat16": np.array([[0.401288, 0.650173, -0.051461],
+                       [-0.250268, 1.204414, 0.045854],
+                       [-0.002079, 0.048952, 0.953127]]),
+}
+
+
+def chromatic_adaptation_matrix(white_src_xyz, white_dst_xyz, method: str = "bradford"
+                                ) -> np.ndarray:
+    """Von Kries adaptation (3, 3) taking colours seen under ``white_src_xyz`` (3,) to
+    their corresponding colours under ``white_dst_xyz`` (3,): M⁻¹ diag(M w_dst / M w_src) M
+    with M = :data:`CAT_MATRICES` [method] (complete adaptation, D = 1). Apply as
+    ``xyz @ A.T``; the source white maps to the destination white exactly."""
+    if method not in CAT_MATRICES:
+        raise InputError(f"chromatic adaptation {method!r} is unknown",
+                         fix=f"use one of {', '.join(CAT_MATRICES)}")
+    m = CAT_MATRICES[method]
+    gain = (m @ np.asarray(white_dst_xyz, float)) / (m @ np.asarray(white_src_xyz, float))
+    return np.linalg.solve(m, gain[:, None] * m)
+
+
+def srgb_white_xyz() -> np.ndarray:
+    """XYZ (3,) of linear sRGB (1, 1, 1): the display white (D65, Y = 1) of the IEC matrix."""
+    return np.linalg.solve(xyz_to_linear_srgb_matrix(), np.ones(3))
+
+
 def srgb_encode(linear) -> np.ndarray:
     """IEC 61966-2-1 transfer function, linear [0, 1] → encoded [0, 1] (clipped)."""
     x = np.clip(np.asarray(linear, dtype=float), 0.0, 1.0)

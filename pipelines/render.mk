@@ -7,7 +7,8 @@ RENDER := $(OUT)/render
 SCENES := sample_data/scenes
 RENDER_VARS := --var out=$(abspath $(OUT))
 RENDER_TARGETS := $(RENDER)/figure5.png $(RENDER)/print-D65.png $(RENDER)/print-A.png \
-                  $(RENDER)/paint_env.png $(RENDER)/paint_sparkle.png
+                  $(RENDER)/print-A-unadapted.png $(RENDER)/paint_env.png \
+                  $(RENDER)/paint_sparkle.png
 
 .PHONY: render
 render: $(RENDER_TARGETS)
@@ -19,11 +20,21 @@ $(RENDER)/figure5.png: $(SCENES)/figure5.toml \
 	$(GONIO) render $< -o $@ --exr $(RENDER)/figure5.exr --report $(RENDER)/figure5.json \
 	  $(RENDER_VARS)
 
-# Figure 7: the halftoned print on a curved sheet under D65 and under A.
-$(RENDER)/print-%.png: $(SCENES)/print.toml $(SCENES)/sheet.obj $(RGBINK)/print.png \
+PRINT_INPUTS := $(SCENES)/print.toml $(SCENES)/sheet.obj $(RGBINK)/print.png \
   $(foreach i,$(INKS),$(RGBINK)/$(i).material.json)
+
+# Figure 7: the halftoned print on a curved sheet under D65 and under A, as a viewer
+# adapted to the light sees it (the default chromatic adaptation, Bradford: the light's
+# white shown as the display's white) ...
+$(RENDER)/print-%.png: $(PRINT_INPUTS)
 	$(GONIO) render $< -o $@ --exr $(RENDER)/print-$*.exr --report $(RENDER)/print-$*.json \
 	  $(RENDER_VARS) --var illuminant=$*
+
+# ... and under A unadapted (--adapt none): the light's own colour, as a camera set to
+# daylight would record it; shown beside the adapted print-A.png.
+$(RENDER)/print-A-unadapted.png: $(PRINT_INPUTS)
+	$(GONIO) render $< -o $@ --exr $(RENDER)/print-A-unadapted.exr \
+	  --report $(RENDER)/print-A-unadapted.json $(RENDER_VARS) --var illuminant=A --adapt none
 
 # The car paint under the prefiltered sky with its lobe weights (seed 001 eqs. 7–9).
 $(RENDER)/paint_env.png: $(SCENES)/paint_env.toml $(CARPAINT)/paint.material.json \

@@ -31,7 +31,8 @@ pytestmark = pytest.mark.skipif(
 
 INKS = ("red", "green", "blue")
 RENDERS = ("render/figure5.png", "render/print-D65.png", "render/print-A.png",
-           "render/paint_env.png", "render/paint_sparkle.png")
+           "render/print-A-unadapted.png", "render/paint_env.png", "render/paint_sparkle.png")
+PRINTS = {"render/print-D65.png", "render/print-A.png", "render/print-A-unadapted.png"}
 
 # Every file `make demo` makes, relative to OUT: the file graph of docs/pipelines.md.
 ALL = frozenset(
@@ -182,16 +183,17 @@ def test_demo_out_of_date_after_an_edit(tree):
 def test_scene_edit_reruns_only_its_renders(tree):
     """Changing a light (or the camera…) of print.toml re-renders the print, nothing else."""
     tree.touch("sample_data/scenes/print.toml")
-    cmds = assert_remakes(tree, {"render/print-D65.png", "render/print-A.png"})
-    assert [c[0] for c in cmds] == ["render", "render"]
-    assert sorted(Path(_output(c)).name for c in cmds) == ["print-A.png", "print-D65.png"]
+    cmds = assert_remakes(tree, PRINTS)
+    assert [c[0] for c in cmds] == ["render", "render", "render"]
+    assert sorted(Path(_output(c)).name for c in cmds) == ["print-A-unadapted.png",
+                                                           "print-A.png", "print-D65.png"]
 
 
 @pytest.mark.parametrize("source, renders", [
     ("sample_data/scenes/figure5.toml", {"render/figure5.png"}),
     ("sample_data/scenes/paint_env.toml", {"render/paint_env.png"}),
     ("sample_data/scenes/paint_sparkle.toml", {"render/paint_sparkle.png"}),
-    ("sample_data/scenes/sheet.obj", {"render/print-D65.png", "render/print-A.png"}),
+    ("sample_data/scenes/sheet.obj", PRINTS),
 ])
 def test_other_scene_inputs_rerun_only_renders(tree, source, renders):
     tree.touch(source)
@@ -208,11 +210,11 @@ def test_measurement_edit_reruns_everything_downstream(tree):
     cmds = assert_remakes(tree, {
         "rgbink/red.measurement.json", "rgbink/red.material.json", "rgbink/red.fit.png",
         "rgbink/red.torrance-sparrow.material.json", *ALL_LOBES, "sky/index.json",
-        "render/figure5.png", "render/print-D65.png", "render/print-A.png",
+        "render/figure5.png", *PRINTS,
         "render/paint_env.png", "render/paint_sparkle.png", "report/report.md"})
     kinds = Counter(" ".join(c[:2]) if c[0] == "lobes" else c[0] for c in cmds)
     assert kinds == {"ingest": 1, "fit": 2, "lobes basis": 1, "lobes fit": 4,
-                     "prefilter": 1, "render": 5, "report": 1}
+                     "prefilter": 1, "render": 6, "report": 1}
     ingest_fit = [c for c in cmds if c[0] in ("ingest", "fit")]
     assert all("red" in Path(_output(c)).name for c in ingest_fit)
 
@@ -229,12 +231,11 @@ def test_paint_measurement_edit(tree):
     ("sample_data/sky.exr", {"sky/index.json", "render/paint_env.png",
                              "render/paint_sparkle.png"}),
     ("sample_data/sparkle/photo_ti40.png", {"render/sparkle.png", "render/paint_sparkle.png"}),
-    ("sample_data/print_image.png", {"rgbink/print.png", "rgbink/print.json",
-                                     "render/print-D65.png", "render/print-A.png"}),
+    ("sample_data/print_image.png", {"rgbink/print.png", "rgbink/print.json", *PRINTS}),
     ("sample_data/ink_blue_b.csv", {
         "rgbink/blue.measurement.json", "rgbink/blue.material.json", "rgbink/blue.fit.png",
         "rgbink/blue.torrance-sparrow.material.json", *ALL_LOBES, "sky/index.json",
-        "render/figure5.png", "render/print-D65.png", "render/print-A.png",
+        "render/figure5.png", *PRINTS,
         "render/paint_env.png", "render/paint_sparkle.png", "report/report.md"}),
 ])
 def test_other_sources(tree, source, remade):

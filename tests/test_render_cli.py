@@ -95,7 +95,7 @@ def test_png_exr_and_report(run_gonio, scene, tmp_path):
     assert {i["path"] for i in doc["inputs"]} == {str(scene), str(tmp_path / "red.json")}
     assert all(len(i["sha256"]) == 64 for i in doc["inputs"])
     assert doc["counts"]["shade"]["spectral"] == "table"
-    assert doc["outputs"] == {"png": str(png), "exr": str(exr)}
+    assert doc["outputs"] == {"png": str(png), "exr": str(exr), "gamut_warning": None}
     assert "frame" in r.stderr and "total" in r.stderr
 
 
@@ -181,11 +181,16 @@ def test_environment_without_lobes_is_one_line(run_gonio, scene, tmp_path):
 def test_help_and_tonemap_names_match_the_registry(run_gonio):
     from gonio_cli.commands import render as shell
     from gonio_cli.render.shade import SPECTRAL_PATHS
-    from gonio_cli.render.tonemap import TONEMAPS
+    from gonio_cli.render.scene import Output
+    from gonio_cli.render.tonemap import (ADAPTATIONS, DEFAULT_ADAPTATION, DEFAULT_TONEMAP,
+                                          TONEMAPS)
 
     assert shell.TONEMAP_NAMES == tuple(TONEMAPS) and shell.SPECTRAL == SPECTRAL_PATHS
+    assert shell.ADAPT_NAMES == tuple(ADAPTATIONS)
+    assert (Output().tonemap, Output().adapt) == (DEFAULT_TONEMAP, DEFAULT_ADAPTATION)
     r = run_gonio("render", "--help")
     assert r.exit_code == 0 and "--exr" in r.stdout and "--report" in r.stdout
+    assert "--adapt" in r.stdout and "--gamut-warning" in r.stdout
 
 
 def test_other_grid_resamples_the_material_with_a_warning(run_gonio, scene, tmp_path):

@@ -104,8 +104,8 @@ def test_opengl_v_and_wrapping():
     np.testing.assert_allclose(top, [[1, 0, 0]])
     np.testing.assert_allclose(bottom, [[0, 0, 1]])
     # repeat addressing: u + k and v + k look up the same texel
-    a = pyr.coverage(np.array([[0.3, 0.125]]), 0.1)
-    b = pyr.coverage(np.array([[2.3, -0.875]]), 0.1)
+    a = pyr.coverage(np.array([[0.3, 0.125]]), 0.1, wrap="repeat")
+    b = pyr.coverage(np.array([[2.3, -0.875]]), 0.1, wrap="repeat")
     np.testing.assert_allclose(a, b, atol=1e-6)
 
 
@@ -138,3 +138,49 @@ def test_mask_from_a_png_file(tmp_path, rng):
     pyr = MaskPyramid.from_file(path)
     np.testing.assert_allclose(pyr.levels[0], mask)
     np.testing.assert_allclose(pyr.mean_coverage(), mean_coverage(mask), atol=1e-6)
+
+
+# ------------------------------------------------------------------------ addressing --
+
+def edge_mask():
+    """8 × 8: left column red, right column empty, the rest green."""
+    labels = np.full((8, 8), 2)
+    labels[:, 0] = 1
+    labels[:, -1] = 0
+    return labels_to_mask(labels)
+
+
+@pytest.mark.parametrize("footprint_texels", [0.0, 1.0, 2.0, 3.0])
+def test_clamp_reads_no_dot_of_the_opposite_edge(footprint_texels):
+    """A print's right edge (empty column) never pulls in the left edge's red dots."""
+    pyr = MaskPyramid(edge_mask())
+    v = np.linspace(0.02, 0.98, 25)
+    right = np.column_stack([np.full_like(v, 1.0 - 0.5 / 8), v])      # centre of the last column
+    edge = np.column_stack([np.full_like(v, 1.0), v])                 # on the border itself
+    for uv in (right, edge):
+        got = pyr.coverage(uv, np.full(len(v), footprint_texels / 8))   # default: clamp
+        # red exists only in column 0: a clamped filter at the right edge reaches at most
+        # the mip texels holding columns 4–7 (level ≤ 2 covers ≤ 4 columns), never column 0
+        assert got[:, 0].max() == 0.0
+    # the same lookups with repeat addressing do pull red in (the bug this guards against)
+    got = pyr.coverage(edge, np.full(len(v), 0.0), wrap="repeat")
+    np.testing.assert_allclose(got[:, 0], 0.5, atol=1e-6)              # half-way to column 0
+
+
+def test_clamp_matches_repeat_inside_and_holds_the_edge_texel_outside(rng):
+    pyr = MaskPyramid(random_mask(rng, 16, 16))
+    uv = 0.1 + 0.8 * rng.random((200, 2))          # ≥ 1.6 texels from every edge
+    fp = np.full(200, 0.5 / 16)                    # level < 1: taps stay inside the image
+    np.testing.assert_allclose(pyr.coverage(uv, fp, wrap="clamp"),
+                               pyr.coverage(uv, fp, wrap="repeat"), atol=1e-6)
+    # outside [0, 1] clamp reads the border: u = 3 is u = 1, v = -2 is v = 0
+    np.testing.assert_allclose(pyr.coverage(np.array([[3.0, -2.0]]), 0.0),
+                               pyr.coverage(np.array([[1.0, 0.0]]), 0.0))
+    np.testing.assert_allclose(pyr.coverage(np.array([[1.0, 0.0]]), 0.0),
+                               pyr.levels[0][-1:, -1].astype(float))        # bottom-right texel
+
+
+def test_unknown_wrap_names_the_valid_ones():
+    pyr = MaskPyramid(edge_mask())
+    with pytest.raises(InputError, match="clamp, repeat"):
+        pyr.coverage(np.array([[0.5, 0.5]]), 0.0, wrap="mirror")

@@ -12,9 +12,15 @@ from gonio_cli.spectra import srgb_encode, xyz_to_linear_srgb
 X = np.concatenate([[0.0], np.geomspace(1e-6, 1e4, 400)])
 
 
+def grey(x):
+    """(n,) values → (n, 3) grey pixels (tone maps act on pixels, the last axis RGB)."""
+    return np.repeat(np.asarray(x, dtype=float)[..., None], 3, axis=-1)
+
+
 def test_registry_names():
-    assert list(tonemap.TONEMAPS) == ["clip", "reinhard", "filmic"]
-    with pytest.raises(InputError, match="clip, reinhard, filmic"):
+    assert list(tonemap.TONEMAPS) == ["neutral", "none", "clip", "reinhard", "filmic"]
+    assert tonemap.DEFAULT_TONEMAP == "neutral"
+    with pytest.raises(InputError, match="neutral, none, clip, reinhard, filmic"):
         tonemap.get_tonemap("aces")
 
 
@@ -25,6 +31,32 @@ def test_clip_is_identity_below_one_and_one_above():
 def test_reinhard_closed_form():
     np.testing.assert_allclose(tonemap.reinhard(X), X / (1.0 + X), rtol=1e-15)
     assert tonemap.reinhard(np.array(1.0)) == 0.5
+
+
+def test_none_is_clip():
+    assert tonemap.TONEMAPS["none"] is tonemap.clip is tonemap.TONEMAPS["clip"]
+
+
+def test_neutral_is_the_identity_below_the_knee_and_keeps_ratios_above():
+    rng = np.random.default_rng(5)
+    below = rng.random((1000, 3)) * tonemap.NEUTRAL_KNEE * 0.999
+    np.testing.assert_array_equal(tonemap.neutral(below), below)
+    above = rng.random((1000, 3)) + 0.01
+    above *= (rng.random((1000, 1)) * 50 + 0.77) / above.max(-1, keepdims=True)
+    y = tonemap.neutral(above)
+    peak = above.max(-1)
+    k, d = tonemap.NEUTRAL_KNEE, 1 - tonemap.NEUTRAL_KNEE
+    new_peak = 1 - d * d / (peak + d - k)            # Khronos PBR Neutral, by hand
+    g = 1 - 1 / (tonemap.NEUTRAL_DESATURATION * (peak - new_peak) + 1)
+    expected = (1 - g)[:, None] * above * (new_peak / peak)[:, None] + (g * new_peak)[:, None]
+    np.testing.assert_allclose(y, expected, rtol=1e-12)
+    # the peak channel lands on the compressed peak, below 1, and order is kept
+    np.testing.assert_allclose(y.max(-1), new_peak, rtol=1e-12)
+    assert y.max() < 1.0
+    np.testing.assert_array_equal(np.argsort(y, -1), np.argsort(above, -1))
+    # continuous with slope 1 at the knee (the compressed peak's derivative there is 1)
+    eps = 1e-6
+    np.testing.assert_allclose(tonemap.neutral(grey([k + eps]))[0, 0], k + eps, atol=1e-10)
 
 
 def test_filmic_is_narkowicz_2015():
@@ -39,14 +71,17 @@ def test_filmic_is_narkowicz_2015():
 @pytest.mark.parametrize("name", list(tonemap.TONEMAPS))
 def test_every_tonemap_zero_to_zero_monotone_bounded(name):
     op = tonemap.TONEMAPS[name]
-    y = op(X)
+    y = op(grey(X))
+    assert np.all(y == y[:, :1])                        # grey stays grey
+    y = y[:, 0]
     assert y[0] == 0.0
     assert np.all(np.diff(y) >= 0.0)
     assert np.all((y >= 0.0) & (y <= 1.0))
     # negative (out-of-gamut) linear values become 0, NaN never comes out for finite input
-    assert op(np.array([-1.0, -1e6])).tolist() == [0.0, 0.0]
+    assert op(grey([-1.0, -1e6])).tolist() == [[0.0] * 3] * 2
     # broadcasts over leading axes (STYLE 6)
-    np.testing.assert_array_equal(op(np.tile(X[:6], (2, 1))), np.tile(y[:6], (2, 1)))
+    np.testing.assert_array_equal(op(grey(np.tile(X[:6], (2, 1)))),
+                                  grey(np.tile(y[:6], (2, 1))))
 
 
 def test_display_chain_and_exposure():
@@ -67,12 +102,26 @@ def test_display_chain_and_exposure():
     assert tonemap.display(np.zeros((1, 1, 3)), 5.0, "filmic").tolist() == [[[0] * 3]]
 
 
+def test_display_counts_out_of_gamut_and_clipped_pixels():
+    lin = np.array([[[0.5, 0.2, -0.01], [2.0, 0.5, 0.5], [0.3, 0.3, 0.3], [-1e-6, 0.2, 0.2],
+                     [9.0, 9.0, 9.0]]], np.float32)
+    png, masks = tonemap.display(lin, 0.0, "none", counts=True)
+    np.testing.assert_array_equal(png, tonemap.display(lin, 0.0, "none"))
+    # −0.01 is outside sRGB; −1e-6 is matrix round-off (within GAMUT_TOLERANCE)
+    assert masks["out_of_gamut"].tolist() == [[True, False, False, False, False]]
+    assert masks["clipped"].tolist() == [[False, True, False, False, True]]
+    # neutral compresses instead of clipping; filmic reaches 1 above x ≈ 7.24 only
+    assert not tonemap.display(lin, 0.0, "neutral", counts=True)[1]["clipped"].any()
+    assert tonemap.display(lin, 0.0, "filmic", counts=True)[1]["clipped"].tolist() == [
+        [False, False, False, False, True]]
+
+
 @pytest.mark.parametrize("name", list(tonemap.TONEMAPS))
 def test_display_table_is_within_one_code_of_the_exact_encoding(name):
     """The 2^16-entry encoding table (tonemap.ENCODE_TABLE_SIZE) against the IEC transfer
     function evaluated in float64: at most one code off, and rarely (< 1 % of values)."""
     x = np.concatenate([[0.0], np.geomspace(1e-7, 50.0, 300000)])
-    exact = np.round(srgb_encode(tonemap.TONEMAPS[name](x)) * 255).astype(int)
+    exact = np.round(srgb_encode(tonemap.TONEMAPS[name](grey(x))[:, 0]) * 255).astype(int)
     got = tonemap.display(np.repeat(x[:, None], 3, axis=1), 0.0, name)[:, 0].astype(int)
     diff = np.abs(got - exact)
     assert diff.max() <= 1 and np.mean(diff > 0) < 0.01

@@ -8,7 +8,8 @@ from typing import List, Optional
 import typer
 
 SPECTRAL = ("table", "exact")
-TONEMAP_NAMES = ("clip", "reinhard", "filmic")  # gonio_cli.render.tonemap.TONEMAPS (lazy)
+TONEMAP_NAMES = ("neutral", "none", "clip", "reinhard", "filmic")  # tonemap.TONEMAPS (lazy)
+ADAPT_NAMES = ("bradford", "cat16", "none")  # gonio_cli.render.tonemap.ADAPTATIONS (lazy)
 
 
 def render(
@@ -28,7 +29,15 @@ def render(
                                              help="Exposure in stops (overrides [output])."),
     tonemap: Optional[str] = typer.Option(
         None, "--tonemap", metavar="NAME",
-        help=f"One of: {', '.join(TONEMAP_NAMES)} (overrides [output])."),
+        help=f"One of: {', '.join(TONEMAP_NAMES)} (overrides [output]; default neutral, "
+             "which keeps hue)."),
+    adapt: Optional[str] = typer.Option(
+        None, "--adapt", metavar="NAME",
+        help=f"Chromatic adaptation of the lights' white to D65, one of: "
+             f"{', '.join(ADAPT_NAMES)} (overrides [output]; default bradford)."),
+    gamut_warning: Optional[Path] = typer.Option(
+        None, "--gamut-warning", metavar="FILE.png",
+        help="Also write the PNG with pixels outside sRGB painted grey."),
     width: Optional[int] = typer.Option(None, "--width", metavar="PX",
                                         help="Image width (overrides [camera])."),
     height: Optional[int] = typer.Option(None, "--height", metavar="PX",
@@ -67,7 +76,8 @@ def render(
         if not sep or not name:
             raise InputError(f"--var {item!r} is not NAME=VALUE", fix="e.g. --var ink=green")
         variables[name] = value
-    for path, flag in ((output, "-o"), (exr, "--exr"), (report, "--report")):
+    for path, flag in ((output, "-o"), (exr, "--exr"), (report, "--report"),
+                       (gamut_warning, "--gamut-warning")):
         if path is not None and path.exists() and path.is_dir():
             raise InputError(f"{flag} {path} is a folder", fix="name a file")
     if spectral is not None and spectral not in SPECTRAL:
@@ -75,6 +85,12 @@ def render(
     if tonemap is not None and tonemap not in TONEMAP_NAMES:
         raise InputError(f"--tonemap {tonemap!r} is unknown",
                          fix=f"use one of {', '.join(TONEMAP_NAMES)}")
+    if adapt is not None and adapt not in ADAPT_NAMES:
+        raise InputError(f"--adapt {adapt!r} is unknown",
+                         fix=f"use one of {', '.join(ADAPT_NAMES)}")
+    if gamut_warning is not None and gamut_warning.suffix.lower() != ".png":
+        raise InputError(f"--gamut-warning {gamut_warning}: the image is written as PNG",
+                         fix="name it *.png")
     if output.suffix.lower() != ".png":
         raise InputError(f"-o {output}: the image is written as PNG", fix="name it *.png")
     if exr is not None and exr.suffix.lower() != ".exr":
@@ -85,16 +101,23 @@ def render(
         sc = load_scene(scene, variables=variables,
                         overrides={"width": width, "height": height, "ssaa": ssaa,
                                    "spectral": spectral, "exposure": exposure,
-                                   "tonemap": tonemap, "grid_nm": grid_nm})
+                                   "tonemap": tonemap, "adapt": adapt, "grid_nm": grid_nm})
     stats.time_s["scene"] = t["time_s"]
     frame = render_scene(sc, stats)
-    write_outputs(frame, sc, stats, png=output, exr=exr, start=start)
+    write_outputs(frame, sc, stats, png=output, exr=exr, start=start,
+                  gamut_warning=gamut_warning)
     total = time.perf_counter() - start
     if report is not None:
-        write_report(report, sc, stats, total_s=total, png=output, exr=exr)
+        write_report(report, sc, stats, total_s=total, png=output, exr=exr,
+                     gamut_warning=gamut_warning)
     frame_ms = 1e3 * frame_time(stats)
+    n_out = stats.counts.get("out_of_gamut_pixels", 0)
+    n_clip = stats.counts.get("clipped_pixels", 0)
+    shown = "".join([f", {n_out} pixel(s) outside the sRGB gamut" if n_out else "",
+                     f", {n_clip} pixel(s) clipped at white" if n_clip else ""])
     log.info(f"{output}: {sc.camera.width}x{sc.camera.height}, ssaa {sc.output.ssaa}, "
-             f"{sc.output.spectral} spectra, frame {frame_ms:.0f} ms, total {total:.2f} s")
+             f"{sc.output.spectral} spectra, frame {frame_ms:.0f} ms, total {total:.2f} s"
+             f"{shown}")
 
 
 EXAMPLE = "gonio render sample_data/scenes/spheres.toml -o red.png --exr red.exr --report run.json"

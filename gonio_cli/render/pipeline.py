@@ -23,6 +23,7 @@ scene loading to images written (the CLI measures it from before ``load_scene``)
 
 from __future__ import annotations
 
+import functools
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -47,12 +48,14 @@ class Frame:
     """A rendered frame: ``linear`` (H, W, 3) float32 scene-linear sRGB (the EXR),
     ``display`` (H, W, 3) uint8 sRGB-encoded after exposure and tone map (the PNG),
     ``xyz`` (H, W, 3) float64 CIE XYZ (box-filtered), ``coverage`` (H, W) the fraction of
-    each pixel's samples that hit an object."""
+    each pixel's samples that hit an object, ``out_of_gamut`` (H, W) bool the pixels whose
+    colour lies outside sRGB (a negative linear channel, shown clipped to 0)."""
 
     linear: np.ndarray
     display: np.ndarray
     xyz: np.ndarray
     coverage: np.ndarray
+    out_of_gamut: np.ndarray | None = None
 
 
 class _Stage:
@@ -191,7 +194,7 @@ def build_surfaces(scene: Scene, stats: Stats) -> list:
                 if o.mask not in pyramids:
                     with _SceneKey(scene, f"[[object]] {o.index + 1} mask", o.mask):
                         pyramids[o.mask] = load_mask_pyramid(o.mask)
-                s.coverage = pyramids[o.mask].coverage
+                s.coverage = functools.partial(pyramids[o.mask].coverage, wrap=o.wrap)
     sparkling = [(o, s) for o, s in zip(scene.objects, surfaces) if o.sparkle is not None]
     if sparkling:
         with _Stage(stats, "sparkles"):
@@ -396,10 +399,12 @@ def _render_steps(scene: Scene, stats: Stats, state: dict):
     with _Stage(stats, "downsample"):
         xyz, coverage = resolve(rows, pixels, object_id, ssaa, scene.display, stats)
         del rows
-        from ..spectra import xyz_to_linear_srgb
+        from .tonemap import xyz_to_linear, xyz_to_linear_matrix
 
-        # the colour matrix is linear: applied after the box filter, on output pixels
-        linear = np.asarray(xyz_to_linear_srgb(xyz), dtype=np.float32)
+        # adaptation and colour matrix are linear: applied after the box filter, on output
+        # pixels, as one matrix
+        linear = xyz_to_linear(xyz, xyz_to_linear_matrix(scene.output.adapt,
+                                                          scene_white(scene)))
         if np.any(scene.output.background != 0):
             linear += ((1.0 - coverage)[..., None]
                        * np.asarray(scene.output.background, np.float32))
@@ -408,9 +413,20 @@ def _render_steps(scene: Scene, stats: Stats, state: dict):
     with _Stage(stats, "tonemap"):
         from .tonemap import display
 
-        png = display(linear, scene.output.exposure, scene.output.tonemap)
-    state["frame"] = Frame(linear, png, xyz, coverage)
+        png, shown = display(linear, scene.output.exposure, scene.output.tonemap, counts=True)
+    # what the display could not show: colours outside sRGB, channels clipped at 1
+    stats.counts["out_of_gamut_pixels"] = int(np.count_nonzero(shown["out_of_gamut"]))
+    stats.counts["clipped_pixels"] = int(np.count_nonzero(shown["clipped"]))
+    state["frame"] = Frame(linear, png, xyz, coverage, shown["out_of_gamut"])
     yield "tonemap"
+
+
+def scene_white(scene: Scene) -> np.ndarray | None:
+    """The scene's white, XYZ (3,) with Y = 1: the lights' irradiance-weighted spectra
+    (:func:`gonio_cli.render.tonemap.scene_white_xyz`); None without lights."""
+    from .tonemap import scene_white_xyz
+
+    return scene_white_xyz(scene.lights, scene.grid_nm, scene.camera.target)
 
 
 def resolve(rows: np.ndarray, pixels: np.ndarray, object_id: np.ndarray, ssaa: int,
@@ -460,21 +476,37 @@ def settings(scene: Scene) -> dict[str, Any]:
     """The render settings, as written into the EXR metadata and the run report."""
     cam = scene.camera
     out = scene.output
+    white = scene_white(scene)
+    white = [round(float(v), 6) for v in white] if white is not None else None
     return {"scene": str(scene.path), "vars": scene.variables,
             "camera": {"eye": cam.eye.tolist(), "target": cam.target.tolist(),
                        "up": cam.up.tolist(), "fov_deg": cam.fov_deg,
                        "width": cam.width, "height": cam.height},
             "ssaa": out.ssaa, "spectral": out.spectral, "exposure": out.exposure,
-            "tonemap": out.tonemap, "grid_nm": out.grid_nm,
+            "tonemap": out.tonemap, "adapt": out.adapt, "scene_white_xyz": white,
+            "display_white": "D65 (sRGB)", "grid_nm": out.grid_nm,
             "objects": [{"name": o.name, "kind": o.kind, "mesh": o.mesh} for o in scene.objects],
             "lights": [{"name": l.name, "kind": l.kind} for l in scene.lights],
             "environment": (str(scene.environment.prefiltered) if scene.environment else None)}
 
 
+#: The colour that marks out-of-gamut pixels in the gamut-warning image: the mid grey
+#: (sRGB 128) that image editors use for their gamut warning, unlike any ink's colour.
+GAMUT_WARNING_RGB = (128, 128, 128)
+
+
+def gamut_warning_image(frame: Frame) -> np.ndarray:
+    """The PNG image with every out-of-gamut pixel painted :data:`GAMUT_WARNING_RGB`."""
+    out = frame.display.copy()
+    if frame.out_of_gamut is not None:
+        out[frame.out_of_gamut] = GAMUT_WARNING_RGB
+    return out
+
+
 def write_outputs(frame: Frame, scene: Scene, stats: Stats, *, png, exr=None,
-                  start: float | None = None) -> None:
-    """Write the EXR (scene-linear sRGB float32, settings and time in its metadata) and
-    the PNG (8-bit sRGB), atomically."""
+                  start: float | None = None, gamut_warning=None) -> None:
+    """Write the EXR (scene-linear sRGB float32, settings and time in its metadata), the
+    PNG (8-bit sRGB) and, if asked, the gamut-warning PNG, atomically."""
     from ..imageio import write_exr, write_png
 
     elapsed = time.perf_counter() - start if start is not None else None
@@ -483,19 +515,26 @@ def write_outputs(frame: Frame, scene: Scene, stats: Stats, *, png, exr=None,
             sum(v for k, v in stats.time_s.items() if "." not in k),
             "frame_time_s": frame_time(stats),
             "colour": "scene-referred linear sRGB (IEC 61966-2-1 primaries, D65), "
+                      "after chromatic adaptation (settings.adapt: scene_white_xyz → D65), "
                       "before exposure and tone mapping"}
     if exr is not None:
         with _Stage(stats, "write_exr"):
             write_exr(exr, frame.linear, meta)
     with _Stage(stats, "write_png"):
         write_png(png, frame.display, {"schema": "gonio.render", "settings": settings(scene)})
+        if gamut_warning is not None:
+            write_png(gamut_warning, gamut_warning_image(frame),
+                      {"schema": "gonio.render-gamut-warning", "settings": settings(scene),
+                       "marked": f"pixels outside sRGB painted sRGB {GAMUT_WARNING_RGB}",
+                       "out_of_gamut_pixels": stats.counts.get("out_of_gamut_pixels")})
 
 
 def frame_time(stats: Stats) -> float:
     return float(sum(stats.time_s.get(k, 0.0) for k in FRAME_STAGES))
 
 
-def write_report(path, scene: Scene, stats: Stats, *, total_s: float, png, exr=None) -> dict:
+def write_report(path, scene: Scene, stats: Stats, *, total_s: float, png, exr=None,
+                 gamut_warning=None) -> dict:
     """The run report (``gonio.render-report`` v1): each stage that ran with its
     ``time_s`` (in order), the frame time and the total (scene loading to images
     written), counters, settings and the inputs with their sha256."""
@@ -511,7 +550,9 @@ def write_report(path, scene: Scene, stats: Stats, *, total_s: float, png, exr=N
         REPORT_SCHEMA, REPORT_VERSION,
         {"stages": stages, "substages": substages, "frame_time_s": frame_time(stats),
          "frame_stages": [k for k in FRAME_STAGES if k in stats.time_s],
-         "outputs": {"png": str(png), "exr": str(exr) if exr is not None else None},
+         "outputs": {"png": str(png), "exr": str(exr) if exr is not None else None,
+                     "gamut_warning": str(gamut_warning) if gamut_warning is not None
+                     else None},
          "image": {"width": scene.camera.width, "height": scene.camera.height},
          "counts": stats.counts},
         inputs=scene.inputs, parameters=settings(scene), time_s=total_s)

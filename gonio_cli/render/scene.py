@@ -18,12 +18,12 @@ Sections (see ``docs/render.md``)::
     [vars]         name = "string" ...                      (optional)
     [camera]       eye, target, up, fov_deg, width, height
     [[object]]     mesh, translate, rotate_deg, scale, name and one of
-                   material (+ lobes) | inks + mask (+ substrate, lobes) | measured
+                   material (+ lobes) | inks + mask (+ substrate, lobes, wrap) | measured
                    (+ sparkle, sparkle_color, sparkle_exponent, sparkle_scale)
     [[light]]      type = "directional" (direction, irradiance) | "point" (position,
                    intensity); spectrum = CIE name or CSV; name
     [environment]  prefiltered (a gonio prefilter index.json)            (optional)
-    [output]       exposure (stops), tonemap, ssaa, spectral, grid_nm, background
+    [output]       exposure (stops), tonemap, adapt, ssaa, spectral, grid_nm, background
 
 The working spectral grid (:func:`choose_grid`): ``--grid-nm`` when given; else the
 scene's ``[output] grid_nm`` (default 380:780:10) when every material covers it; else the
@@ -69,13 +69,13 @@ MIN_VECTOR_NORM = 1e-12
 CAMERA_KEYS = ("eye", "target", "up", "fov_deg", "width", "height")
 OBJECT_KEYS = ("name", "mesh", "translate", "rotate_deg", "scale", "material", "inks",
                "mask", "substrate", "lobes", "measured", "sparkle", "sparkle_color",
-               "sparkle_exponent", "sparkle_scale")
+               "sparkle_exponent", "sparkle_scale", "wrap")
 #: Keys that belong to an object with a ``sparkle`` texture (seed 004 §6).
 SPARKLE_KEYS = ("sparkle_color", "sparkle_exponent", "sparkle_scale")
 SUBSTRATE_KEYS = ("kd", "ks", "shininess")
 LIGHT_KEYS = ("type", "name", "direction", "irradiance", "position", "intensity", "spectrum")
 ENVIRONMENT_KEYS = ("prefiltered",)
-OUTPUT_KEYS = ("exposure", "tonemap", "ssaa", "spectral", "grid_nm", "background")
+OUTPUT_KEYS = ("exposure", "tonemap", "adapt", "ssaa", "spectral", "grid_nm", "background")
 TOP_KEYS = ("vars", "camera", "object", "light", "environment", "output")
 
 _VAR = re.compile(r"\$\{([A-Za-z_][A-Za-z0-9_]*)\}")
@@ -110,6 +110,8 @@ class SceneObject:
     ``sparkle``: a packed sparkle texture (``gonio sparkle``, seed 004 §6) or None, with
     ``sparkle_color`` (linear sRGB reflectance colour C_s), ``sparkle_exponent`` (e of
     eq. 17) and ``sparkle_scale`` (texture repeats over uv); material or measured only.
+    ``wrap``: the mask's addressing, a key of :data:`gonio_cli.render.texture.WRAP_MODES`
+    (``clamp``: a sheet with edges, the default; ``repeat``: the mask tiles); prints only.
     """
 
     index: int
@@ -128,6 +130,7 @@ class SceneObject:
     sparkle_color: np.ndarray = field(default_factory=lambda: np.ones(3))
     sparkle_exponent: float = 24.0
     sparkle_scale: float = 1.0
+    wrap: str = "clamp"
 
     @property
     def kind(self) -> str:
@@ -150,12 +153,15 @@ class Environment:
 @dataclass
 class Output:
     """``exposure``: stops (PNG only, × 2^exposure before the tone map); ``tonemap``: a key
-    of :data:`gonio_cli.render.tonemap.TONEMAPS`; ``ssaa``: supersampling factor per axis;
+    of :data:`gonio_cli.render.tonemap.TONEMAPS`; ``adapt``: a key of
+    :data:`gonio_cli.render.tonemap.ADAPTATIONS` (the lights' white → the display's D65,
+    or ``none``); ``ssaa``: supersampling factor per axis;
     ``spectral``: "table" or "exact"; ``grid_nm``: working grid START:STOP:STEP;
     ``background``: linear sRGB (3,) of pixels no object covers."""
 
     exposure: float = 0.0
-    tonemap: str = "filmic"
+    tonemap: str = "neutral"
+    adapt: str = "bradford"
     ssaa: int = 2
     spectral: str = "table"
     grid_nm: str = "380:780:10"
@@ -306,7 +312,7 @@ def load_scene(path: str | os.PathLike, *, variables: Mapping[str, str] | None =
     path : the TOML file; every relative path in it is relative to its folder.
     variables : ``${name}`` values that override the scene's ``[vars]`` (``--var``).
     overrides : command-line settings that replace the file's: ``width``, ``height``
-        (camera), ``ssaa``, ``spectral``, ``exposure``, ``tonemap``, ``grid_nm`` (output;
+        (camera), ``ssaa``, ``spectral``, ``exposure``, ``tonemap``, ``adapt``, ``grid_nm`` (output;
         a ``grid_nm`` given here is used as it is, :func:`choose_grid`); None = keep.
 
     Raises
@@ -428,7 +434,7 @@ def _camera(chk: _Checker, doc, overrides) -> Camera:
 
 
 def _output(chk: _Checker, doc, overrides) -> Output:
-    from .tonemap import TONEMAPS
+    from .tonemap import ADAPTATIONS, TONEMAPS
 
     where = "[output]"
     out = chk.table(doc.get("output", {}), where)
@@ -440,6 +446,7 @@ def _output(chk: _Checker, doc, overrides) -> Output:
     return Output(
         exposure=chk.number(src.get("exposure", d.exposure), label("exposure")),
         tonemap=chk.choice(src.get("tonemap", d.tonemap), label("tonemap"), tuple(TONEMAPS)),
+        adapt=chk.choice(src.get("adapt", d.adapt), label("adapt"), tuple(ADAPTATIONS)),
         ssaa=chk.integer(src.get("ssaa", d.ssaa), label("ssaa"), lo=1, hi=MAX_SSAA),
         spectral=chk.choice(src.get("spectral", d.spectral), label("spectral"), SPECTRAL_MODES),
         grid_nm=chk.string(src.get("grid_nm", d.grid_nm), label("grid_nm")),
@@ -494,7 +501,10 @@ def _object(chk: _Checker, raw, number: int) -> SceneObject:
             chk.number(sub.get("kd", 0.0), f"{where} substrate.kd", lo=0.0, hi=1.0),
             chk.number(sub.get("ks", 0.0), f"{where} substrate.ks", lo=0.0, hi=1.0),
             chk.number(sub.get("shininess", 1.0), f"{where} substrate.shininess", lo=0.0))
-    for key in ("mask", "substrate"):
+        from .texture import DEFAULT_WRAP, WRAP_MODES
+
+        obj.wrap = chk.choice(o.get("wrap", DEFAULT_WRAP), f"{where} wrap", tuple(WRAP_MODES))
+    for key in ("mask", "substrate", "wrap"):
         if key in o and obj.inks is None:
             raise chk.error(f"{where} {key}", "belongs to a printed object (with inks)")
     if "lobes" in o:

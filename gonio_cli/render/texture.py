@@ -10,9 +10,12 @@ coverage up trilinearly: bilinear within the two levels around
 At any level a texel holds the exact fraction of its area covered by each ink, so a
 pixel far larger than the dots sees the coverage-weighted mix of inks and substrate.
 
-Addressing follows OpenGL / Mitsuba 3 (``wrap_mode = "repeat"``, the default of both):
-uv wraps (repeats) in u and v, texel centres sit at ((i + ½) / W, (j + ½) / H) and v = 0
-is the bottom row of the image (row H − 1), so row = (1 − v) H − ½.
+Texel centres sit at ((i + ½) / W, (j + ½) / H) and v = 0 is the bottom row of the image
+(row H − 1), so row = (1 − v) H − ½ (OpenGL / Mitsuba 3). Addressing (:data:`WRAP_MODES`):
+``clamp`` (the default, OpenGL ``CLAMP_TO_EDGE``) clamps uv to [0, 1] and texel indices to
+the image, so a filter near an edge repeats the edge texels and never reads the opposite
+edge: a print is a sheet, not a tile. ``repeat`` (OpenGL ``REPEAT``, Mitsuba 3's default)
+wraps uv into [0, 1) and indices modulo the size, for masks made to tile.
 """
 
 from __future__ import annotations
@@ -37,6 +40,41 @@ MAX_FOOTPRINT = 1e6
 SUM_MARGIN = 4 * np.finfo(np.float64).eps
 #: Number of inks (mask channels).
 N_INKS = 3
+
+
+def _clamp_uv(t: np.ndarray) -> np.ndarray:
+    """uv into [0, 1] (NaN → 0, ±inf → the nearer edge)."""
+    return np.clip(np.nan_to_num(t, nan=0.0, posinf=1.0, neginf=0.0), 0.0, 1.0)
+
+
+def _repeat_uv(t: np.ndarray) -> np.ndarray:
+    """uv into [0, 1) by wrapping (non-finite → 0; also keeps huge values castable)."""
+    return np.mod(np.nan_to_num(t, nan=0.0, posinf=0.0, neginf=0.0), 1.0)
+
+
+def _clamp_index(i: np.ndarray, n: int) -> np.ndarray:
+    return np.clip(i, 0, n - 1)
+
+
+def _repeat_index(i: np.ndarray, n: int) -> np.ndarray:
+    return np.mod(i, n)
+
+
+#: Texture addressing by name (STYLE 3): (uv into range, texel index into [0, n)).
+WRAP_MODES = {
+    "clamp": (_clamp_uv, _clamp_index),
+    "repeat": (_repeat_uv, _repeat_index),
+}
+#: The addressing of a print unless its scene says otherwise: a printed sheet has edges.
+DEFAULT_WRAP = "clamp"
+
+
+def get_wrap(name: str):
+    """The addressing pair called ``name``; an unknown name gets the valid ones."""
+    if name not in WRAP_MODES:
+        raise InputError(f"wrap mode {name!r} is unknown",
+                         fix=f"use one of {', '.join(WRAP_MODES)}")
+    return WRAP_MODES[name]
 
 
 def validate_mask(mask: np.ndarray, path: str | os.PathLike | None = None) -> np.ndarray:
@@ -164,8 +202,10 @@ class MaskPyramid:
                                    posinf=MAX_FOOTPRINT), MIN_FOOTPRINT, MAX_FOOTPRINT)
         return np.clip(np.log2(fp * max(h, w)), 0.0, len(self.levels) - 1.0)
 
-    def _bilinear(self, level: int, u: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """Bilinear coverage (N, 3) float32 of one level at uv (N,), wrapping in u and v."""
+    def _bilinear(self, level: int, u: np.ndarray, v: np.ndarray, index=_repeat_index
+                  ) -> np.ndarray:
+        """Bilinear coverage (N, 3) float32 of one level at uv (N,); ``index`` addresses
+        texel indices outside the image (a :data:`WRAP_MODES` index function)."""
         img = self.levels[level]
         h, w = img.shape[:2]
         flat = img.reshape(-1, N_INKS)
@@ -175,10 +215,12 @@ class MaskPyramid:
         y0 = np.floor(y)
         fx = (x - x0).astype(np.float32)[:, None]
         fy = (y - y0).astype(np.float32)[:, None]
-        c0 = np.mod(x0.astype(np.int64), w)
-        c1 = np.where(c0 == w - 1, 0, c0 + 1)
-        r0 = np.mod(y0.astype(np.int64), h) * w
-        r1 = np.where(r0 == (h - 1) * w, 0, r0 + w)
+        ix = x0.astype(np.int64)
+        iy = y0.astype(np.int64)
+        c0 = index(ix, w)
+        c1 = index(ix + 1, w)
+        r0 = index(iy, h) * w
+        r1 = index(iy + 1, h) * w
         top = np.take(flat, r0 + c0, axis=0) * (1 - fx)
         top += np.take(flat, r0 + c1, axis=0) * fx
         bottom = np.take(flat, r1 + c0, axis=0) * (1 - fx)
@@ -188,15 +230,19 @@ class MaskPyramid:
         top += bottom
         return top
 
-    def coverage(self, uv: np.ndarray, footprint: np.ndarray) -> np.ndarray:
+    def coverage(self, uv: np.ndarray, footprint: np.ndarray, wrap: str = DEFAULT_WRAP
+                 ) -> np.ndarray:
         """Area-filtered ink coverage at texture coordinates.
 
         Parameters
         ----------
         uv : (..., 2) float
-            Texture coordinates (OpenGL: v = 0 bottom), wrapped into [0, 1).
+            Texture coordinates (OpenGL: v = 0 bottom).
         footprint : (...) float
             Pixel size in uv units (GBuffer ``uv_footprint``); 0 gives the finest level.
+        wrap : str
+            Addressing, a key of :data:`WRAP_MODES`: ``clamp`` (uv clamped to [0, 1],
+            edge texels repeated) or ``repeat`` (uv wrapped, the mask tiles).
 
         Returns
         -------
@@ -205,9 +251,9 @@ class MaskPyramid:
         """
         uv = np.asarray(uv, np.float64)
         lead = uv.shape[:-1]
-        # repeat addressing: wrap into [0, 1) first (also keeps huge values castable)
-        u = np.mod(np.nan_to_num(uv[..., 0].reshape(-1), posinf=0.0, neginf=0.0), 1.0)
-        v = np.mod(np.nan_to_num(uv[..., 1].reshape(-1), posinf=0.0, neginf=0.0), 1.0)
+        to_range, index = get_wrap(wrap)
+        u = to_range(uv[..., 0].reshape(-1))
+        v = to_range(uv[..., 1].reshape(-1))
         lam = self.level_of(np.broadcast_to(footprint, lead)).reshape(-1)
         lo = np.minimum(np.floor(lam).astype(np.int64), len(self.levels) - 1)
         frac = (lam - lo).astype(np.float32)[:, None]
@@ -217,9 +263,9 @@ class MaskPyramid:
         present = np.flatnonzero(np.bincount(lo, minlength=len(self.levels)))
         for level in present:
             sel = slice(None) if len(present) == 1 else np.flatnonzero(lo == level)
-            val = self._bilinear(int(level), u[sel], v[sel])
+            val = self._bilinear(int(level), u[sel], v[sel], index)
             if level < top:                                # trilinear: blend the next level
-                upper = self._bilinear(int(level) + 1, u[sel], v[sel])
+                upper = self._bilinear(int(level) + 1, u[sel], v[sel], index)
                 upper -= val
                 upper *= frac[sel]
                 val += upper

@@ -1,12 +1,25 @@
 """XYZ → display: linear sRGB, exposure, a tone map, the sRGB transfer function, 8 bits.
 
-docs/conventions.md: linear sRGB from XYZ by the IEC 61966-2-1 matrix (no chromatic adaptation);
+docs/conventions.md: linear sRGB from XYZ by the IEC 61966-2-1 matrix, after the chromatic
+adaptation that maps the scene's white to D65 (:data:`ADAPTATIONS`, default ``bradford``);
 the EXR holds that linear sRGB before any exposure; the PNG is 8-bit, sRGB-encoded after
-exposure and tone mapping. Tone maps act per channel on linear values ≥ 0 (negative
-linear sRGB, i.e. colours outside the sRGB gamut, are clipped to 0 first) and return
-display-linear values in [0, 1]:
+exposure and tone mapping. Tone maps take linear values (..., 3) (negative linear sRGB,
+i.e. colours outside the sRGB gamut, are clipped to 0 first; :func:`display` counts
+them) and return display-linear values in [0, 1]:
 
-- ``clip``: min(x, 1).
+- ``neutral`` (the default): hue-preserving. The identity while the pixel's peak channel
+  p = max(R, G, B) is below the knee k = 0.76; above it the pixel is scaled by p'/p with
+  p' = 1 − (1 − k)² / (p − 2k + 1) (the peak compressed smoothly toward 1, with slope 1
+  at the knee), then mixed toward the grey p' (1, 1, 1) by g = 1 − 1 / (δ (p − p') + 1),
+  δ = 0.05. Scaling all channels by one factor keeps their ratios, hence chromaticity and
+  CIELAB hue; the small mix toward grey whitens very bright pixels and turns their CIELAB
+  hue by a few degrees at most. This is the compression of the Khronos PBR Neutral tone
+  mapper (Khronos Group, "PBR Neutral Specification", 2024) without its toe and with a
+  third of its desaturation (:data:`NEUTRAL_DESATURATION` says why): Khronos subtracts up
+  to 0.04 from every channel to cancel the 4 % Fresnel floor of product shots, which would
+  darken a proof's dark inks; here pixels below the knee are left exactly as they are.
+- ``none``: min(x, 1) per channel (linear values clipped; the run report counts the
+  clipped pixels). ``clip`` is the same operator under its older name.
 - ``reinhard``: x / (1 + x), the simple global operator of Reinhard et al. 2002,
   "Photographic tone reproduction for digital images", eq. 3 (applied per channel).
 - ``filmic``: the ACES filmic curve as fitted by K. Narkowicz, "ACES Filmic Tone Mapping
@@ -48,12 +61,54 @@ def filmic(x: np.ndarray) -> np.ndarray:
     return np.clip(x * (a * x + b) / (x * (c * x + d) + e), 0, 1)
 
 
-#: Tone maps by name (STYLE 3): display-linear value in [0, 1] from scene-linear x ≥ 0.
+#: Khronos PBR Neutral: the peak channel value where compression starts (0.8 − 0.04; the
+#: Khronos toe that the 0.04 stands for is not applied, so the knee is kept where Khronos
+#: has it in display terms).
+NEUTRAL_KNEE = 0.76
+#: How fast pixels compressed far above the knee blend toward white: a third of Khronos's
+#: 0.15. CIELAB hue is not constant along a straight line to white in linear sRGB, so the
+#: blend turns hue; measured over the sample inks' mirror spectra (peak 0.7, scaled
+#: × 0.5–4, tests/test_render_proof.py): at 0.15 the red ink turns 7.6° toward yellow, at
+#: 0.05 3.9° (green 0.8°, blue 2.3°); at 0 no hue turns but highlights never whiten.
+NEUTRAL_DESATURATION = 0.05
+
+
+def neutral(x: np.ndarray) -> np.ndarray:
+    """Hue-preserving compression (Khronos PBR Neutral without its toe) of (..., 3) x ≥ 0.
+
+    Identity where max(x) < :data:`NEUTRAL_KNEE`; above, x · p'/p mixed toward p' (1, 1, 1)
+    (module docstring). Output in [0, 1), monotone in a uniform scale of x.
+    """
+    x = np.maximum(x, 0)                                  # a new array: changed in place
+    t = x.dtype.type if x.dtype.kind == "f" else np.float64
+    x = x.astype(t, copy=False)
+    k, desat, one, zero = t(NEUTRAL_KNEE), t(NEUTRAL_DESATURATION), t(1.0), t(0.0)
+    # per pixel, not per channel (a reduction over a 3-long last axis is slow in numpy)
+    peak = np.maximum(np.maximum(x[..., 0], x[..., 1]), x[..., 2])
+    below = peak < k
+    if below.all():
+        return x
+    p = np.maximum(peak, k)
+    d = one - k
+    new_peak = one - d * d / (p + (d - k))
+    g = one - one / (desat * (p - new_peak) + one)
+    # mix(x · p'/p, p' (1, 1, 1), g) = x · (1 − g) p'/p + g p'; exactly x below the knee
+    x *= np.where(below, one, (one - g) * new_peak / p)[..., None]
+    x += np.where(below, zero, g * new_peak)[..., None]
+    return x
+
+
+#: Tone maps by name (STYLE 3): display-linear (..., 3) in [0, 1] from scene-linear
+#: (..., 3) x ≥ 0. The first is the default.
 TONEMAPS: dict[str, Callable[[np.ndarray], np.ndarray]] = {
+    "neutral": neutral,
+    "none": clip,
     "clip": clip,
     "reinhard": reinhard,
     "filmic": filmic,
 }
+#: The display transform of a scene that names none: hue-preserving (module docstring).
+DEFAULT_TONEMAP = "neutral"
 
 
 def get_tonemap(name: str) -> Callable[[np.ndarray], np.ndarray]:
@@ -63,11 +118,90 @@ def get_tonemap(name: str) -> Callable[[np.ndarray], np.ndarray]:
     return TONEMAPS[name]
 
 
-def xyz_to_linear(xyz: np.ndarray) -> np.ndarray:
-    """XYZ (..., 3) → scene-referred linear sRGB (..., 3) float32 (what the EXR holds)."""
+def _von_kries(method: str) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+    def matrix(white_src_xyz, white_dst_xyz):
+        from ..spectra import chromatic_adaptation_matrix
+
+        return chromatic_adaptation_matrix(white_src_xyz, white_dst_xyz, method)
+    return matrix
+
+
+def _no_adaptation(white_src_xyz, white_dst_xyz) -> np.ndarray:
+    return np.eye(3)
+
+
+#: Chromatic adaptations by name (STYLE 3): (scene white XYZ, display white XYZ) → (3, 3)
+#: matrix on XYZ. The von Kries transforms of :data:`gonio_cli.spectra.CAT_MATRICES`, and
+#: ``none``, which shows the light's colour as a colorimeter would see it.
+ADAPTATIONS: dict[str, Callable[[np.ndarray, np.ndarray], np.ndarray]] = {
+    "bradford": _von_kries("bradford"),
+    "cat16": _von_kries("cat16"),
+    "none": _no_adaptation,
+}
+#: The default adaptation: Bradford, the transform ICC colour management (ICC.1 Annex E),
+#: and so the proofing chains built on it, use. CAT16 is the choice for CIECAM16 work; on
+#: the sample print under A the two differ by mean CIEDE2000 0.9 (99th percentile 2.8),
+#: against 14 (28) between adapted and unadapted.
+DEFAULT_ADAPTATION = "bradford"
+
+
+def get_adaptation(name: str) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+    """The adaptation called ``name``; an unknown name gets the list of valid ones."""
+    if name not in ADAPTATIONS:
+        raise InputError(f"chromatic adaptation {name!r} is unknown",
+                         fix=f"use one of {', '.join(ADAPTATIONS)}")
+    return ADAPTATIONS[name]
+
+
+def scene_white_xyz(lights, grid_nm, target) -> np.ndarray | None:
+    """The white the viewer adapts to: XYZ (3,), Y = 1, of the lights' summed spectra.
+
+    Each light's spectrum S (Σ S ȳ / Σ ȳ = 1) weighted by the irradiance it gives at normal
+    incidence: E of a directional light, I / d² of a point light at the distance d from
+    the camera's ``target`` (3,). None when there is no light with power (a scene lit
+    only by an environment map, whose linear sRGB already has the display's white).
+    """
+    from ..spectra import spectrum_to_xyz
+
+    total = np.zeros(3)
+    for light in lights:
+        if light.kind == "directional":
+            weight = light.irradiance
+        else:
+            d2 = float(np.sum((np.asarray(light.position, float) - target) ** 2))
+            weight = light.intensity / max(d2, MIN_DISTANCE_SQ)
+        total += weight * spectrum_to_xyz(light.spectrum, grid_nm)
+    if not total[1] > 0:
+        return None
+    return total / total[1]
+
+
+#: Squared distance floor (scene units²) for a point light sitting on the camera target:
+#: its weight stays finite and it then dominates the white, as it dominates the image.
+MIN_DISTANCE_SQ = 1e-12
+
+
+def xyz_to_linear_matrix(adapt: str = DEFAULT_ADAPTATION,
+                         white_xyz: np.ndarray | None = None) -> np.ndarray:
+    """(3, 3): XYZ → linear sRGB after adapting ``white_xyz`` (the scene white) to the
+    display white (:func:`gonio_cli.spectra.srgb_white_xyz`, D65). No white: no adaptation."""
+    from ..spectra import srgb_white_xyz, xyz_to_linear_srgb_matrix
+
+    adaptation = get_adaptation(adapt)
+    m = xyz_to_linear_srgb_matrix()
+    if white_xyz is None:
+        return m
+    return m @ adaptation(white_xyz, srgb_white_xyz())
+
+
+def xyz_to_linear(xyz: np.ndarray, matrix: np.ndarray | None = None) -> np.ndarray:
+    """XYZ (..., 3) → linear sRGB (..., 3) float32 (what the EXR holds); ``matrix`` from
+    :func:`xyz_to_linear_matrix` (default: the IEC matrix, no adaptation)."""
     from ..spectra import xyz_to_linear_srgb
 
-    return xyz_to_linear_srgb(xyz).astype(np.float32)
+    if matrix is None:
+        return xyz_to_linear_srgb(xyz).astype(np.float32)
+    return (np.asarray(xyz, dtype=float) @ matrix.T).astype(np.float32)
 
 
 #: Entries of the 8-bit sRGB encoding table over display-linear [0, 1]: with 2^16 steps
@@ -87,23 +221,45 @@ def encode_table() -> np.ndarray:
     return np.round(srgb_encode(y) * 255.0).astype(np.uint8)
 
 
-def display(linear_srgb: np.ndarray, exposure: float = 0.0, tonemap: str = "filmic"
-            ) -> np.ndarray:
+#: A linear sRGB channel below −this is outside the display's gamut: float32 round-off of
+#: the XYZ → sRGB matrix on an in-gamut colour is ~1e-7 of its size, and 1e-4 is a 30th
+#: of the smallest 8-bit step above 0, so only real excursions are flagged.
+GAMUT_TOLERANCE = 1e-4
+
+
+def display(linear_srgb: np.ndarray, exposure: float = 0.0, tonemap: str = DEFAULT_TONEMAP,
+            *, counts: bool = False):
     """Linear sRGB (..., 3) → 8-bit sRGB-encoded (..., 3) uint8.
 
     ``exposure``: stops; values are multiplied by 2^exposure before the tone map. The
     tone map runs in float32 (display values need ~1e-4, float32 gives 6e-8); the sRGB
     transfer function is read from :func:`encode_table`.
+
+    With ``counts``, returns (uint8 image, masks): ``out_of_gamut`` (...) bool — a channel
+    below −:data:`GAMUT_TOLERANCE`, a colour outside sRGB (shown with that channel at 0);
+    ``clipped`` (...) bool — a channel above 1 after exposure that the tone map left at 1
+    (``none``: every such pixel; ``filmic`` above x ≈ 7.24; never for ``neutral`` and
+    ``reinhard``, which compress).
     """
     op = get_tonemap(tonemap)
     x = np.asarray(linear_srgb, dtype=np.float32) * np.float32(2.0 ** float(exposure))
     x[~np.isfinite(x)] = 0.0  # never reached by a valid frame; guards the cast
-    y = np.clip(op(x), 0.0, 1.0)
+    y = op(x)
+    masks = None
+    if counts:
+        def any_channel(a):                     # faster than .any(-1) over 3 channels
+            return a[..., 0] | a[..., 1] | a[..., 2]
+        low = np.float32(-GAMUT_TOLERANCE * 2.0 ** float(exposure))
+        masks = {"out_of_gamut": any_channel(x < low),
+                 "clipped": any_channel((y >= 1.0) & (x > 1.0))}
+    y = np.clip(y, 0.0, 1.0)
     index = (y * np.float32(ENCODE_TABLE_SIZE - 1) + np.float32(0.5)).astype(np.intp)
-    return encode_table()[index]
+    png = encode_table()[index]
+    return (png, masks) if counts else png
 
 
-def xyz_to_display(xyz: np.ndarray, exposure: float = 0.0, tonemap: str = "filmic"
+def xyz_to_display(xyz: np.ndarray, exposure: float = 0.0, tonemap: str = DEFAULT_TONEMAP
                    ) -> np.ndarray:
     """XYZ → linear sRGB → exposure → tone map → sRGB encode → uint8 (docs/conventions.md)."""
     return display(xyz_to_linear(xyz), exposure, tonemap)
+
