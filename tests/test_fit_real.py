@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from gonio_cli import brdf
-from gonio_cli.fit import fit, fit_auto, judge, to_material
+from gonio_cli.fit import fit, judge, to_material
 from gonio_cli.fit.common import (FitOptions, golden_section, nnls2, prepare, profile_c)
 from gonio_cli.fit.verdict import THRESHOLDS, colour_errors, verdict
 from gonio_cli.geometry import in_plane_cosines
