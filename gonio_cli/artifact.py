@@ -22,7 +22,6 @@ from __future__ import annotations
 import contextlib
 import datetime as _dt
 import errno
-import hashlib
 import json
 import os
 import tempfile
@@ -41,6 +40,8 @@ ENVELOPE_KEYS = ("schema", "schema_version", "gonio_version", "created_utc", "in
 
 def sha256_file(path: str | os.PathLike) -> str:
     """Hex SHA-256 of a file's bytes (read in 1 MiB blocks)."""
+    import hashlib  # (loads OpenSSL, ~4 ms: only for runs that record their inputs)
+
     h = hashlib.sha256()
     with open(path, "rb") as fh:
         for block in iter(lambda: fh.read(1 << 20), b""):
@@ -156,11 +157,21 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
 _FULL_OR_READ_ONLY = (errno.ENOSPC, errno.EROFS)
 
 
+#: Values JSON takes as they are (exact types: numpy's float64 is a float subclass).
+_JSON_SCALARS = frozenset({str, int, float, bool, type(None)})
+
+
 def _to_jsonable(obj: Any) -> Any:
     """numpy arrays and scalars to lists and Python numbers, recursively."""
-    if isinstance(obj, Mapping):
+    kind = type(obj)
+    if kind in _JSON_SCALARS:
+        return obj
+    if kind is dict or isinstance(obj, Mapping):
         return {str(k): _to_jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
+    if kind is list or kind is tuple or isinstance(obj, (list, tuple)):
+        # a list of plain numbers (an array written before, a spectrum) is not walked
+        if all(type(v) in _JSON_SCALARS for v in obj):
+            return list(obj)
         return [_to_jsonable(v) for v in obj]
     if isinstance(obj, np.ndarray):
         # numbers come out of tolist() as Python numbers already: no walk over elements

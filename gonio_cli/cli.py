@@ -10,6 +10,7 @@ the help and exits 0.
 
 from __future__ import annotations
 
+import copy
 import os
 import sys
 from typing import Optional, Sequence
@@ -89,7 +90,7 @@ def run(argv: Sequence[str] | None = None) -> int:
     apply_help_style(app)  # commands registered since import (tests) get the same help
     args = list(argv) if argv is not None else sys.argv[1:]
     try:
-        code = app(args=args, prog_name="gonio", standalone_mode=False)
+        code = _app_for(args)(args=args, prog_name="gonio", standalone_mode=False)
         code = code if isinstance(code, int) else 0
         # typer turns Ctrl-C inside a command into exit status 130 without a word
         return _interrupted() if code == EXIT_INTERRUPTED else code
@@ -123,6 +124,30 @@ def run(argv: Sequence[str] | None = None) -> int:
               "(a bug; rerun with GONIO_DEBUG=1 for the traceback and report it)",
               file=sys.stderr)
         return 1
+
+
+#: Options of ``gonio`` itself that may come before a stage run with :func:`_app_for`
+#: (``--help`` and ``--version`` there show the whole app).
+_QUIET_FLAGS = ("-q", "--quiet")
+
+
+def _app_for(args: Sequence[str]) -> typer.Typer:
+    """The app with only the stage that ``args`` run (``gonio -q render …``), else all.
+
+    typer turns every registered command into a click command, reading ~100 option
+    signatures (~7 ms), before it runs one; ``gonio --help``, an unknown command and the
+    usage-error hint (:func:`_command`) still see them all.
+    """
+    k = next((i for i, a in enumerate(args) if not a.startswith("-")), None)
+    if k is None or any(a not in _QUIET_FLAGS for a in args[:k]):
+        return app
+    commands = [c for c in app.registered_commands if c.name == args[k]]
+    groups = [g for g in app.registered_groups if g.name == args[k]]
+    if len(commands) + len(groups) != 1:
+        return app
+    one = copy.copy(app)
+    one.registered_commands, one.registered_groups = commands, groups
+    return one
 
 
 def _forget_written() -> None:

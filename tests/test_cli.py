@@ -303,27 +303,145 @@ def test_outputs_are_recorded_for_the_interrupt_message(tmp_path):
 
 # ------------------------------------------------------------------ imports --
 
-#: Heavy imports a command must not pay for unless it uses them.
-HEAVY = {"matplotlib", "numba", "trimesh", "colour", "scipy", "OpenImageIO", "PIL"}
+#: Heavy imports a command must not pay for unless it uses them. pydantic is typer's
+#: option conversion (~0.1 s), replaced for gonio's plain option types
+#: (:func:`gonio_cli.commands.plain_coercion`).
+HEAVY = {"matplotlib", "numba", "trimesh", "colour", "scipy", "OpenImageIO", "PIL", "pydantic",
+         "numpy.ma"}
+
+#: Parts of a library counted on their own in :data:`HEAVY` (numpy.ma: ~10 ms, loaded by
+#: the first np.median or plain np.unique).
+SUBMODULES = {"numpy.ma"}
+
+
+def _sphere_scene(folder: Path) -> Path:
+    """The analytic reference's builtin-sphere scene (64², ssaa 1) with its synthetic ink,
+    the colour tables already in the session's cache (as after any first render)."""
+    from test_render_reference import ink, sphere_scene
+
+    from gonio_cli.schemas import write_material
+    from gonio_cli.spectra import colour_tables
+
+    colour_tables()  # fills the cache the subprocess reads (conftest's GONIO_CACHE_DIR)
+    write_material(folder / "ink.json", ink(620.0, 0.18))
+    return Path(sphere_scene(folder, folder / "ink.json", size=64))
 
 
 @pytest.mark.parametrize("args, forbidden", [
     (["--version"], HEAVY | {"numpy"}),
     (["--help"], HEAVY | {"numpy"}),
     (["ingest", str(SAMPLE / "ink_red.csv"), "-o", "{tmp}/red.json"], HEAVY),
+    (["-q", "render", "{scene}", "-o", "{tmp}/a.png", "--exr", "{tmp}/a.exr"],
+     HEAVY - {"OpenImageIO"}),
+    (["render", "{scene}", "-o", "{tmp}/a.png", "--ssaa", "x"], HEAVY - {"pydantic"}),
 ])
 def test_light_commands_do_not_import_heavy_libraries(tmp_path, args, forbidden):
+    if any("{scene}" in a for a in args):
+        scene = _sphere_scene(tmp_path)
+        args = [a.replace("{scene}", str(scene)) for a in args]
     args = [a.replace("{tmp}", str(tmp_path)) for a in args]
-    code = ("import sys\nfrom gonio_cli import cli\n"
+    code = (f"import sys\nfrom gonio_cli import cli\nSUBMODULES = {sorted(SUBMODULES)!r}\n"
             f"code = cli.run({args!r})\n"
-            "print(sorted({m.split('.')[0] for m in sys.modules}))\n"
+            "print(sorted({m.split('.')[0] for m in sys.modules}\n"
+            "             | (set(SUBMODULES) & set(sys.modules))))\n"
             "sys.exit(code)\n")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                        cwd=tmp_path, timeout=WAIT_S)
-    assert r.returncode == 0, r.stderr
+    bad_value = "x" in args
+    assert r.returncode == (2 if bad_value else 0), r.stderr
     loaded = set(ast.literal_eval(r.stdout.strip().splitlines()[-1]))
     assert "gonio_cli" in loaded  # the check can see what was imported
     assert not loaded & forbidden, f"gonio {' '.join(args)} imported {loaded & forbidden}"
+    if bad_value:  # the value typer's conversion refuses: typer's own (pydantic) message
+        assert "pydantic" in loaded
+        assert r.stderr.startswith("gonio: error: Invalid value for '--ssaa'"), r.stderr
+    else:
+        assert "numpy" in loaded or "numpy" in forbidden
+
+
+# -------------------------------------------------------------- option values --
+
+#: Command-line texts for each plain option type: numbers as written and as typer also
+#: reads them (spaces, underscores, "3.0" as an int), and values it refuses.
+OPTION_TEXTS = {
+    int: ["3", "-3", "+3", "007", "0", "99999999999999999999", "3.0", " 3", "1_000", "0x10",
+          "abc", "", "1e3", "\u0661"],
+    float: ["1", "1.5", "-.5", "+2.", "1e3", "1E-3", "-0", "0.1000000000000000055511151231",
+            "inf", "nan", " 1", "1_0", "1e", ".", "abc", "", "\u0663"],
+    str: ["", "a", "é", " x ", "-"],
+    Path: ["", ".", "a b", "/no/such/x", "-", "~/x", "sample_data"],
+}
+
+
+def _converted(param, text, ctx):
+    """(value, None) or (None, error message) of one parameter's conversion."""
+    import typer._click as click
+
+    try:
+        return param.process_value(ctx, text), None
+    except click.exceptions.BadParameter as exc:
+        return None, exc.format_message()
+
+
+@pytest.mark.parametrize("kind", list(OPTION_TEXTS))
+@pytest.mark.parametrize("many", [False, True])
+def test_plain_option_values_equal_typers_own_conversion(kind, many):
+    """gonio's conversion of option values (no pydantic) gives typer's values, types and
+    error messages: typer's own conversion of the same parameter is the truth."""
+    from typing import List, Optional
+
+    annotation = List[kind] if many else Optional[kind]
+    default = [] if many else None
+
+    def fn(value=typer.Option(default, "--value")):
+        pass
+
+    fn.__annotations__["value"] = annotation  # (this module's annotations are strings)
+    app = typer.Typer()
+    app.command(cls=gonio_cli.commands.Command)(fn)
+    command = typer.main.get_command(app)
+    ours = next(p for p in command.params if p.name == "value")
+    theirs = next(p for p in typer.main.get_command(_plain_typer_app(fn)).params
+                  if p.name == "value")
+    assert isinstance(ours._runtime_param, gonio_cli.commands.PlainParam)
+    assert theirs._runtime_param is None  # typer's default: its own conversion, on first use
+    ctx = command.make_context("x", [], resilient_parsing=True)
+    taken = 0
+    for text in OPTION_TEXTS[kind]:
+        value = (text, "2") if many else text
+        got, expected = _converted(ours, value, ctx), _converted(theirs, value, ctx)
+        assert got == expected or (  # nan != nan
+            kind is float and str(got) == str(expected)), text
+        assert type(got[0]) is type(expected[0]), text
+        if many and got[0] is not None:
+            assert [type(v) for v in got[0]] == [type(v) for v in expected[0]], text
+        taken += ours._runtime_param.leaf(text, ours._runtime_param.parameter_info, ours,
+                                          ctx) is not gonio_cli.commands._TYPER
+    assert taken >= 3  # the fast path is exercised, not only the fall-back to typer
+
+
+def _plain_typer_app(fn):
+    """``fn`` as a command with typer's own classes (its pydantic conversion)."""
+    app = typer.Typer()
+    app.command()(fn)
+    return app
+
+
+def test_every_gonio_option_is_converted_without_pydantic():
+    """Each option of each gonio command gets the plain conversion: a new option of a kind
+    it does not handle (choices, bounds, a parser) would quietly bring pydantic back."""
+    command = typer.main.get_command(cli.app)
+    missing = []
+
+    def walk(group, prefix):
+        for param in group.params:
+            if not isinstance(param._runtime_param, gonio_cli.commands.PlainParam):
+                missing.append(f"{prefix}{param.name}")
+        for name, sub in getattr(group, "commands", {}).items():
+            walk(sub, f"{prefix}{name} ")
+
+    walk(command, "gonio ")
+    assert not missing, missing
 
 
 # ------------------------------------------------------- errors a newcomer meets --
@@ -479,3 +597,58 @@ def test_ctrl_c_during_start_up_imports_is_one_line(tmp_path):
         """, "--version", entry=True)
     assert res.returncode == 130
     assert res.stderr == "gonio: interrupted; nothing was written\n"
+
+
+def test_help_before_a_stage_lists_every_stage(run_gonio):
+    """``gonio --help render`` is the whole app's help, though a run of one stage builds
+    only that stage's command (:func:`gonio_cli.cli._app_for`)."""
+    r = run_gonio("--help", "render")
+    assert r.exit_code == 0
+    listed = r.stdout.split("Commands:")[1]
+    assert all(f"  {name} " in listed for name in stage_names())
+    assert cli._app_for(["-q", "render", "x.toml"]).registered_commands[0].name == "render"
+    assert cli._app_for(["--help", "render"]) is cli.app
+
+
+# ------------------------------------------------- ingest's split of plain CSV --
+
+#: CSV texts (after the comment lines) on which the one-go split and the csv module must
+#: agree: quoting, trailing and missing delimiters, spaces, empty rows, decimal commas.
+CSV_TEXTS = [
+    "theta_i_deg,theta_o_deg,wavelength_nm,value\n20,0,380,0.5\n20,0,390, 0.25 \n",
+    "theta_i_deg,theta_o_deg,wavelength_nm,value,\n20,0,380,0.5,\n,,,,\n20,0,390,0.25,\n",
+    "theta_i_deg,theta_o_deg,wavelength_nm,value,\n20,0,380,0.5,7\n",
+    "theta_i_deg,theta_o_deg,wavelength_nm,value\n20,0,380\n",
+    "theta_i_deg,theta_o_deg,wavelength_nm,value\n20,0,380,0.5,\n20,0,390,0.25\n",
+    'theta_i_deg,theta_o_deg,wavelength_nm,value\n20,0,380,"0.5"\n',
+    "theta_i_deg;theta_o_deg;380;390\n20;0;0,5;0,25\n20;10;1,5;1e-3\n",
+    "geometry\t400\t410\n45as15\t0.5\t0.6\n45as-15\t 0.7\t0.8\n",
+    "theta_i_deg,theta_o_deg,wavelength_nm,value\n,,,\n",
+    "Name,theta_i_deg,theta_o_deg,400\nA,20,0,0.5\nB,20,0,0.6\n",
+]
+
+
+@pytest.mark.parametrize("text", CSV_TEXTS + [SAMPLE / "ink_red.csv",
+                                              SAMPLE / "carpaint_multiangle.csv"])
+def test_plain_csv_split_equals_the_csv_module(tmp_path, monkeypatch, text):
+    """ingest's split of an unquoted CSV in one go gives the csv module's table (cells,
+    their dtype, line numbers, counts) or its error, word for word."""
+    from gonio_cli import ingest
+
+    path = text if isinstance(text, Path) else tmp_path / "x.csv"
+    if not isinstance(text, Path):
+        path.write_text("# a comment\n\n" + text)
+
+    def read(plain: bool):
+        if not plain:
+            monkeypatch.setattr(ingest, "_plain_rows", lambda texts, delim: None)
+        try:
+            t = ingest.read_table(path, find_header=True)
+        except InputError as exc:
+            return exc.format()
+        finally:
+            monkeypatch.undo()
+        return (t.header, t.header_line, t.cells.dtype, t.cells.tolist(), t.lines.tolist(),
+                t.delimiter, t.decimal_comma, t.comment_lines, t.empty_rows, t.preamble_lines)
+
+    assert read(True) == read(False)

@@ -8,17 +8,24 @@ Also what every shell shares:
   typer's type labels (``<list[Path]>``);
 * :func:`require_files`, the check of path arguments that names a shell pattern which
   matched nothing (``no files match 'photo_ti*.png'``) instead of a missing file of that
-  literal name.
+  literal name;
+* :func:`plain_coercion`, installed by the command classes here, which turns the command
+  line's strings into ``str``, ``int``, ``float``, ``bool`` and ``Path`` values (and lists
+  of them) without pydantic, whose import and per-option validators cost ~0.1 s of every
+  run.
 """
 
 from __future__ import annotations
 
 import os
 import re
-from typing import Iterable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable, Iterable
 
 import typer
 from typer.core import TyperCommand, TyperGroup
+from typer.models import DefaultPlaceholder
 
 #: Stage shells in pipeline order (module names = command names); each module has
 #: ``register(app)`` and ``EXAMPLE``, and ``gonio --help`` lists the commands in this order.
@@ -98,11 +105,143 @@ class _HelpStyle:
                     formatter.write_dl(sections[name])
 
 
-class Command(_HelpStyle, TyperCommand):
-    """A gonio subcommand (help layout of :class:`_HelpStyle`)."""
+# ------------------------------------------------------------------ option values --
+#
+# typer 0.29 converts every option value with a pydantic ``TypeAdapter`` built on first
+# use: importing pydantic and building the adapters takes ~0.1 s, a fifth of a render.
+# gonio's options are plain ``str``, ``int``, ``float``, ``bool`` and ``Path`` (or lists
+# of them) without typer's ``min``/``max``/``parser``/choices, so the value a command
+# receives is what the conversion below gives. It is installed in typer's per-parameter
+# slot (``_TyperParameter._runtime_param``, an internal of the pinned typer): anything it
+# does not recognise, and every value that is not a plain number or path (" 3", "1_000",
+# "0x10", …), goes to typer's own conversion, so accepted values and error messages are
+# typer's. tests/test_cli.py checks both against typer's conversion and that a render
+# never imports pydantic (which would show this slot moved in a newer typer).
+
+try:  # typer internals: without them, typer converts every value itself (slower, same)
+    from typer._coercion import RuntimeParam, build_runtime_param
+except ImportError:  # pragma: no cover (another typer)
+    RuntimeParam = build_runtime_param = None  # type: ignore[assignment,misc]
+
+#: Decimal integers and floats exactly as written (ASCII digits; no spaces, underscores,
+#: hex): for these ``int()``/``float()`` give what typer's pydantic conversion gives.
+_INT_TEXT = re.compile(r"[+-]?[0-9]+", re.ASCII)
+_FLOAT_TEXT = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?", re.ASCII)
+
+#: Returned by a leaf conversion for a value it leaves to typer.
+_TYPER = object()
 
 
-class Group(TyperGroup):
+def _plain_str(value, parameter_info, param, ctx):
+    return value if type(value) is str else _TYPER
+
+
+def _plain_int(value, parameter_info, param, ctx):
+    if type(value) is int:
+        return value
+    return int(value) if type(value) is str and _INT_TEXT.fullmatch(value) else _TYPER
+
+
+def _plain_float(value, parameter_info, param, ctx):
+    if type(value) is float:
+        return value
+    return float(value) if type(value) is str and _FLOAT_TEXT.fullmatch(value) else _TYPER
+
+
+def _plain_bool(value, parameter_info, param, ctx):
+    return value if type(value) is bool else _TYPER
+
+
+def _plain_path(value, parameter_info, param, ctx):
+    if not isinstance(value, (str, Path)):
+        return _TYPER
+    from typer._param_types import coerce_cli_path  # typer's checks (exists, dir_okay, …)
+
+    return coerce_cli_path(Path(value), parameter_info, path_type=Path, param=param, ctx=ctx)
+
+
+#: The leaf types converted here, by annotation.
+PLAIN_TYPES: dict[Any, Callable] = {str: _plain_str, int: _plain_int, float: _plain_float,
+                                    bool: _plain_bool, Path: _plain_path}
+
+#: typer parameter settings that need typer's own conversion when set (not None/False).
+_TYPER_ONLY_SETTINGS = ("parser", "click_type", "min", "max", "clamp", "formats", "path_type",
+                        "resolve_path")
+
+
+if RuntimeParam is not None:
+    @dataclass(frozen=True)
+    class PlainParam(RuntimeParam):
+        """typer's conversion contract for one parameter, done by :data:`PLAIN_TYPES`
+        (``leaf``) for a single value or each item of a list (``many``); a value it does
+        not take goes to typer's own conversion of ``descriptor``."""
+
+        leaf: Callable = _plain_str
+        many: bool = False
+        descriptor: Any = None
+
+        def _coerce_value(self, value, param, ctx):
+            info = self.parameter_info
+            if self.many:
+                items = value if isinstance(value, (list, tuple)) else [value]
+                out = [self.leaf(item, info, param, ctx) for item in items]
+                if not any(item is _TYPER for item in out):
+                    return out
+            else:
+                out = self.leaf(value, info, param, ctx)
+                if out is not _TYPER:
+                    return out
+            return build_runtime_param(self.descriptor)._coerce_value(value, param, ctx)
+
+
+def plain_runtime_param(descriptor) -> Any:
+    """The :class:`PlainParam` for a typer type descriptor, or None where typer's own
+    conversion is needed (other types, files, choices, bounds, parsers)."""
+    if RuntimeParam is None or descriptor is None or descriptor.file_annotation is not None:
+        return None
+    info = descriptor.parameter_info
+    if any(getattr(info, name, None) not in (None, False) for name in _TYPER_ONLY_SETTINGS):
+        return None
+    annotation, many = descriptor.annotation, False
+    if getattr(annotation, "__origin__", None) is list:
+        (annotation,), many = annotation.__args__, True
+    leaf = PLAIN_TYPES.get(annotation)
+    if leaf is None or descriptor.choices is not None:
+        return None
+    return PlainParam(parameter_info=info, annotation=descriptor.annotation, leaf=leaf,
+                      many=many, descriptor=descriptor)
+
+
+def plain_coercion(params) -> None:
+    """Give each typer parameter in ``params`` the conversion of :func:`plain_runtime_param`
+    where it applies (idempotent; parameters of other kinds are left alone)."""
+    for param in params:
+        if getattr(param, "_runtime_param", False) is None:
+            plain = plain_runtime_param(getattr(param, "type_descriptor", None))
+            if plain is not None:
+                param._runtime_param = plain
+
+
+class _PlainValues:
+    """Option values converted by :func:`plain_coercion` (mixed into the command classes):
+    the declared parameters and click's ``--help``, made on demand."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        plain_coercion(self.params)
+
+    def get_help_option(self, ctx):
+        option = super().get_help_option(ctx)
+        plain_coercion([option] if option is not None else [])
+        return option
+
+
+class Command(_PlainValues, _HelpStyle, TyperCommand):
+    """A gonio subcommand (help layout of :class:`_HelpStyle`, values converted by
+    :func:`plain_coercion`)."""
+
+
+class Group(_PlainValues, TyperGroup):
     """The ``gonio`` command group: subcommands (and sub-groups such as ``lobes``) listed
     with whole first sentences."""
 
@@ -119,6 +258,16 @@ class Group(TyperGroup):
                 formatter.write_dl(rows)
 
 
+class SubGroup(_PlainValues, TyperGroup):
+    """A group under ``gonio`` (``gonio lobes``): typer's, values converted by
+    :func:`plain_coercion`."""
+
+
+def _default_class(cls, default: type) -> bool:
+    """Is ``cls`` typer's default command or group class (unset, or a typer placeholder)?"""
+    return cls is None or cls is default or isinstance(cls, DefaultPlaceholder)
+
+
 def apply_help_style(app: typer.Typer) -> None:
     """Give every command of ``app`` (and of its sub-apps) gonio's help layout.
 
@@ -126,10 +275,13 @@ def apply_help_style(app: typer.Typer) -> None:
     commands registered later (tests) get it on the next call.
     """
     for info in app.registered_commands:
-        if info.cls is None or info.cls is TyperCommand:
+        if _default_class(info.cls, TyperCommand):
             info.cls = Command
     for group in app.registered_groups:
         if group.typer_instance is not None:
+            if all(_default_class(c, TyperGroup)
+                   for c in (group.cls, group.typer_instance.info.cls)):
+                group.cls = SubGroup
             apply_help_style(group.typer_instance)
 
 
