@@ -13,8 +13,8 @@ with a coat, α_coat, k_coat and F0_coat) the coat is a known offset o(θ), and 
     min over c, ρ_d ≥ 0, ρ ≥ 0 of Σ_n w (ρ_d/π + ρ D(θh; α)/4 · e^{c x} + o − y)²,
 
 a two-column non-negative least-squares problem in (ρ_d, ρ) with a closed form for any c,
-and a 1-D search in c (:func:`profile_c`): a scan of all wavelengths at once (three matrix
-products) and a golden-section refinement inside the best cell. The roughnesses are then
+and a 1-D search in c (:func:`~.common.profile_c`): a scan of all wavelengths at once
+(three matrix products) and safeguarded parabolic steps inside the best cell. The roughnesses are then
 an outer search of 1 (diffuse) or 4 (coat) variables: a coarse scan and nlopt BOBYQA.
 
 Residuals are linear in f with the weights :func:`~.common.prepare` made (compressive by
