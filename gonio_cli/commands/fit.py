@@ -149,41 +149,35 @@ def fit(
 
 def read_weights(path: Path, m) -> "np.ndarray":
     """Per-configuration weights (N,) from a CSV theta_i_deg,theta_o_deg,weight; 1 for the
-    configurations it does not list. Every row must name a measured configuration."""
-    import csv
-
+    configurations it does not list. Every row must name a measured configuration. Split
+    by ingest's one CSV reader (delimiters, BOM, comments, line numbers)."""
     import numpy as np
 
     from ..errors import InputError
+    from ..ingest import read_table
     from . import require_files
 
     require_files([path], missing_fix="check the path")
-    w = np.ones(m.theta_i_deg.shape)
-    try:
-        with open(path, newline="", encoding="utf-8-sig") as fh:
-            rows = list(csv.reader(line for line in fh if not line.lstrip().startswith("#")))
-    except UnicodeDecodeError:
-        raise InputError("is not a UTF-8 CSV file", path=path,
-                         fix="save it as CSV: theta_i_deg,theta_o_deg,weight") from None
-    header = [h.strip() for h in rows[0]] if rows else []
-    if header != ["theta_i_deg", "theta_o_deg", "weight"]:
-        raise InputError(f"header is {','.join(header) or 'missing'}", path=path, row=1,
+    table = read_table(path)
+    if table.header != ["theta_i_deg", "theta_o_deg", "weight"]:
+        raise InputError(f"header is {','.join(table.header) or 'missing'}", path=path,
+                         row=table.header_line,
                          fix="the header must be theta_i_deg,theta_o_deg,weight")
-    for n, row in enumerate(rows[1:], start=2):
-        if not any(c.strip() for c in row):
-            continue
+    w = np.ones(m.theta_i_deg.shape)
+    for row, line in zip(table.cells, table.lines):
         try:
             ti, to, wt = (float(c) for c in row)
         except ValueError:
             raise InputError(f"expected three numbers, got {','.join(row)}", path=path,
-                             row=n, fix="theta_i_deg,theta_o_deg,weight per line") from None
+                             row=int(line), fix="theta_i_deg,theta_o_deg,weight per line"
+                             ) from None
         if not (np.isfinite(wt) and wt >= 0):
-            raise InputError(f"weight {wt:g} is not a finite number >= 0", path=path, row=n,
-                             column="weight")
+            raise InputError(f"weight {wt:g} is not a finite number >= 0", path=path,
+                             row=int(line), column="weight")
         hit = (np.abs(m.theta_i_deg - ti) < 1e-6) & (np.abs(m.theta_o_deg - to) < 1e-6)
         if not hit.any():
             raise InputError(f"no measured configuration has theta_i_deg={ti:g}, "
-                             f"theta_o_deg={to:g}", path=path, row=n,
+                             f"theta_o_deg={to:g}", path=path, row=int(line),
                              fix="list only configurations of the measurement")
         w[hit] = wt
     return w
