@@ -17,7 +17,7 @@ from typing import Any, Callable
 import numpy as np
 
 from ..errors import GonioError
-from .common import FitData, FitOptions, ModelFit, Stopwatch
+from .common import FitData, FitOptions, ModelFit, Stopwatch, compressive_floor
 from .verdict import colour_errors, covers_colour
 
 #: Models ``auto`` tries, cheapest first (a tie keeps the earlier, simpler one).
@@ -45,13 +45,12 @@ class Candidate:
 
 def _score(data: FitData, rows: np.ndarray, f: np.ndarray) -> np.ndarray:
     """Per-configuration error of predictions ``f`` on ``rows``: CIEDE2000 where colour
-    can be judged, else the RMS relative error with a floor (the compressive residual)."""
+    can be judged, else the RMS relative error with the compressive residual's floor."""
     if covers_colour(data.wavelength_nm):
         return colour_errors(data.wavelength_nm, data.theta_i_deg[rows],
                              data.theta_o_deg[rows], data.y[rows], f).delta_e
     y = data.y[rows]
-    eps = np.median(np.abs(data.y), axis=0)
-    return np.sqrt(np.mean(((f - y) / (np.abs(y) + eps + 1e-300)) ** 2, axis=1))
+    return np.sqrt(np.mean(((f - y) / (np.abs(y) + compressive_floor(data.y))) ** 2, axis=1))
 
 
 def fit_auto(data: FitData, options: FitOptions,

@@ -107,6 +107,14 @@ COMPRESSIVE_FLOOR_OF_MEDIAN = 1.0
 GEOMETRY_WEIGHT_FLOOR = 1e-4
 
 
+def compressive_floor(y: np.ndarray) -> np.ndarray:
+    """ε(λ) (L,) of the compressive residual: :data:`COMPRESSIVE_FLOOR_OF_MEDIAN` × the
+    median of y (N, L) at each wavelength; an all-dark wavelength takes its RMS, else 1."""
+    eps = COMPRESSIVE_FLOOR_OF_MEDIAN * np.median(np.maximum(y, 0.0), axis=0)
+    scale = np.sqrt(np.mean(y * y, axis=0))
+    return np.where(eps > 0, eps, np.where(scale > 0, scale, 1.0))
+
+
 def compressive_weights(y: np.ndarray, cos_theta_i: np.ndarray,
                         cos_theta_o: np.ndarray) -> np.ndarray:
     """Weights (N, L) of the compressive residual √w (f − y).
@@ -117,9 +125,7 @@ def compressive_weights(y: np.ndarray, cos_theta_i: np.ndarray,
     al. 2012; Ngan et al. 2005 weight by the cosines) — in the form that keeps the model
     linear in its linear parameters, so every fitter's closed forms still apply.
     """
-    eps = COMPRESSIVE_FLOOR_OF_MEDIAN * np.median(np.maximum(y, 0.0), axis=0)
-    scale = np.sqrt(np.mean(y * y, axis=0))
-    eps = np.where(eps > 0, eps, np.where(scale > 0, scale, 1.0))   # all-dark wavelength
+    eps = compressive_floor(y)
     geo = np.maximum(np.clip(cos_theta_i, 0, 1) * np.clip(cos_theta_o, 0, 1),
                      GEOMETRY_WEIGHT_FLOOR)
     return geo[:, None] / (np.maximum(y, 0.0) + eps[None, :]) ** 2

@@ -26,7 +26,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..brdf import LOG_MAX, goniochromatic_exponent_arg, log_ggx_d, torrance_sparrow
+from ..brdf import (LOG_MAX, evaluate, goniochromatic_exponent_arg, log_ggx_d,
+                    torrance_sparrow)
 from ..errors import FitError
 from .common import (ALPHA_MAX, ALPHA_MIN, C_LIMIT, FitData, FitOptions, FitReport,
                      ModelFit, Stopwatch, error_figures, minimize_log_alpha, nm_list,
@@ -59,10 +60,10 @@ COAT_MAXEVAL = 300
 
 
 class Layered:
-    """The separable problem of one data set: the spectra for any fixed roughnesses."""
+    """The separable problem of one data set: (ρ_d, ρ, c)(λ) for any fixed roughnesses."""
 
-    def __init__(self, data: FitData, diffuse: bool = True, coat: bool = False):
-        self.data, self.diffuse, self.coat = data, diffuse, coat
+    def __init__(self, data: FitData, coat: bool = False):
+        self.data, self.coat = data, coat
         self.x = goniochromatic_exponent_arg(data.cos.cos_theta_i, data.cos.cos_theta_o)
         # every wavelength with some weighted signal can be fitted
         self.signal = np.any((data.w > 0) & (data.y > 0), axis=0)
@@ -86,11 +87,10 @@ class Layered:
             params.update(alpha_coat=float(alpha_coat), k_coat=float(k_coat),
                           f0_coat=float(f0_coat))
         g = np.exp(np.minimum(log_ggx_d(d.cos.cos_theta_h, alpha), LOG_MAX)) / 4.0
-        rho_d, rho, c, cost = profile_c(self.x, g, t, self.w, self.diffuse)
+        rho_d, rho, c, cost = profile_c(self.x, g, t, self.w, diffuse=True)
         ok = self.signal & np.isfinite(cost) & (np.abs(c) < C_LIMIT * (1 - 1e-6))
-        params.update(rho=np.where(ok, rho, 0.0), c=np.where(ok, c, 0.0))
-        if self.diffuse:
-            params["rho_d"] = np.where(ok, rho_d, 0.0)
+        params.update(rho=np.where(ok, rho, 0.0), c=np.where(ok, c, 0.0),
+                      rho_d=np.where(ok, rho_d, 0.0))
         return params, cost, ok
 
     def cost(self, alpha, coat=None) -> float:
@@ -98,12 +98,6 @@ class Layered:
         leaving it out would make the worst roughness look the best)."""
         _, cost, _ = self.solve(alpha, coat)
         return float(np.sum(cost[self.signal]))
-
-
-def _evaluate(model: str, data: FitData, params: dict) -> np.ndarray:
-    from ..brdf import evaluate
-
-    return evaluate(model, data.cos, params)
 
 
 def _search_coat(problem: Layered, alpha0: float):
@@ -154,7 +148,7 @@ def fit_layered(data: FitData, options: FitOptions, coat: bool) -> ModelFit:
         raise FitError(f"--alpha {options.alpha:g} is outside [{ALPHA_MIN:g}, {ALPHA_MAX:g}]",
                        fix="GGX alpha of seed 000 eq. 3 lies in (0, 1]")
     sw = Stopwatch()
-    plain = Layered(data, diffuse=True, coat=False)
+    plain = Layered(data)
     if options.alpha is not None:
         alpha, evaluations, message, success = options.alpha, 0, "alpha fixed", True
     else:
@@ -163,7 +157,7 @@ def fit_layered(data: FitData, options: FitOptions, coat: bool) -> ModelFit:
         alpha, evaluations, message, success = (search.alpha, search.evaluations,
                                                 search.message, search.success)
     if coat:
-        problem = Layered(data, diffuse=True, coat=True)
+        problem = Layered(data, coat=True)
         alpha, coat_params, n, message = _search_coat(problem, alpha)
         evaluations += n
         params, _, ok = problem.solve(alpha, coat_params)
@@ -174,7 +168,7 @@ def fit_layered(data: FitData, options: FitOptions, coat: bool) -> ModelFit:
     if failed:
         message = (f"no usable signal at {len(failed)} wavelength(s) ({nm_list(failed)}); "
                    f"rho = rho_d = c = 0 there. " + message)
-    f = _evaluate(model, data, params)
+    f = evaluate(model, data.cos, params)
     report = FitReport("refined", status, message, params, error_figures(data, f),
                        "nlopt-bobyqa", evaluations, sw.lap(), failed)
     return ModelFit(model, data.wavelength_nm, {"refined": report}, "refined", data.excluded)
