@@ -18,6 +18,7 @@ Randomness is seeded; every tolerance says where it comes from.
 from __future__ import annotations
 
 import importlib.util
+import subprocess
 import sys
 from pathlib import Path
 
@@ -215,23 +216,56 @@ def test_bare_substrate_and_full_ink():
         assert (halftone(flat((0, 1, 0), 32), method).labels == 2).all()
 
 
-# --- numba kernel == reference ---------------------------------------------------------
+# --- compiled kernels (C and numba builds) == reference --------------------------------
 
+def kernel_build(name: str) -> str:
+    """A build of the kernel to test; the C build is skipped where pip could not compile
+    it (no C compiler), which is when gonio falls back to numba."""
+    if name == "c" and not diffusion.c_build_available():
+        pytest.skip("the C build of the kernel was not compiled at install (no C compiler)")
+    return name
+
+
+@pytest.mark.parametrize("build", diffusion.BUILDS)
 @pytest.mark.parametrize("matrix", [diffusion.FLOYD_STEINBERG, diffusion.JARVIS,
                                     diffusion.STUCKI], ids=lambda m: m.name)
 @pytest.mark.parametrize("serpentine", [True, False])
-def test_kernel_equals_reference_bit_for_bit(matrix, serpentine):
+def test_kernel_equals_reference_bit_for_bit(matrix, serpentine, build):
+    build = kernel_build(build)
     rng = np.random.default_rng(7)
     shapes = [(1, 1), (1, 40), (40, 1), (2, 3), (17, 23), (33, 9)]
     for h, w in shapes:
         c = random_simplex(rng, h, w)
-        np.testing.assert_array_equal(diffusion.diffuse(c, matrix, serpentine),
+        np.testing.assert_array_equal(diffusion.diffuse(c, matrix, serpentine, build),
                                       diffusion.diffuse_reference(c, matrix, serpentine))
     # exact ties at one half and between inks follow the documented rule in both
     for tie in [(0.5, 0.0, 0.0), (0.25, 0.25, 0.25), (0.5, 0.5, 0.0), (1 / 3,) * 3]:
         c = flat(tie, 12)
-        np.testing.assert_array_equal(diffusion.diffuse(c, matrix, serpentine),
+        np.testing.assert_array_equal(diffusion.diffuse(c, matrix, serpentine, build),
                                       diffusion.diffuse_reference(c, matrix, serpentine))
+
+
+def test_builds_agree_on_a_large_image():
+    """Both builds on 300 × 400 pixels (long error chains, where a fused multiply-add in
+    one build would show): the same labels."""
+    build = kernel_build("c")
+    c = random_simplex(np.random.default_rng(3), 300, 400)
+    np.testing.assert_array_equal(diffusion.diffuse(c, diffusion.FLOYD_STEINBERG, build=build),
+                                  diffusion.diffuse(c, diffusion.FLOYD_STEINBERG,
+                                                    build="numba"))
+
+
+def test_default_build_is_c_where_compiled():
+    code = ("from gonio_cli.halftone import diffusion\n"
+            "import numpy as np\n"
+            "diffusion.diffuse(np.zeros((2, 2, 3), np.float32), diffusion.FLOYD_STEINBERG)\n"
+            "import sys; print(diffusion.kernel_status(), 'numba' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=120).stdout.split()
+    if diffusion.c_build_available():
+        assert out == ["c", "False"]
+    else:
+        assert out[0] in ("cache", "compiled", "compiled-uncached")
 
 
 def random_pixels(rng, h, w, channels=3) -> np.ndarray:
@@ -288,16 +322,18 @@ def test_float_pixels_in_bands_equal_the_whole_image():
         cov.to_coverage(px, "auto", True, "scale")
 
 
+@pytest.mark.parametrize("build", diffusion.BUILDS)
 @pytest.mark.parametrize("matrix", [diffusion.FLOYD_STEINBERG, diffusion.JARVIS,
                                     diffusion.STUCKI], ids=lambda m: m.name)
-def test_kernel_from_pixels_equals_prepare_then_diffuse(matrix):
+def test_kernel_from_pixels_equals_prepare_then_diffuse(matrix, build):
     """The fused path (decoding and --gamut scale inside the kernel) gives the labels,
     out-of-gamut count and coverage of the general path."""
     rng = np.random.default_rng(13)
     for encoding in ("srgb", "linear"):
         px = random_pixels(rng, 45, 31)
         table = cov.decode_table(np.uint8, encoding)
-        labels, outside, total = diffusion.diffuse_pixels(px, table, cov.SCALE_LIMIT, matrix)
+        labels, outside, total = diffusion.diffuse_pixels(px, table, cov.SCALE_LIMIT, matrix,
+                                                          build=kernel_build(build))
         c, _, fraction = float_path(px, encoding)
         np.testing.assert_array_equal(labels, diffusion.diffuse_reference(c, matrix))
         assert outside == fraction * px.shape[0] * px.shape[1] and outside > 0

@@ -25,9 +25,10 @@ PROBE = """
 import json, sys
 import numpy as np
 from gonio_cli.halftone import diffusion, halftone
+diffusion.compile_kernel("numba")  # the C build, where present, needs no cache
 coverage = np.full((16, 16, 3), 0.2, dtype=np.float32)
 labels = halftone(coverage, "floyd-steinberg").labels
-fn = diffusion._KERNEL["fn"]
+fn = diffusion._KERNEL["numba"]
 print(json.dumps({"hits": sum(fn.stats.cache_hits.values()),
                   "misses": sum(fn.stats.cache_misses.values()),
                   "status": diffusion.kernel_status(),

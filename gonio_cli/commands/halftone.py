@@ -158,9 +158,14 @@ def halftone(
 
 
 #: How the summary line names the kernel's start-up cost, by :func:`kernel_status`.
-KERNEL_NOTES = {"cache": "numba start-up, kernel from cache",
+KERNEL_NOTES = {"c": "C kernel load",
+                "cache": "numba start-up, kernel from cache",
                 "compiled": "JIT compile, now cached",
                 "compiled-uncached": "JIT compile, no writable numba cache"}
+
+
+#: A kernel start-up shorter than this is not worth a word (the C build: ~0.1 ms).
+STARTUP_SHOWN_S = 0.05
 
 
 def summary_line(output: Path, payload: dict, result) -> str:
@@ -174,7 +179,7 @@ def summary_line(output: Path, payload: dict, result) -> str:
     tone = (f" tone RMSE {payload['tone_rmse']:.4f} (σ={TONE_SIGMA_PX:g} px)"
             if "tone_rmse" in payload else "")
     startup = ""
-    if result.compile_time_s:
+    if result.compile_time_s >= STARTUP_SHOWN_S:
         note = KERNEL_NOTES.get(result.info.get("kernel", ""), "numba start-up")
         startup = f" (+{result.compile_time_s:.1f} s {note})"
     return (f"{output}: {payload['method']} {payload['width_px']}x{payload['height_px']} "

@@ -242,8 +242,9 @@ class Halftone:
     """A halftone: ``labels`` (H, W) uint8 (0 bare, 1 R, 2 G, 3 B), the method, its
     resolved parameters, facts for the report and the core time ``time_s``, excluding
     ``compile_time_s``, the time the first error-diffusion call of a process spends
-    importing numba and loading the kernel from numba's on-disk cache (or compiling it,
-    the first time on a machine; 0 otherwise); ``info["kernel"]`` says which
+    making the kernel ready: ~0.1 ms for the C build, or importing numba and loading the
+    kernel from numba's on-disk cache (compiling it, the first time on a machine) for the
+    numba build; 0 otherwise. ``info["kernel"]`` says which
     (:func:`.diffusion.kernel_status`)."""
 
     labels: np.ndarray

@@ -14,10 +14,12 @@ Rows are scanned serpentine (left to right on even rows, right to left on odd ro
 matrix mirrored), which breaks up the directional "worms" of raster scanning (Ulichney
 1987, *Digital Halftoning*, ch. 8).
 
-Two implementations of the same arithmetic exist: :func:`diffuse_reference`, plain
-Python, slow and obviously right, and the numba kernel behind :func:`diffuse`, which keeps
-only ``rows`` lines of error in a ring buffer. Both add the same float64 products in the
-same order, so their outputs are identical bit for bit (a test checks this).
+Three builds of the same arithmetic exist: :func:`diffuse_reference`, plain Python, slow
+and obviously right, and the kernel behind :func:`diffuse`, which keeps only ``rows`` lines
+of error in a ring buffer, in two builds (:data:`BUILDS`): C (``_diffuse.c``, compiled when
+gonio is installed; no start-up cost) and numba (:func:`_kernel_source`, used where the C
+build is missing; ~0.7 s of numba start-up per process). All add the same float64 products
+in the same order, so their outputs are identical bit for bit (tests check both builds).
 
 References
 ----------
@@ -241,22 +243,45 @@ KERNEL_SIGNATURE = ("void(float32[:, :, ::1], uint8[:, :, ::1], float32[::1], fl
 
 _KERNEL: dict = {}
 
+#: The builds of the kernel, in order of preference: the C extension module built by pip
+#: (``_diffuse.c``; optional, skipped where no C compiler was found) and numba's JIT of
+#: :func:`_kernel_source` (cached on disk).
+BUILDS = ("c", "numba")
 
-def compile_kernel() -> float:
-    """Make the numba kernel ready in this process; return the seconds spent now: numba's
-    import and loading or compiling the kernel (0 once ready).
 
-    The kernel is compiled for :data:`KERNEL_SIGNATURE` with numba's on-disk cache
-    (``cache=True``): the first process on a machine compiles it (seconds) and stores it,
-    later processes load it (no compilation; what remains is numba's own start-up, ~0.5–1 s,
-    which imports scipy.linalg). numba picks the folder: ``NUMBA_CACHE_DIR`` if set, else
-    ``__pycache__`` beside this file if writable, else its user-wide cache
-    (``~/.cache/numba``); if none is writable the kernel is compiled without a cache
-    (:func:`kernel_status` says which happened).
+def c_build_available() -> bool:
+    """Whether the C build of the kernel was compiled when gonio was installed."""
+    try:
+        from . import _diffuse  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def compile_kernel(build: str | None = None) -> float:
+    """Make the kernel ready in this process; return the seconds spent now (0 once ready).
+
+    ``build`` is one of :data:`BUILDS`, or None for the first available one. The C build
+    costs only its import. The numba build is compiled for :data:`KERNEL_SIGNATURE` with
+    numba's on-disk cache (``cache=True``): the first process on a machine compiles it
+    (seconds) and stores it, later processes load it (no compilation; what remains is
+    numba's own start-up, ~0.5–1 s, which imports scipy.linalg). numba picks the folder:
+    ``NUMBA_CACHE_DIR`` if set, else ``__pycache__`` beside this file if writable, else its
+    user-wide cache (``~/.cache/numba``); if none is writable the kernel is compiled without
+    a cache (:func:`kernel_status` says which happened).
     """
-    if "fn" in _KERNEL:
+    if build is None:
+        build = _KERNEL.get("active") or ("c" if c_build_available() else "numba")
+    if build not in BUILDS:
+        raise ValueError(f"unknown kernel build {build!r}; builds: {', '.join(BUILDS)}")
+    _KERNEL["active"] = build
+    if build in _KERNEL:
         return 0.0
     start = time.perf_counter()
+    if build == "c":
+        from ._diffuse import run
+        _KERNEL["c"] = run
+        return time.perf_counter() - start
     import numba  # importing numba is part of the price
 
     options = dict(nogil=True, error_model="numpy")
@@ -266,31 +291,49 @@ def compile_kernel() -> float:
     except RuntimeError:  # "cannot cache function ...: no locator available"
         fn = numba.njit([KERNEL_SIGNATURE], **options)(_kernel_source)
         cached = False
-    _KERNEL.update(fn=fn, cached=cached)
+    _KERNEL.update(numba=fn, cached=cached)
     return time.perf_counter() - start
 
 
 def kernel_status() -> str:
-    """How this process got the kernel: ``cache`` (loaded from numba's on-disk cache),
-    ``compiled`` (compiled and written to the cache), ``compiled-uncached`` (no writable
-    cache folder), or ``not-loaded``."""
-    if "fn" not in _KERNEL:
+    """How this process got the kernel: ``c`` (the C build), or for the numba build
+    ``cache`` (loaded from numba's on-disk cache), ``compiled`` (compiled and written to the
+    cache), ``compiled-uncached`` (no writable cache folder); ``not-loaded`` before."""
+    build = _KERNEL.get("active")
+    if build is None or build not in _KERNEL:
         return "not-loaded"
+    if build == "c":
+        return "c"
     if not _KERNEL["cached"]:
         return "compiled-uncached"
-    return "cache" if sum(_KERNEL["fn"].stats.cache_hits.values()) else "compiled"
+    return "cache" if sum(_KERNEL["numba"].stats.cache_hits.values()) else "compiled"
+
+
+def _run(coverage, pixels, table, scale_limit, dy, dx, wt, serpentine, labels, stats,
+         build: str | None) -> None:
+    """Call the chosen build with the kernel's arguments (see :func:`_kernel_source`)."""
+    compile_kernel(build)
+    build = _KERNEL["active"]
+    if build == "numba":
+        _KERNEL["numba"](coverage, pixels, table, scale_limit, dy, dx, wt, serpentine,
+                         labels, stats)
+        return
+    h, w = labels.shape
+    channels = pixels.shape[2] if pixels.size else 3
+    _KERNEL["c"](coverage, pixels, h, w, channels, table, float(scale_limit), dy, dx, wt,
+                 bool(serpentine), labels, stats)
 
 
 def diffuse(coverage: np.ndarray, matrix: DiffusionMatrix,
-            serpentine: bool = True) -> np.ndarray:
-    """Vector error diffusion (numba); same arguments and result as
-    :func:`diffuse_reference`, identical output, about 10⁴ times faster."""
-    compile_kernel()
+            serpentine: bool = True, build: str | None = None) -> np.ndarray:
+    """Vector error diffusion (the compiled kernel, ``build`` as in :func:`compile_kernel`);
+    same arguments and result as :func:`diffuse_reference`, identical output, about 10⁴
+    times faster."""
     c = as_float32(coverage)
     labels = np.zeros(c.shape[:2], dtype=np.uint8)
     dy, dx, wt = matrix.arrays()
-    _KERNEL["fn"](c, _NO_PIXELS, _NO_TABLE, np.float32(0.0), dy, dx, wt, bool(serpentine),
-                  labels, np.zeros(4))
+    _run(c, _NO_PIXELS, _NO_TABLE, np.float32(0.0), dy, dx, wt, bool(serpentine),
+         labels, np.zeros(4), build)
     return labels
 
 
@@ -300,8 +343,8 @@ _NO_TABLE = np.zeros(1, dtype=np.float32)
 
 
 def diffuse_pixels(pixels: np.ndarray, table: np.ndarray, scale_limit: float,
-                   matrix: DiffusionMatrix, serpentine: bool = True
-                   ) -> tuple[np.ndarray, int, np.ndarray]:
+                   matrix: DiffusionMatrix, serpentine: bool = True,
+                   build: str | None = None) -> tuple[np.ndarray, int, np.ndarray]:
     """Vector error diffusion straight from stored 8-bit pixels, for ``--gamut scale``.
 
     Gives the labels of ``diffuse(gamut_scale(table[pixels[..., :3]]))`` (the result of
@@ -317,6 +360,8 @@ def diffuse_pixels(pixels: np.ndarray, table: np.ndarray, scale_limit: float,
         Linear level of each stored value (:func:`.coverage.decode_table`).
     scale_limit : float
         A pixel counts as out of gamut where r + g + b > float32(scale_limit).
+    build : str or None
+        As in :func:`compile_kernel`.
 
     Returns
     -------
@@ -326,11 +371,15 @@ def diffuse_pixels(pixels: np.ndarray, table: np.ndarray, scale_limit: float,
     coverage_sum : (3,) float64
         Sum over the pixels of the in-gamut coverage of each ink.
     """
-    compile_kernel()
     px = np.ascontiguousarray(pixels, dtype=np.uint8)
+    if px.ndim != 3 or px.shape[2] < 3:
+        raise ValueError(f"pixels must be (H, W, C ≥ 3), not {px.shape}")
+    table = np.ascontiguousarray(table, dtype=np.float32)
+    if table.shape != (256,):
+        raise ValueError(f"table must be (256,), not {table.shape}")
     labels = np.zeros(px.shape[:2], dtype=np.uint8)
     stats = np.zeros(4)
     dy, dx, wt = matrix.arrays()
-    _KERNEL["fn"](_NO_COVERAGE, px, np.ascontiguousarray(table, dtype=np.float32),
-                  np.float32(scale_limit), dy, dx, wt, bool(serpentine), labels, stats)
+    _run(_NO_COVERAGE, px, table, np.float32(scale_limit), dy, dx, wt, bool(serpentine),
+         labels, stats, build)
     return labels, int(stats[0]), stats[1:].copy()
