@@ -337,21 +337,26 @@ def machine_memory() -> int | None:
 
 def check_memory(scene: Scene, spectra: bool = False) -> int:
     """Refuse, before allocating anything, a frame whose buffers exceed the machine's
-    memory; the message gives the estimate and the options that lower it."""
-    need = memory_estimate(scene, spectra)
+    memory; the message gives the estimate and the options that lower it. With
+    ``spectra`` (a spectral image) the frame is checked first, then frame + image.
+    Returns the estimate in bytes."""
     have = machine_memory()
     cam = scene.camera
-    if spectra and have is not None and need > have:
-        raise InputError(f"a {cam.width}x{cam.height} spectral image on {np.size(scene.grid_nm)} "
-                         f"wavelengths needs about {need / 2**30:.1f} GiB with the frame's "
-                         f"buffers, more than this machine's {have / 2**30:.1f} GiB",
-                         path=scene.display,
-                         fix="use a coarser --grid-nm, or lower --width/--height or --ssaa")
-    if have is not None and need > have:
+    frame = memory_estimate(scene)
+    if have is not None and frame > have:
         raise InputError(f"a {cam.width}x{cam.height} render at ssaa {scene.output.ssaa} "
-                         f"needs about {need / 2**30:.1f} GiB of buffers, more than this "
+                         f"needs about {frame / 2**30:.1f} GiB of buffers, more than this "
                          f"machine's {have / 2**30:.1f} GiB", path=scene.display,
                          fix="lower --ssaa or --width/--height")
+    if not spectra:
+        return frame
+    need = memory_estimate(scene, spectra=True)
+    if have is not None and need > have:
+        raise InputError(f"a {cam.width}x{cam.height} spectral image on "
+                         f"{np.size(scene.grid_nm)} wavelengths needs about "
+                         f"{need / 2**30:.1f} GiB with the frame's buffers, more than this "
+                         f"machine's {have / 2**30:.1f} GiB", path=scene.display,
+                         fix="use a coarser --grid-nm, or lower --width/--height or --ssaa")
     return need
 
 
