@@ -299,3 +299,90 @@ def test_bad_options_are_one_line(run_gonio, scene, tmp_path, args, message):
     r = run_gonio("render", scene, "-o", tmp_path / "o.png", *args)
     assert r.exit_code == 2 and r.stderr.count("\n") == 1 and message in r.stderr
     assert not (tmp_path / "o.png").exists()
+
+
+# ----------------------------------------------------- the shading's spectral channels --
+
+def test_environment_and_print_give_the_closed_form_spectrum(tmp_path):
+    """A printed sphere (three inks by coverage over a Phong substrate) under a constant
+    environment c(λ): with one channel per wavelength the shading returns the spectrum
+    of the closed form (tests/test_render_environment.py's, per wavelength), and under
+    lights too its Σλ L cmf / Σ ȳ is the XYZ path's (float64 throughout: 1e-10)."""
+    from gonio_cli.render import Light
+    from gonio_cli.render.environment import load_environment
+    from gonio_cli.render.shade import Surface, shade_rows
+    from gonio_cli.spectra import illuminant
+    from test_render_environment import env_spectrum, lobes_of, write_env
+    from test_render_shade import ink, sphere_gbuffer
+
+    env = load_environment(write_env(tmp_path / "env", [1.0, 3.0]))
+    kds = [0.1, 0.2, 0.3]
+    cov = np.array([0.2, 0.3, 0.1])
+    surface = Surface(inks=[ink(0.2, 620), ink(0.3, 540), ink(0.25, 460)],
+                      lobes=[lobes_of(k, 0.0, 0.0, [3.0]) for k in kds],
+                      substrate={"kd": 0.05, "ks": 0.01, "shininess": 3.0},
+                      coverage=lambda uv, fp: np.broadcast_to(cov, uv.shape[:-1] + (3,)))
+    g = sphere_gbuffer(3)
+    eye = np.eye(GRID.size)
+    spectra = shade_rows(g, [surface], [], GRID, environment=env, observer=eye)
+    assert spectra.shape == (9, GRID.size)
+    # centre pixel, N·V = 1: Σ cov K_D π c + (1 − Σ cov)(kd + ks (n+2)/(n+1) N·V) c
+    expected = (np.pi * (cov @ kds) + 0.4 * (0.05 + 0.01 * 5.0 / 4.0)) * env_spectrum()
+    np.testing.assert_allclose(spectra[4], expected, rtol=1e-12)
+
+    lights = [Light("directional", direction=np.array([1.0, 1.0, 1.0]), irradiance=2.0,
+                    spectrum=illuminant("D65", GRID)),
+              Light("point", position=np.array([-1.0, 0.5, 2.0]), intensity=5.0,
+                    spectrum=illuminant("A", GRID))]
+    g = sphere_gbuffer(16)
+    for spectral in ("table", "exact"):
+        xyz = shade_rows(g, [surface], lights, GRID, environment=env, spectral=spectral)
+        spectra = shade_rows(g, [surface], lights, GRID, environment=env, spectral=spectral,
+                             observer=eye)
+        assert np.all(spectra >= 0)
+        # the table path's tolerance (1e-5 relative) bounds "table"; "exact" is one sum
+        tol = 1e-5 if spectral == "table" else 1e-10
+        assert relative(integrate(spectra, GRID), xyz).max() < tol
+
+
+def test_xyz_lobes_cannot_give_a_spectral_image(tmp_path):
+    """Lobe weights fitted in XYZ channels have no spectrum: refused, not guessed."""
+    from gonio_cli.errors import InputError
+    from gonio_cli.render.environment import environment_xyz, load_environment
+    from gonio_cli.schemas import Lobes
+    from test_render_environment import write_env
+
+    env = load_environment(write_env(tmp_path / "env", [1.0, 3.0]))
+    v = 2
+    lobes = Lobes(np.array([3.0]), "xyz", ["X", "Y", "Z"], np.array([0.0, 80.0]),
+                  np.full((v, 3), 0.1), np.zeros((v, 1, 3)), np.zeros((v, 1, 3)), {},
+                  "nnls", "test", [0] * v)
+    n = np.array([[0.0, 0.0, 1.0]])
+    assert environment_xyz(env, lobes, n, n, GRID).shape == (1, 3)
+    with pytest.raises(InputError, match="XYZ channels have no spectrum"):
+        environment_xyz(env, lobes, n, n, GRID, observer=np.eye(GRID.size))
+
+
+def test_xyz_lobes_are_refused_before_rendering(run_gonio, scene, tmp_path):
+    """From the command line: one line naming the object, its lobes file and the fix;
+    the same scene renders its colour image."""
+    from gonio_cli.schemas import Lobes, write_lobes
+    from test_render_environment import write_env
+
+    write_env(tmp_path / "sky", [1.0, 3.0])
+    v = 2
+    xyz = Lobes(np.array([3.0]), "xyz", ["X", "Y", "Z"], np.array([0.0, 80.0]),
+                np.full((v, 3), 0.1), np.zeros((v, 1, 3)), np.zeros((v, 1, 3)), {},
+                "nnls", "test", [0] * v)
+    write_lobes(tmp_path / "x.lobes.json", xyz)
+    text = scene.read_text().replace('material = "ink.json"',
+                                     'material = "ink.json"\nlobes = "x.lobes.json"')
+    text = text.replace('material = "ts.json"', 'material = "ts.json"\nlobes = "x.lobes.json"')
+    scene.write_text(text + '\n[environment]\nprefiltered = "sky/index.json"\n')
+    png, spec = tmp_path / "o.png", tmp_path / "s.exr"
+    r = run_gonio("render", scene, "-o", png, "--spectral-exr", spec)
+    assert r.exit_code == 2 and r.stderr.count("\n") == 1, r.stderr
+    assert "[[object]] 1 lobes = x.lobes.json: weights fitted in xyz channels" in r.stderr
+    assert "--channels spectral" in r.stderr
+    assert not png.exists() and not spec.exists()
+    assert run_gonio("render", scene, "-o", png).exit_code == 0

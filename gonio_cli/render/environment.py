@@ -212,8 +212,8 @@ def channel_matrices(weights: np.ndarray, channel_kind: str, wavelength_nm,
     if observer is not None:
         raise InputError("lobe weights fitted in XYZ channels have no spectrum, so they "
                          "cannot give a spectral image",
-                         fix="fit the lobes spectrally (gonio lobes fit), or leave out "
-                             "--spectral-exr")
+                         fix="fit them with gonio lobes fit --channels spectral (its "
+                             "default), or leave out --spectral-exr")
     x_basis = basis @ cm                                     # (3 rgb, 3 xyz)
     x_equal = cm.sum(axis=0)                                 # XYZ of equal energy, Y = 1
     return k[..., None, :] * (x_basis / x_equal)

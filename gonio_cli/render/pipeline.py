@@ -421,6 +421,8 @@ def _render_steps(scene: Scene, stats: Stats, state: dict, spectra: bool = False
         meshes = load_meshes(scene)
     yield "meshes"
     surfaces = build_surfaces(scene, stats)
+    if spectra:
+        check_spectral_lobes(scene, surfaces)
     environment = None
     if scene.environment is not None:
         from .environment import load_environment
@@ -475,6 +477,23 @@ def _render_steps(scene: Scene, stats: Stats, state: dict, spectra: bool = False
     stats.counts["clipped_pixels"] = int(np.count_nonzero(shown["clipped"]))
     state["frame"] = Frame(linear, png, xyz, coverage, shown["out_of_gamut"], radiance)
     yield "tonemap"
+
+
+def check_spectral_lobes(scene: Scene, surfaces: list) -> None:
+    """A spectral image under an environment needs spectral lobe weights: weights fitted
+    in XYZ channels have no spectrum (refused before rendering, naming the file)."""
+    if scene.environment is None:
+        return
+    for o, s in zip(scene.objects, surfaces):
+        lobes = s.lobes if isinstance(s.lobes, list) else [s.lobes]
+        paths = o.lobes if isinstance(o.lobes, list) else [o.lobes]
+        for path, lob in zip(paths, lobes):
+            if lob is not None and lob.channel_kind != "spectral":
+                raise InputError(f"[[object]] {o.index + 1} lobes = {Path(path).name}: "
+                                 f"weights fitted in {lob.channel_kind} channels have no "
+                                 "spectrum for --spectral-exr", path=scene.display,
+                                 fix="fit them with gonio lobes fit --channels spectral "
+                                     "(its default), or leave out --spectral-exr")
 
 
 def spectral_radiance(gbuffer, surfaces: list, scene: Scene, environment=None) -> np.ndarray:
