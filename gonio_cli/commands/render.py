@@ -20,7 +20,8 @@ def render(
     output: Path = typer.Option(..., "--output", "-o", metavar="OUT.png",
                                 help="8-bit sRGB PNG (after exposure and tone map)."),
     exr: Optional[Path] = typer.Option(None, "--exr", metavar="OUT.exr",
-                                       help="Also write a scene-linear float32 EXR (in --exr-space)."),
+                                       help="Also write scene-linear float32 EXR "
+                                            "(in --exr-space)."),
     exr_space: str = typer.Option("srgb", "--exr-space", metavar="|".join(EXR_SPACE_NAMES),
                                   help="Colour space of the --exr image (named in its "
                                        "header)."),

@@ -12,7 +12,7 @@ in the run report only if it ran ("leave out what the scene does not need"):
 ``environment``  prefiltered maps: only if the scene has an ``[environment]``
 ``rasterize``    the batched z-buffer at ssaa × the image size
 ``shade``        spectral shading → XYZ (and ``shade.*`` sub-stages of :mod:`.shade`)
-``spectra``      only with a spectral image: the radiance per wavelength (:func:`spectral_radiance`)
+``spectra``      only with a spectral image: radiance per wavelength (:func:`spectral_radiance`)
 ``downsample``   box filter of the ssaa (:func:`resolve`), XYZ → linear sRGB (IEC matrix)
                  on output pixels, background
 ``tonemap``      exposure, tone map, sRGB encoding, 8 bits
@@ -547,8 +547,9 @@ def resolve(rows: np.ndarray, pixels: np.ndarray, object_id: np.ndarray, ssaa: i
 
     Parameters
     ----------
-    rows : (n, C) XYZ (or any C channels) of the covered samples ; pixels : (n,) their flat indices in the
-    (ssaa H, ssaa W) image ; object_id : (ssaa H, ssaa W), −1 on the background.
+    rows : (n, C) XYZ (or any C channels, e.g. wavelengths) of the covered samples ;
+    pixels : (n,) their flat indices in the (ssaa H, ssaa W) image ; object_id : (ssaa H,
+    ssaa W), −1 on the background.
 
     Returns
     -------
