@@ -301,6 +301,13 @@ def write_exr(path: str | os.PathLike, pixels: np.ndarray,
            channel_names)
 
 
+#: OpenEXR codec of the spectral EXR: PIZ (lossless wavelet + Huffman, every OpenEXR
+#: reader has it). Measured on seed 000 Figure 5's 480² × 41 spectra: 17.9 MB, the
+#: compression adding ~0 s to the write, against 18.1 MB and ~3 s for zip (a loaded
+#: 2-core machine); most of the rest of the write is colour-science's building of the
+#: image one channel at a time.
+SPECTRAL_EXR_CODEC = "piz"
+
 #: The units of the spectral EXR's values as the spectral layout names them
 #: (``emissiveUnits``, Fichet et al. 2021 §3; the only units the layout defines).
 SPECTRAL_EXR_UNITS = "W.m^-2.sr^-1"
@@ -318,7 +325,8 @@ def write_spectral_exr(path: str | os.PathLike, spectra: np.ndarray, wavelength_
     channels are ``preview_rgb`` (H, W, 3), linear sRGB (the header's ``chromaticities``
     says so) — gonio's own colour image instead of colour-science's preview, which is
     exposure-normalised and undefined for a black image. ``metadata`` goes into
-    ``gonio:`` string attributes as :func:`write_exr` writes them; float32 values.
+    ``gonio:`` string attributes as :func:`write_exr` writes them; float32 values,
+    :data:`SPECTRAL_EXR_CODEC` compression (lossless).
     """
     from colour.io import (Image_Specification_Attribute, Specification_Fichet2021,
                            write_spectral_image_Fichet2021)
@@ -332,6 +340,7 @@ def write_spectral_exr(path: str | os.PathLike, spectra: np.ndarray, wavelength_
              for k, v in (metadata or {}).items()]
     ours.append(Image_Specification_Attribute(
         "chromaticities", list(rgb_space_chromaticities("srgb")), TypeDesc("float[8]")))
+    ours.append(Image_Specification_Attribute("compression", SPECTRAL_EXR_CODEC))
     date_time = header_date_time()
     if date_time is not None:
         ours.append(Image_Specification_Attribute("DateTime", date_time))
