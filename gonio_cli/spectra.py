@@ -260,7 +260,7 @@ def delta_e_2000(lab_1, lab_2) -> np.ndarray:
 
 def xyz_to_linear_srgb_matrix() -> np.ndarray:
     """IEC 61966-2-1 XYZ → linear sRGB matrix (D65 white), from colour-science. (3, 3)."""
-    return colour_tables()["srgb_matrix"].copy()
+    return rgb_space_matrix("srgb")
 
 
 def xyz_to_linear_srgb(xyz) -> np.ndarray:
