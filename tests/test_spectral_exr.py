@@ -184,6 +184,11 @@ def test_spectra_read_back_and_integrate_to_the_colour_exr(run_gonio, scene, tmp
     assert "Σλ L cmf / Σλ ȳ" in attrs["gonio:radiance_units"]
     assert attrs["gonio:schema"] == "gonio.render-spectra"
     assert json.loads(attrs["gonio:settings"])["adapt"] == "none"
+    inputs = json.loads(attrs["gonio:inputs"])                       # provenance
+    assert {i["path"] for i in inputs} == {str(scene), str(tmp_path / "ink.json"),
+                                           str(tmp_path / "ts.json")}
+    assert all(len(i["sha256"]) == 64 for i in inputs)
+    assert attrs["gonio:gonio_version"]
 
 
 def test_exact_path_gives_the_same_spectra_as_the_per_band_tables(run_gonio, scene,

@@ -671,6 +671,7 @@ def write_outputs(frame: Frame, scene: Scene, stats: Stats, *, png, exr=None,
     if spectral_exr is not None:
         if frame.spectra is None:
             raise ValueError("the frame has no spectra: render_scene(..., spectra=True)")
+        from ..artifact import input_records
         from ..spectra import grid_spec
 
         with _Stage(stats, "write_spectral_exr"):
@@ -679,6 +680,7 @@ def write_outputs(frame: Frame, scene: Scene, stats: Stats, *, png, exr=None,
             write_spectral_exr(
                 spectral_exr, frame.spectra, scene.grid_nm, frame.linear,
                 {"schema": "gonio.render-spectra", "settings": settings(scene),
+                 "inputs": input_records(scene.inputs),
                  "grid_nm": grid_spec(scene.grid_nm) or [float(v) for v in scene.grid_nm],
                  "radiance_units": SPECTRAL_UNITS,
                  "preview": "R, G, B: the colour EXR's linear sRGB (after adaptation)",
