@@ -172,8 +172,13 @@ def _meta_text(value: Any) -> str:
     return value if isinstance(value, str) else json.dumps(value, allow_nan=False)
 
 
+#: Header attributes that need an explicit OpenImageIO type (name → type).
+TYPED_ATTRIBUTES = {"chromaticities": "float[8]"}
+
+
 def _write(path: str | os.PathLike, pixels: np.ndarray, fmt: str,
-           metadata: Mapping[str, Any] | None, attributes: Mapping[str, Any]) -> None:
+           metadata: Mapping[str, Any] | None, attributes: Mapping[str, Any],
+           channel_names: Sequence[str] | None = None) -> None:
     import OpenImageIO as oiio
 
     a = np.asarray(pixels)
@@ -181,8 +186,13 @@ def _write(path: str | os.PathLike, pixels: np.ndarray, fmt: str,
         a = a[:, :, None]
     h, w, c = a.shape
     spec = oiio.ImageSpec(w, h, c, fmt)
+    if channel_names is not None:
+        spec.channelnames = tuple(channel_names)
     for key, value in attributes.items():
-        spec.attribute(key, value)
+        if key in TYPED_ATTRIBUTES:
+            spec.attribute(key, oiio.TypeDesc(TYPED_ATTRIBUTES[key]), tuple(value))
+        else:
+            spec.attribute(key, value)
     spec.attribute(META_PREFIX + "gonio_version", __version__)
     for key, value in (metadata or {}).items():
         spec.attribute(META_PREFIX + key, _meta_text(value))
@@ -269,16 +279,79 @@ def write_png_indexed(path: str | os.PathLike, indices: np.ndarray,
 def write_exr(path: str | os.PathLike, pixels: np.ndarray,
               metadata: Mapping[str, Any] | None = None, *,
               compression: str = DEFAULT_COMPRESSION,
-              source_date_epoch: int | None = None) -> None:
+              source_date_epoch: int | None = None,
+              chromaticities: Sequence[float] | None = None,
+              channel_names: Sequence[str] | None = None) -> None:
     """Write float32 EXR atomically (scene-referred linear values, docs/conventions.md).
 
     ``compression``: a key of :data:`COMPRESSION` (all lossless). The header's
     ``DateTime`` is ``source_date_epoch`` or the ``SOURCE_DATE_EPOCH`` environment variable
-    when set (:func:`header_date_time`), else the current time.
+    when set (:func:`header_date_time`), else the current time. ``chromaticities``: CIE xy
+    of R, G, B and white (8 floats), the standard attribute naming the colour space;
+    ``channel_names``: e.g. ``("X", "Y", "Z")`` (default R, G, B, A).
     """
     attributes: dict[str, Any] = {
         "compression": get_compression(compression, "compression").exr_codec}
     date_time = header_date_time(source_date_epoch)
     if date_time is not None:
         attributes["DateTime"] = date_time
-    _write(path, np.asarray(pixels, dtype=np.float32), "float", metadata, attributes)
+    if chromaticities is not None:
+        attributes["chromaticities"] = [float(v) for v in chromaticities]
+    _write(path, np.asarray(pixels, dtype=np.float32), "float", metadata, attributes,
+           channel_names)
+
+
+#: OpenEXR codec of the spectral EXR: PIZ (lossless wavelet + Huffman, every OpenEXR
+#: reader has it). Measured on seed 000 Figure 5's 480² × 41 spectra: 17.9 MB, the
+#: compression adding ~0 s to the write, against 18.1 MB and ~3 s for zip (a loaded
+#: 2-core machine); most of the rest of the write is colour-science's building of the
+#: image one channel at a time.
+SPECTRAL_EXR_CODEC = "piz"
+
+#: The units of the spectral EXR's values as the spectral layout names them
+#: (``emissiveUnits``, Fichet et al. 2021 §3; the only units the layout defines).
+SPECTRAL_EXR_UNITS = "W.m^-2.sr^-1"
+
+
+def write_spectral_exr(path: str | os.PathLike, spectra: np.ndarray, wavelength_nm,
+                       preview_rgb: np.ndarray, metadata: Mapping[str, Any] | None = None
+                       ) -> None:
+    """Write spectral radiance (H, W, n_λ) as a spectral OpenEXR (Fichet et al. 2021,
+    "An OpenEXR layout for spectral images", JCGT 10(3)), atomically.
+
+    The layout (one ``S0.<λ>nm`` channel per wavelength, ``spectralLayoutVersion``,
+    ``emissiveUnits``, ``polarisationHandedness``) is written by colour-science's
+    ``colour.io.write_spectral_image_Fichet2021``, imported here only. Its R, G, B
+    channels are ``preview_rgb`` (H, W, 3), linear sRGB (the header's ``chromaticities``
+    says so) — gonio's own colour image instead of colour-science's preview, which is
+    exposure-normalised and undefined for a black image. ``metadata`` goes into
+    ``gonio:`` string attributes as :func:`write_exr` writes them; float32 values,
+    :data:`SPECTRAL_EXR_CODEC` compression (lossless).
+    """
+    from colour.io import (Image_Specification_Attribute, Specification_Fichet2021,
+                           write_spectral_image_Fichet2021)
+    from OpenImageIO import TypeDesc
+
+    from .spectra import rgb_space_chromaticities
+
+    values = np.asarray(spectra, dtype=np.float32)
+    ours = [Image_Specification_Attribute(META_PREFIX + "gonio_version", __version__)]
+    ours += [Image_Specification_Attribute(META_PREFIX + k, _meta_text(v))
+             for k, v in (metadata or {}).items()]
+    ours.append(Image_Specification_Attribute(
+        "chromaticities", list(rgb_space_chromaticities("srgb")), TypeDesc("float[8]")))
+    ours.append(Image_Specification_Attribute("compression", SPECTRAL_EXR_CODEC))
+    date_time = header_date_time()
+    if date_time is not None:
+        ours.append(Image_Specification_Attribute("DateTime", date_time))
+
+    def preview(components, specification):
+        return np.asarray(preview_rgb, dtype=np.float32), ours
+
+    # attributes=None: colour-science writes the layout's own attributes
+    specification = Specification_Fichet2021(is_emissive=True, attributes=None)
+    components = {"S0": (np.asarray(wavelength_nm, dtype=float), values)}
+    with atomic_path(path) as tmp:
+        if not write_spectral_image_Fichet2021(components, tmp, "float32", specification,
+                                               preview):
+            raise InputError("cannot write the spectral EXR", path=path)

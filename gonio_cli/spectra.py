@@ -111,7 +111,7 @@ def resample(wavelength_nm_in, values, grid_nm) -> np.ndarray:
 # ----------------------------------------------------------------------------- colour --
 
 #: Version of the cached colour tables (bump when :func:`_colour_tables` changes).
-COLOUR_TABLES_VERSION = 2
+COLOUR_TABLES_VERSION = 3
 
 
 @functools.lru_cache(maxsize=1)
@@ -130,7 +130,13 @@ def colour_tables() -> dict[str, np.ndarray]:
             f"colour-science-{version('colour-science')}.npz")
     return cached_arrays(name, _colour_tables,
                          check=lambda d: {"cmfs_wl", "cmfs10_values", "srgb_matrix",
-                                          "basis_wl"} <= set(d))
+                                          "basis_wl", "acescg_matrix"} <= set(d))
+
+
+#: RGB colour spaces whose tables are cached (key → colour-science's name): primaries,
+#: white point and XYZ → RGB matrix (``{key}_primaries``, ``{key}_whitepoint``,
+#: ``{key}_matrix``). The matrices are colour-science's normalised primary matrices.
+RGB_SPACES = {"srgb": "sRGB", "acescg": "ACEScg"}
 
 
 def _colour_tables() -> dict[str, np.ndarray]:
@@ -143,10 +149,13 @@ def _colour_tables() -> dict[str, np.ndarray]:
            "cmfs_values": np.asarray(cmfs.values, dtype=float),
            "cmfs10_wl": np.asarray(cmfs10.wavelengths, dtype=float),
            "cmfs10_values": np.asarray(cmfs10.values, dtype=float),
-           "srgb_matrix": np.asarray(colour.RGB_COLOURSPACES["sRGB"].matrix_XYZ_to_RGB,
-                                     dtype=float),
            "basis_wl": np.asarray(basis.wavelengths, dtype=float),
            "basis_values": np.asarray(basis.values, dtype=float)}
+    for key in RGB_SPACES:                      # primaries (3, 2), white (2,), matrix (3, 3)
+        space = colour.RGB_COLOURSPACES[RGB_SPACES[key]]
+        out[f"{key}_primaries"] = np.asarray(space.primaries, dtype=float)
+        out[f"{key}_whitepoint"] = np.asarray(space.whitepoint, dtype=float)
+        out[f"{key}_matrix"] = np.asarray(space.matrix_XYZ_to_RGB, dtype=float)
     names = sorted(colour.SDS_ILLUMINANTS)
     out["illuminant_names"] = np.array(names)
     for k, n in enumerate(names):
@@ -251,7 +260,7 @@ def delta_e_2000(lab_1, lab_2) -> np.ndarray:
 
 def xyz_to_linear_srgb_matrix() -> np.ndarray:
     """IEC 61966-2-1 XYZ → linear sRGB matrix (D65 white), from colour-science. (3, 3)."""
-    return colour_tables()["srgb_matrix"].copy()
+    return rgb_space_matrix("srgb")
 
 
 def xyz_to_linear_srgb(xyz) -> np.ndarray:
@@ -291,6 +300,25 @@ def chromatic_adaptation_matrix(white_src_xyz, white_dst_xyz, method: str = "bra
 def srgb_white_xyz() -> np.ndarray:
     """XYZ (3,) of linear sRGB (1, 1, 1): the display white (D65, Y = 1) of the IEC matrix."""
     return np.linalg.solve(xyz_to_linear_srgb_matrix(), np.ones(3))
+
+
+def rgb_space_matrix(key: str) -> np.ndarray:
+    """XYZ → linear RGB (3, 3) of an RGB space of :data:`RGB_SPACES` (colour-science's
+    normalised primary matrix, no chromatic adaptation): its white has RGB (1, 1, 1)."""
+    return colour_tables()[f"{key}_matrix"].copy()
+
+
+def rgb_space_white_xyz(key: str) -> np.ndarray:
+    """XYZ (3,), Y = 1, of RGB (1, 1, 1) in an RGB space of :data:`RGB_SPACES`."""
+    return np.linalg.solve(rgb_space_matrix(key), np.ones(3))
+
+
+def rgb_space_chromaticities(key: str) -> tuple[float, ...]:
+    """CIE xy of the red, green and blue primaries and of the white of an RGB space of
+    :data:`RGB_SPACES`: 8 floats in the order of OpenEXR's ``chromaticities`` attribute."""
+    t = colour_tables()
+    return tuple(float(v) for v in np.concatenate([t[f"{key}_primaries"].ravel(),
+                                                   t[f"{key}_whitepoint"]]))
 
 
 def srgb_encode(linear) -> np.ndarray:

@@ -10,6 +10,7 @@ import typer
 SPECTRAL = ("table", "exact")
 TONEMAP_NAMES = ("neutral", "none", "clip", "reinhard", "filmic")  # tonemap.TONEMAPS (lazy)
 ADAPT_NAMES = ("bradford", "cat16", "none")  # gonio_cli.render.tonemap.ADAPTATIONS (lazy)
+EXR_SPACE_NAMES = ("srgb", "xyz", "acescg")  # gonio_cli.render.tonemap.EXR_SPACES (lazy)
 
 
 def render(
@@ -19,7 +20,14 @@ def render(
     output: Path = typer.Option(..., "--output", "-o", metavar="OUT.png",
                                 help="8-bit sRGB PNG (after exposure and tone map)."),
     exr: Optional[Path] = typer.Option(None, "--exr", metavar="OUT.exr",
-                                       help="Also write scene-linear sRGB float32 EXR."),
+                                       help="Also write scene-linear float32 EXR "
+                                            "(in --exr-space)."),
+    exr_space: str = typer.Option("srgb", "--exr-space", metavar="|".join(EXR_SPACE_NAMES),
+                                  help="Colour space of the --exr image (named in its "
+                                       "header)."),
+    spectral_exr: Optional[Path] = typer.Option(
+        None, "--spectral-exr", metavar="OUT.exr",
+        help="Also write the spectral radiance per wavelength (spectral OpenEXR layout)."),
     ssaa: Optional[int] = typer.Option(None, "--ssaa", metavar="N",
                                        help="Supersampling per axis (overrides [output])."),
     spectral: Optional[str] = typer.Option(
@@ -60,6 +68,7 @@ def render(
       gonio render sample_data/scenes/spheres.toml -o green.png --var material=green
       gonio render scene.toml -o a.png --exr a.exr --ssaa 3 --report run.json
       gonio render scene.toml -o a.png --grid-nm 400:700:10
+      gonio render scene.toml -o a.png --exr a.exr --exr-space acescg --spectral-exr s.exr
     """
     import time
 
@@ -77,7 +86,7 @@ def render(
             raise InputError(f"--var {item!r} is not NAME=VALUE", fix="e.g. --var ink=green")
         variables[name] = value
     for path, flag in ((output, "-o"), (exr, "--exr"), (report, "--report"),
-                       (gamut_warning, "--gamut-warning")):
+                       (gamut_warning, "--gamut-warning"), (spectral_exr, "--spectral-exr")):
         if path is not None and path.exists() and path.is_dir():
             raise InputError(f"{flag} {path} is a folder", fix="name a file")
     if spectral is not None and spectral not in SPECTRAL:
@@ -93,8 +102,12 @@ def render(
                          fix="name it *.png")
     if output.suffix.lower() != ".png":
         raise InputError(f"-o {output}: the image is written as PNG", fix="name it *.png")
-    if exr is not None and exr.suffix.lower() != ".exr":
-        raise InputError(f"--exr {exr}: not an .exr name", fix="name it *.exr")
+    for path, flag in ((exr, "--exr"), (spectral_exr, "--spectral-exr")):
+        if path is not None and path.suffix.lower() != ".exr":
+            raise InputError(f"{flag} {path}: not an .exr name", fix="name it *.exr")
+    if exr_space not in EXR_SPACE_NAMES:
+        raise InputError(f"--exr-space {exr_space!r} is unknown",
+                         fix=f"use one of {', '.join(EXR_SPACE_NAMES)}")
 
     stats = Stats()
     with log.timer() as t:
@@ -103,13 +116,13 @@ def render(
                                    "spectral": spectral, "exposure": exposure,
                                    "tonemap": tonemap, "adapt": adapt, "grid_nm": grid_nm})
     stats.time_s["scene"] = t["time_s"]
-    frame = render_scene(sc, stats)
+    frame = render_scene(sc, stats, spectra=spectral_exr is not None)
     write_outputs(frame, sc, stats, png=output, exr=exr, start=start,
-                  gamut_warning=gamut_warning)
+                  gamut_warning=gamut_warning, exr_space=exr_space, spectral_exr=spectral_exr)
     total = time.perf_counter() - start
     if report is not None:
         write_report(report, sc, stats, total_s=total, png=output, exr=exr,
-                     gamut_warning=gamut_warning)
+                     gamut_warning=gamut_warning, spectral_exr=spectral_exr)
     frame_ms = 1e3 * frame_time(stats)
     n_out = stats.counts.get("out_of_gamut_pixels", 0)
     n_clip = stats.counts.get("clipped_pixels", 0)

@@ -194,20 +194,26 @@ def rgb_basis(wavelength_nm) -> np.ndarray:
     return rgb_spectral_basis(wavelength_nm).T
 
 
-def channel_matrices(weights: np.ndarray, channel_kind: str, wavelength_nm) -> np.ndarray:
+def channel_matrices(weights: np.ndarray, channel_kind: str, wavelength_nm,
+                     observer: np.ndarray | None = None) -> np.ndarray:
     """Map channel → XYZ matrices of lobe weights: (..., C) → (..., 3 rgb, 3 xyz).
 
     ``spectral``: Σλ K(λ) D65 B_c cmf_j / Σ ȳ. ``xyz``: K_j X_j(D65 B_c) / X_j(E) (module
-    docstring).
+    docstring). ``observer`` (n_λ, C) replaces cmf / Σ ȳ (spectral weights only:
+    :func:`gonio_cli.render.shade.xyz_weights`): the last axis then has C channels.
     """
-    from ..spectra import cmfs
+    from .shade import default_observer
 
-    cm = cmfs(wavelength_nm)
-    cm = cm / cm[:, 1].sum()                                 # (n_λ, 3)
+    cm = default_observer(wavelength_nm) if observer is None else observer   # (n_λ, C)
     basis = rgb_basis(wavelength_nm)                         # (3, n_λ)
     k = np.asarray(weights, dtype=float)
     if channel_kind == "spectral":
         return np.einsum("...l,cl,lj->...cj", k, basis, cm)
+    if observer is not None:
+        raise InputError("lobe weights fitted in XYZ channels have no spectrum, so they "
+                         "cannot give a spectral image",
+                         fix="fit them with gonio lobes fit --channels spectral (its "
+                             "default), or leave out --spectral-exr")
     x_basis = basis @ cm                                     # (3 rgb, 3 xyz)
     x_equal = cm.sum(axis=0)                                 # XYZ of equal energy, Y = 1
     return k[..., None, :] * (x_basis / x_equal)
@@ -243,7 +249,8 @@ def view_interpolation(cos_theta_v: np.ndarray, view_angle_deg: np.ndarray
 
 
 def environment_xyz(environment: Environment, lobes: Lobes, normal: np.ndarray,
-                    view: np.ndarray, wavelength_nm) -> np.ndarray:
+                    view: np.ndarray, wavelength_nm,
+                    observer: np.ndarray | None = None) -> np.ndarray:
     """XYZ of environment light reflected by a lobe-fitted material, seed 001 eqs. 7-9.
 
     Parameters
@@ -252,6 +259,8 @@ def environment_xyz(environment: Environment, lobes: Lobes, normal: np.ndarray,
     lobes : :class:`~gonio_cli.schemas.Lobes` of the material (a table over view angle).
     normal, view : (n, 3) unit N and V (towards the eye).
     wavelength_nm : (n_λ,) the render's grid (for spectral weights).
+    observer : (n_λ, C) or None, the channels' weights instead of cmf / Σ ȳ
+        (:func:`channel_matrices`); the result then has C channels.
 
     Returns
     -------
@@ -273,13 +282,17 @@ def environment_xyz(environment: Environment, lobes: Lobes, normal: np.ndarray,
     normal = np.asarray(normal, dtype=float)
     view = np.asarray(view, dtype=float)
     n = normal.shape[0]
-    out = np.zeros((n, 3))
+    channels = 3 if observer is None else np.shape(observer)[1]
+    out = np.zeros((n, channels))
     if n == 0:
         return out
     kind = lobes.channel_kind
     v = lobes.view_angle_deg.size
     # the stacked channel matrices (V, K, 3) and, per stack of maps, its exponents
-    matrices = [np.pi * channel_matrices(lobes.diffuse, kind, wl)]
+    def channel_matrices_(weights):
+        return channel_matrices(weights, kind, wl, observer)
+
+    matrices = [np.pi * channel_matrices_(lobes.diffuse)]
     used = [i for i in range(lobes.exponents.size)
             if np.any(lobes.directional_diffuse[:, i] > 0) or np.any(lobes.gloss[:, i] > 0)]
     exps = [float(lobes.exponents[i]) for i in used]
@@ -287,10 +300,10 @@ def environment_xyz(environment: Environment, lobes: Lobes, normal: np.ndarray,
     for group in groups:
         idx = [used[exps.index(e)] for e in group]
         s = (2.0 * np.pi / (np.asarray(group) + 1.0))[None, :, None, None]
-        matrices += [(s * channel_matrices(lobes.gloss[:, idx], kind, wl)).reshape(v, -1, 3),
-                     (s * channel_matrices(lobes.directional_diffuse[:, idx], kind, wl)
-                      ).reshape(v, -1, 3)]                       # eqs. 8 and 7
-    m = np.concatenate(matrices, axis=1)                         # (V, K, 3)
+        matrices += [(s * channel_matrices_(lobes.gloss[:, idx])).reshape(v, -1, channels),
+                     (s * channel_matrices_(lobes.directional_diffuse[:, idx])
+                      ).reshape(v, -1, channels)]                # eqs. 8 and 7
+    m = np.concatenate(matrices, axis=1)                         # (V, K, channels)
     m = np.concatenate([m, m[-1:]], axis=0)                      # row V = row V − 1 (t = 0)
     dm = np.diff(m, axis=0)
     diffuse = environment.stacked((1.0,))
@@ -315,7 +328,8 @@ def environment_xyz(environment: Environment, lobes: Lobes, normal: np.ndarray,
 
 
 def substrate_environment_xyz(environment: Environment, substrate: dict, normal: np.ndarray,
-                              view: np.ndarray, wavelength_nm) -> np.ndarray:
+                              view: np.ndarray, wavelength_nm,
+                              observer: np.ndarray | None = None) -> np.ndarray:
     """The Phong substrate of :mod:`.shade` under the environment: (n, 3) XYZ.
 
     f cos θi = spectrum · (kd/π (L·N) + ks (n+2)/(2π) (L·N)(R_L·V)^n) is exactly a diffuse
@@ -325,7 +339,7 @@ def substrate_environment_xyz(environment: Environment, substrate: dict, normal:
     wl = np.asarray(wavelength_nm, dtype=float)
     spectrum = np.broadcast_to(np.asarray(substrate.get("spectrum", 1.0), dtype=float),
                                wl.shape)
-    m = channel_matrices(spectrum, "spectral", wl)                # (3, 3)
+    m = channel_matrices(spectrum, "spectral", wl, observer)      # (3, 3)
     kd = float(substrate.get("kd", 0.0))
     ks = float(substrate.get("ks", 0.0))
     n = float(substrate.get("shininess", 1.0))

@@ -12,10 +12,11 @@ in the run report only if it ran ("leave out what the scene does not need"):
 ``environment``  prefiltered maps: only if the scene has an ``[environment]``
 ``rasterize``    the batched z-buffer at ssaa × the image size
 ``shade``        spectral shading → XYZ (and ``shade.*`` sub-stages of :mod:`.shade`)
+``spectra``      only with a spectral image: radiance per wavelength (:func:`spectral_radiance`)
 ``downsample``   box filter of the ssaa (:func:`resolve`), XYZ → linear sRGB (IEC matrix)
                  on output pixels, background
 ``tonemap``      exposure, tone map, sRGB encoding, 8 bits
-``write_exr``, ``write_png``   the files (atomic)
+``write_exr``, ``write_png``, ``write_spectral_exr``   the files (atomic)
 
 The frame time of the issue is rasterize + shade + downsample + tonemap; the total is
 scene loading to images written (the CLI measures it from before ``load_scene``).
@@ -49,13 +50,16 @@ class Frame:
     ``display`` (H, W, 3) uint8 sRGB-encoded after exposure and tone map (the PNG),
     ``xyz`` (H, W, 3) float64 CIE XYZ (box-filtered), ``coverage`` (H, W) the fraction of
     each pixel's samples that hit an object, ``out_of_gamut`` (H, W) bool the pixels whose
-    colour lies outside sRGB (a negative linear channel, shown clipped to 0)."""
+    colour lies outside sRGB (a negative linear channel, shown clipped to 0), ``spectra``
+    (H, W, n_λ) float32 the spectral radiance on the working grid (box-filtered like
+    ``xyz``, whose Σλ L cmf / Σ ȳ it is), only when asked for."""
 
     linear: np.ndarray
     display: np.ndarray
     xyz: np.ndarray
     coverage: np.ndarray
     out_of_gamut: np.ndarray | None = None
+    spectra: np.ndarray | None = None
 
 
 class _Stage:
@@ -275,18 +279,50 @@ SHADE_BYTES_PER_SAMPLE = 12 + 12
 OUTPUT_BYTES_PER_PIXEL = 24 + 12 + 8 + 3 + 24
 
 
-def memory_estimate(scene: Scene) -> int:
+#: Bytes per value (pixel × wavelength) of a spectral image: the float32 image and, while
+#: colour-science writes it, OpenImageIO's buffer growing one channel at a time (the old
+#: and the new buffer, float32 each).
+SPECTRAL_BYTES_PER_VALUE = 4 + 8
+#: Bytes per covered sample and wavelength of a pass of :func:`spectral_radiance`: the
+#: float32 shaded rows, a float64 accumulator of one term and an object's float32 rows.
+SPECTRAL_BYTES_PER_ROW_BAND = 4 + 8 + 8
+#: Most bytes the shading of one pass may take: wavelengths per pass are as many as fit
+#: (all 41 of the default grid up to ~330 k covered samples, e.g. a 480² frame at ssaa 2
+#: half covered takes two passes). Each pass repeats the geometry, so fewer is faster.
+SPECTRAL_PASS_BYTES = 1 << 28
+
+
+def memory_estimate(scene: Scene, spectra: bool = False) -> int:
     """Peak bytes of a frame's buffers (:func:`render_scene`), as if every sample were
     covered: the compact float32 G-buffer with its keys and indices
     (:func:`gonio_cli.render.raster.gbuffer_bytes`), the shaded rows, the supersampled
-    image of the resolve and the output images. Meshes and materials are not counted."""
+    image of the resolve and the output images; with ``spectra``, plus
+    :func:`spectral_image_bytes`. Meshes and materials are not counted."""
     from .raster import gbuffer_bytes
 
     cam, ssaa = scene.camera, scene.output.ssaa
     samples = cam.width * cam.height * ssaa ** 2
     return (gbuffer_bytes(cam.height, cam.width, ssaa, uv=scene.needs_uvs,
                           position=needs_positions(scene))
-            + samples * SHADE_BYTES_PER_SAMPLE + cam.width * cam.height * OUTPUT_BYTES_PER_PIXEL)
+            + samples * SHADE_BYTES_PER_SAMPLE + cam.width * cam.height * OUTPUT_BYTES_PER_PIXEL
+            + (spectral_image_bytes(scene) if spectra else 0))
+
+
+def spectral_image_bytes(scene: Scene) -> int:
+    """Bytes of the spectral image, H × W × n_λ values (:data:`SPECTRAL_BYTES_PER_VALUE`),
+    and of its shading passes (at most :data:`SPECTRAL_PASS_BYTES`)."""
+    cam = scene.camera
+    n = int(np.size(scene.grid_nm))
+    samples = cam.width * cam.height * scene.output.ssaa ** 2
+    return (cam.width * cam.height * n * SPECTRAL_BYTES_PER_VALUE
+            + min(samples * n * SPECTRAL_BYTES_PER_ROW_BAND, SPECTRAL_PASS_BYTES))
+
+
+def bands_per_pass(rows: int, n_wavelengths: int) -> int:
+    """Wavelengths per pass of :func:`spectral_radiance` for ``rows`` covered samples:
+    as many as :data:`SPECTRAL_PASS_BYTES` holds, at least 1."""
+    fit = SPECTRAL_PASS_BYTES // max(1, rows * SPECTRAL_BYTES_PER_ROW_BAND)
+    return int(max(1, min(n_wavelengths, fit)))
 
 
 def machine_memory() -> int | None:
@@ -299,17 +335,28 @@ def machine_memory() -> int | None:
         return None
 
 
-def check_memory(scene: Scene) -> int:
+def check_memory(scene: Scene, spectra: bool = False) -> int:
     """Refuse, before allocating anything, a frame whose buffers exceed the machine's
-    memory; the message gives the estimate and the options that lower it."""
-    need = memory_estimate(scene)
+    memory; the message gives the estimate and the options that lower it. With
+    ``spectra`` (a spectral image) the frame is checked first, then frame + image.
+    Returns the estimate in bytes."""
     have = machine_memory()
-    if have is not None and need > have:
-        cam = scene.camera
+    cam = scene.camera
+    frame = memory_estimate(scene)
+    if have is not None and frame > have:
         raise InputError(f"a {cam.width}x{cam.height} render at ssaa {scene.output.ssaa} "
-                         f"needs about {need / 2**30:.1f} GiB of buffers, more than this "
+                         f"needs about {frame / 2**30:.1f} GiB of buffers, more than this "
                          f"machine's {have / 2**30:.1f} GiB", path=scene.display,
                          fix="lower --ssaa or --width/--height")
+    if not spectra:
+        return frame
+    need = memory_estimate(scene, spectra=True)
+    if have is not None and need > have:
+        raise InputError(f"a {cam.width}x{cam.height} spectral image on "
+                         f"{np.size(scene.grid_nm)} wavelengths needs about "
+                         f"{need / 2**30:.1f} GiB with the frame's buffers, more than this "
+                         f"machine's {have / 2**30:.1f} GiB", path=scene.display,
+                         fix="use a coarser --grid-nm, or lower --width/--height or --ssaa")
     return need
 
 
@@ -344,8 +391,10 @@ def keep_freed_memory() -> bool:
                 and mallopt(M_TRIM_THRESHOLD, 2 * KEEP_FREED_BYTES))
 
 
-def render_scene(scene: Scene, stats: Stats | None = None) -> Frame:
-    """Render a scene; every stage's time goes into ``stats``. Returns the :class:`Frame`.
+def render_scene(scene: Scene, stats: Stats | None = None, *, spectra: bool = False
+                 ) -> Frame:
+    """Render a scene; every stage's time goes into ``stats``. Returns the :class:`Frame`,
+    with its spectral image if ``spectra`` (:func:`spectral_radiance`).
 
     The stages run under :func:`gonio_cli.log.progress`: a bar on a terminal when the
     render is still running after 2 s, nothing otherwise. Freed memory is kept for reuse
@@ -353,8 +402,9 @@ def render_scene(scene: Scene, stats: Stats | None = None) -> Frame:
     stats = stats if stats is not None else Stats()
     keep_freed_memory()
     state: dict[str, Any] = {}
-    steps = _render_steps(scene, stats, state)
-    for _ in log.progress(steps, f"rendering {scene.path.name}", total=RENDER_STEPS):
+    steps = _render_steps(scene, stats, state, spectra)
+    for _ in log.progress(steps, f"rendering {scene.path.name}",
+                          total=RENDER_STEPS + int(spectra)):
         pass
     return state["frame"]
 
@@ -363,13 +413,16 @@ def render_scene(scene: Scene, stats: Stats | None = None) -> Frame:
 RENDER_STEPS = 6
 
 
-def _render_steps(scene: Scene, stats: Stats, state: dict):
-    """The render as a generator that yields after each of :data:`RENDER_STEPS` steps."""
-    stats.counts["memory_estimate_bytes"] = check_memory(scene)
+def _render_steps(scene: Scene, stats: Stats, state: dict, spectra: bool = False):
+    """The render as a generator that yields after each of :data:`RENDER_STEPS` steps
+    (one more with ``spectra``)."""
+    stats.counts["memory_estimate_bytes"] = check_memory(scene, spectra)
     with _Stage(stats, "meshes"):
         meshes = load_meshes(scene)
     yield "meshes"
     surfaces = build_surfaces(scene, stats)
+    if spectra:
+        check_spectral_lobes(scene, surfaces)
     environment = None
     if scene.environment is not None:
         from .environment import load_environment
@@ -393,9 +446,14 @@ def _render_steps(scene: Scene, stats: Stats, state: dict):
     rows = shade_rows(gbuffer, surfaces, scene.lights, scene.grid_nm, environment=environment,
                       spectral=scene.output.spectral, stats=stats, dtype=np.float32)
     stats.time_s.setdefault("shade", time.perf_counter() - t0)
+    yield "shade"
+    radiance = None
+    if spectra:
+        with _Stage(stats, "spectra"):
+            radiance = spectral_radiance(gbuffer, surfaces, scene, environment)
+        yield "spectra"
     object_id, pixels = gbuffer.object_id, gbuffer.pixels
     del gbuffer                                               # its rows are no longer needed
-    yield "shade"
     with _Stage(stats, "downsample"):
         xyz, coverage = resolve(rows, pixels, object_id, ssaa, scene.display, stats)
         del rows
@@ -417,8 +475,62 @@ def _render_steps(scene: Scene, stats: Stats, state: dict):
     # what the display could not show: colours outside sRGB, channels clipped at 1
     stats.counts["out_of_gamut_pixels"] = int(np.count_nonzero(shown["out_of_gamut"]))
     stats.counts["clipped_pixels"] = int(np.count_nonzero(shown["clipped"]))
-    state["frame"] = Frame(linear, png, xyz, coverage, shown["out_of_gamut"])
+    state["frame"] = Frame(linear, png, xyz, coverage, shown["out_of_gamut"], radiance)
     yield "tonemap"
+
+
+def check_spectral_lobes(scene: Scene, surfaces: list) -> None:
+    """A spectral image under an environment needs spectral lobe weights: weights fitted
+    in XYZ channels have no spectrum (refused before rendering, naming the file)."""
+    if scene.environment is None:
+        return
+    for o, s in zip(scene.objects, surfaces):
+        lobes = s.lobes if isinstance(s.lobes, list) else [s.lobes]
+        paths = o.lobes if isinstance(o.lobes, list) else [o.lobes]
+        for path, lob in zip(paths, lobes):
+            if lob is not None and lob.channel_kind != "spectral":
+                raise InputError(f"[[object]] {o.index + 1} lobes = {Path(path).name}: "
+                                 f"weights fitted in {lob.channel_kind} channels have no "
+                                 "spectrum for --spectral-exr", path=scene.display,
+                                 fix="fit them with gonio lobes fit --channels spectral "
+                                     "(its default), or leave out --spectral-exr")
+
+
+def spectral_radiance(gbuffer, surfaces: list, scene: Scene, environment=None) -> np.ndarray:
+    """The spectral radiance image (H, W, n_λ) float32 on the working grid.
+
+    The shading (:func:`gonio_cli.render.shade.shade_rows`) is linear in its channels'
+    spectral weights, so with columns of the identity as the observer instead of
+    cmf / Σ ȳ it returns L(λ) at those wavelengths: as few passes over the same G-buffer
+    as memory allows (:func:`bands_per_pass`; one for the demo scenes), each
+    box-filtered as the XYZ (:func:`resolve`). Every model keeps its spectral path
+    (``--spectral``): the goniochromatic table then holds one column per wavelength (a
+    per-band table, same tolerance), the others are exact per wavelength. Σλ L cmf / Σ ȳ
+    of the result is the frame's XYZ to the tables' tolerance (1e-5 relative). Background
+    pixels hold the background's spectrum (docs/conventions.md's RGB → spectrum) times
+    the uncovered fraction, as the colour image does.
+    """
+    from .shade import shade_rows
+
+    wl = np.asarray(scene.grid_nm, dtype=float)
+    n, ssaa, cam = wl.size, scene.output.ssaa, scene.camera
+    out = np.empty((cam.height, cam.width, n), np.float32)
+    identity = np.eye(n)
+    step = bands_per_pass(gbuffer.rows, n)
+    for start in range(0, n, step):
+        rows = shade_rows(gbuffer, surfaces, scene.lights, wl, environment=environment,
+                          spectral=scene.output.spectral, dtype=np.float32,
+                          observer=identity[:, start:start + step])
+        band, coverage = resolve(rows, gbuffer.pixels, gbuffer.object_id, ssaa, scene.display)
+        del rows
+        out[..., start:start + step] = band
+    background = np.asarray(scene.output.background, float)
+    if np.any(background != 0):
+        from ..spectra import rgb_spectral_basis
+
+        out += ((1.0 - coverage)[..., None]
+                * (rgb_spectral_basis(wl) @ background)).astype(np.float32)
+    return out
 
 
 def scene_white(scene: Scene) -> np.ndarray | None:
@@ -435,8 +547,9 @@ def resolve(rows: np.ndarray, pixels: np.ndarray, object_id: np.ndarray, ssaa: i
 
     Parameters
     ----------
-    rows : (n, 3) XYZ of the covered samples ; pixels : (n,) their flat indices in the
-    (ssaa H, ssaa W) image ; object_id : (ssaa H, ssaa W), −1 on the background.
+    rows : (n, C) XYZ (or any C channels, e.g. wavelengths) of the covered samples ;
+    pixels : (n,) their flat indices in the (ssaa H, ssaa W) image ; object_id : (ssaa H,
+    ssaa W), −1 on the background.
 
     Returns
     -------
@@ -457,17 +570,18 @@ def resolve(rows: np.ndarray, pixels: np.ndarray, object_id: np.ndarray, ssaa: i
     from .raster import downsample
 
     hh, ww = object_id.shape
-    xyz = np.empty((hh // ssaa * (ww // ssaa), 3))
+    channels = rows.shape[1]
+    xyz = np.empty((hh // ssaa * (ww // ssaa), channels))
     # one channel at a time through one reused float32 image (the rows' columns are
     # contiguous: shade_rows stores them so), box-filtered by downsample's strided sums
     image = np.empty(object_id.size, np.float32)
     pixels = np.asarray(pixels, dtype=np.intp)                # converted once, not per channel
-    for c in range(3):
+    for c in range(channels):
         image.fill(0.0)
         image[pixels] = rows[:, c]
         xyz[:, c] = downsample(image.reshape(hh, ww), ssaa, np.float32).reshape(-1)
     coverage = downsample(object_id >= 0, ssaa, np.float32)
-    return xyz.reshape(hh // ssaa, ww // ssaa, 3), coverage.astype(np.float64)
+    return xyz.reshape(hh // ssaa, ww // ssaa, channels), coverage.astype(np.float64)
 
 
 # ----------------------------------------------------------------------------- output --
@@ -503,23 +617,74 @@ def gamut_warning_image(frame: Frame) -> np.ndarray:
     return out
 
 
+#: What the values of the spectral EXR are (its ``gonio:radiance_units`` attribute).
+SPECTRAL_UNITS = ("spectral radiance L(λ) in the scene's irradiance units (the lights' E, "
+                  "I / d²) per steradian, per wavelength sample of the grid: each light's "
+                  "spectrum is scaled so that Σλ S ȳ / Σλ ȳ = 1, so Y = Σλ L ȳ / Σλ ȳ and "
+                  "XYZ = Σλ L cmf / Σλ ȳ (CIE 1931 2°) is the colour EXR's XYZ before "
+                  "adaptation; a white Lambertian surface lit at normal incidence by E = π "
+                  "has L(λ) = S(λ) (docs/conventions.md)")
+
+
+def exr_pixels(frame: Frame, scene: Scene, space: str = "srgb") -> np.ndarray:
+    """The colour EXR's (H, W, 3) float32 in ``space`` (:data:`.tonemap.EXR_SPACES`):
+    the frame's linear sRGB for ``srgb``, else its XYZ through
+    :func:`.tonemap.xyz_to_exr_matrix` (same adaptation) plus the background."""
+    from .tonemap import get_exr_space, xyz_to_exr_matrix, xyz_to_linear
+
+    get_exr_space(space)
+    if space == "srgb":
+        return frame.linear
+    m = xyz_to_exr_matrix(space, scene.output.adapt, scene_white(scene))
+    out = xyz_to_linear(frame.xyz, m)
+    background = np.asarray(scene.output.background, float)
+    if np.any(background != 0):              # given in linear sRGB, the display's space
+        to_space = get_exr_space(space).matrix() @ np.linalg.inv(
+            get_exr_space("srgb").matrix())
+        out += ((1.0 - frame.coverage)[..., None] * (to_space @ background)).astype(np.float32)
+    return out
+
+
 def write_outputs(frame: Frame, scene: Scene, stats: Stats, *, png, exr=None,
-                  start: float | None = None, gamut_warning=None) -> None:
-    """Write the EXR (scene-linear sRGB float32, settings and time in its metadata), the
-    PNG (8-bit sRGB) and, if asked, the gamut-warning PNG, atomically."""
+                  start: float | None = None, gamut_warning=None, exr_space: str = "srgb",
+                  spectral_exr=None) -> None:
+    """Write the EXR (scene-linear float32 in ``exr_space``, default linear sRGB; the
+    space in its ``chromaticities`` and ``gonio:exr_space``; settings and time in its
+    metadata), the PNG (8-bit sRGB), if asked the gamut-warning PNG and the spectral EXR
+    (:func:`gonio_cli.imageio.write_spectral_exr`, the frame's ``spectra``), atomically."""
     from ..imageio import write_exr, write_png
+    from .tonemap import get_exr_space
 
     elapsed = time.perf_counter() - start if start is not None else None
+    space = get_exr_space(exr_space)
     meta = {"schema": "gonio.render", "settings": settings(scene),
             "render_time_s": elapsed if elapsed is not None else
             sum(v for k, v in stats.time_s.items() if "." not in k),
-            "frame_time_s": frame_time(stats),
-            "colour": "scene-referred linear sRGB (IEC 61966-2-1 primaries, D65), "
-                      "after chromatic adaptation (settings.adapt: scene_white_xyz → D65), "
-                      "before exposure and tone mapping"}
+            "frame_time_s": frame_time(stats), "exr_space": exr_space,
+            "colour": f"scene-referred {space.help}, after chromatic adaptation "
+                      "(settings.adapt: scene_white_xyz → D65), before exposure and tone "
+                      "mapping"}
     if exr is not None:
         with _Stage(stats, "write_exr"):
-            write_exr(exr, frame.linear, meta)
+            write_exr(exr, exr_pixels(frame, scene, exr_space), meta,
+                      chromaticities=space.chromaticities(), channel_names=space.channels)
+    if spectral_exr is not None:
+        if frame.spectra is None:
+            raise ValueError("the frame has no spectra: render_scene(..., spectra=True)")
+        from ..artifact import input_records
+        from ..spectra import grid_spec
+
+        with _Stage(stats, "write_spectral_exr"):
+            from ..imageio import write_spectral_exr
+
+            write_spectral_exr(
+                spectral_exr, frame.spectra, scene.grid_nm, frame.linear,
+                {"schema": "gonio.render-spectra", "settings": settings(scene),
+                 "inputs": input_records(scene.inputs),
+                 "grid_nm": grid_spec(scene.grid_nm) or [float(v) for v in scene.grid_nm],
+                 "radiance_units": SPECTRAL_UNITS,
+                 "preview": "R, G, B: the colour EXR's linear sRGB (after adaptation)",
+                 "render_time_s": meta["render_time_s"]})
     with _Stage(stats, "write_png"):
         write_png(png, frame.display, {"schema": "gonio.render", "settings": settings(scene)})
         if gamut_warning is not None:
@@ -534,25 +699,28 @@ def frame_time(stats: Stats) -> float:
 
 
 def write_report(path, scene: Scene, stats: Stats, *, total_s: float, png, exr=None,
-                 gamut_warning=None) -> dict:
+                 gamut_warning=None, spectral_exr=None) -> dict:
     """The run report (``gonio.render-report`` v1): each stage that ran with its
     ``time_s`` (in order), the frame time and the total (scene loading to images
     written), counters, settings and the inputs with their sha256."""
     from ..artifact import make_document, write_json
 
     order = ["scene", "meshes", "materials", "textures", "sparkles", "lobes", "environment",
-             "rasterize", "shade", "downsample", "tonemap", "write_exr", "write_png"]
+             "rasterize", "shade", "spectra", "downsample", "tonemap", "write_exr",
+             "write_spectral_exr", "write_png"]
     names = [k for k in order if k in stats.time_s]
     names += [k for k in stats.time_s if k not in names and "." not in k]
     stages = [{"stage": k, "time_s": stats.time_s[k]} for k in names]
     substages = [{"stage": k, "time_s": v} for k, v in stats.time_s.items() if "." in k]
+    outputs = {"png": str(png), "exr": str(exr) if exr is not None else None,
+               "gamut_warning": str(gamut_warning) if gamut_warning is not None else None}
+    if spectral_exr is not None:
+        outputs["spectral_exr"] = str(spectral_exr)
     doc = make_document(
         REPORT_SCHEMA, REPORT_VERSION,
         {"stages": stages, "substages": substages, "frame_time_s": frame_time(stats),
          "frame_stages": [k for k in FRAME_STAGES if k in stats.time_s],
-         "outputs": {"png": str(png), "exr": str(exr) if exr is not None else None,
-                     "gamut_warning": str(gamut_warning) if gamut_warning is not None
-                     else None},
+         "outputs": outputs,
          "image": {"width": scene.camera.width, "height": scene.camera.height},
          "counts": stats.counts},
         inputs=scene.inputs, parameters=settings(scene), time_s=total_s)

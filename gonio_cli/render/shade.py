@@ -214,12 +214,24 @@ Directions = Callable[[], tuple[np.ndarray, np.ndarray, np.ndarray]]
 Kernel = Callable[[Cosines, np.ndarray, Directions], np.ndarray]
 
 
-def xyz_weights(spectrum: np.ndarray, wavelength_nm: np.ndarray) -> np.ndarray:
-    """S(λ) cmf(λ) / Σ ȳ: (n_λ, 3), so XYZ of a reflected spectrum f·S is f @ this."""
+def xyz_weights(spectrum: np.ndarray, wavelength_nm: np.ndarray,
+                observer: np.ndarray | None = None) -> np.ndarray:
+    """S(λ) cmf(λ) / Σ ȳ: (n_λ, 3), so XYZ of a reflected spectrum f·S is f @ this.
+
+    ``observer`` (n_λ, C) replaces cmf / Σ ȳ: every kernel is linear in these weights
+    and returns C channels, so columns of the identity give the radiance at C
+    wavelengths (the spectral image, :func:`gonio_cli.render.pipeline.spectral_radiance`)."""
+    if observer is None:
+        observer = default_observer(wavelength_nm)
+    return np.asarray(spectrum, dtype=float)[:, None] * np.asarray(observer, dtype=float)
+
+
+def default_observer(wavelength_nm: np.ndarray) -> np.ndarray:
+    """cmf / Σ ȳ (n_λ, 3): XYZ = Σλ L(λ) · this (docs/conventions.md)."""
     from ..spectra import cmfs
 
     cm = cmfs(wavelength_nm)
-    return np.asarray(spectrum, dtype=float)[:, None] * cm / cm[:, 1].sum()
+    return cm / cm[:, 1].sum()
 
 
 def goniochromatic_table(rho: np.ndarray, c: np.ndarray, weights: np.ndarray,
@@ -258,7 +270,7 @@ class TableLookup:
 
     def __init__(self, table: np.ndarray):
         table = np.asarray(table, dtype=np.float64)
-        self.size = table.shape[0]
+        self.size, self.channels = table.shape
         self.n = table.shape[0] - 1
         self._tables = {np.dtype(np.float64): (np.ascontiguousarray(table[:-1].T),
                                                np.ascontiguousarray(np.diff(table, axis=0).T))}
@@ -273,7 +285,7 @@ class TableLookup:
     def __call__(self, x: np.ndarray) -> np.ndarray:
         """(n,) x → (n, 3); x is clamped to [0, 1]."""
         x = np.asarray(x, dtype=float)
-        out = np.zeros((3, x.size))
+        out = np.zeros((self.channels, x.size))
         self.accumulate(x, np.ones_like(x), out, _Scratch(x.dtype, x.size))
         return out.T
 
@@ -292,7 +304,7 @@ class TableLookup:
         t = np.subtract(pos, fl, out=pos)
         gt = np.multiply(g, t, out=t)
         a = scratch("gathered", m)
-        for c in range(3):
+        for c in range(value.shape[0]):
             np.take(value[c], i, out=a, mode="clip")   # "raise" would buffer out
             a *= g
             out[c] += a
@@ -311,7 +323,7 @@ def _exact_kernel(material, weights: np.ndarray) -> Kernel:
     fitted = isinstance(material, Material)
 
     def kernel(cos, scale, directions):
-        out = np.empty((scale.shape[0], 3))
+        out = np.empty((scale.shape[0], weights.shape[1]))
         dirs = None if fitted else directions()
         for s in range(0, scale.shape[0], EXACT_BLOCK):
             b = slice(s, s + EXACT_BLOCK)
@@ -343,7 +355,7 @@ def _goniochromatic_kernel(material: Material, weights: np.ndarray) -> Kernel:
 
     def kernel(cos, scale, directions):
         ci = np.asarray(cos.cos_theta_i)
-        out = np.zeros((3, ci.shape[0]), ci.dtype)
+        out = np.zeros((lookup.channels, ci.shape[0]), ci.dtype)
         accumulate(cos, np.asarray(scale, ci.dtype), out, _Scratch(ci.dtype, ci.shape[0]))
         return out.T
 
@@ -563,7 +575,8 @@ def shade(gbuffer: GBuffer, surfaces: Sequence[Surface], lights: Sequence[Light]
 
 def shade_rows(gbuffer: GBuffer, surfaces: Sequence[Surface], lights: Sequence[Light],
                wavelength_nm, environment=None, spectral: str = "table",
-               stats: Stats | None = None, dtype=np.float64) -> np.ndarray:
+               stats: Stats | None = None, dtype=np.float64,
+               observer: np.ndarray | None = None) -> np.ndarray:
     """XYZ of every pixel of the GBuffer (docs/conventions.md: XYZ = Σλ L cmf / Σλ ȳ).
 
     Parameters
@@ -580,6 +593,8 @@ def shade_rows(gbuffer: GBuffer, surfaces: Sequence[Surface], lights: Sequence[L
 
     dtype : of the result (the pipeline: float32; the arithmetic of a block is float64
         or the G-buffer's dtype).
+    observer : (n_λ, C) the channels' spectral weights, default cmf / Σ ȳ (XYZ, C = 3);
+        columns of the identity give the radiance at C wavelengths (:func:`xyz_weights`).
 
     Returns
     -------
@@ -592,7 +607,8 @@ def shade_rows(gbuffer: GBuffer, surfaces: Sequence[Surface], lights: Sequence[L
         raise InputError(f"spectral path {spectral!r} is unknown",
                          fix=f"use one of {', '.join(SPECTRAL_PATHS)}")
     wl = np.asarray(wavelength_nm, dtype=float)
-    out = _rows_buffer(gbuffer.rows, dtype)
+    channels = 3 if observer is None else np.shape(observer)[1]
+    out = _rows_buffer(gbuffer.rows, dtype, channels)
     counts: dict[str, Any] = {"spectral": spectral, "pixels": 0, "lit_pixel_lights": 0,
                               "ink_pixels": {}, "inks_skipped": 0, "table_sizes": [],
                               "environment_pixels": 0}
@@ -607,7 +623,7 @@ def shade_rows(gbuffer: GBuffer, surfaces: Sequence[Surface], lights: Sequence[L
                              f"render {wl.size}", fix="resample the spectrum onto the grid")
         key = s.tobytes()
         if key not in weights_of:
-            weights_of[key] = xyz_weights(s, wl)
+            weights_of[key] = xyz_weights(s, wl, observer)
         return weights_of[key]
 
     kernels: dict[tuple[int, bytes], Kernel] = {}
@@ -670,14 +686,15 @@ def shade_rows(gbuffer: GBuffer, surfaces: Sequence[Surface], lights: Sequence[L
             terms.append((surface.material, False, None, px))
 
         whole = px.flat_index is None                     # the object covers every row
-        obj_xyz = out if whole else _rows_buffer(index.size, dtype)
+        obj_xyz = out if whole else _rows_buffer(index.size, dtype, channels)
         for material, is_substrate, weight, tp in terms:
             work = work_dtype(material, spectral, gbuffer.normal.dtype, is_substrate)
             if weight is None and tp.sel is None:         # accumulate in place
                 _direct(material, is_substrate, tp, lights, kernel_of, counts, obj_xyz,
-                        dtype=work)
+                        dtype=work, channels=channels)
                 continue
-            acc = _direct(material, is_substrate, tp, lights, kernel_of, counts, dtype=work)
+            acc = _direct(material, is_substrate, tp, lights, kernel_of, counts, dtype=work,
+                          channels=channels)
             if weight is not None:
                 acc *= weight[:, None]
             if tp.sel is None:
@@ -691,12 +708,12 @@ def shade_rows(gbuffer: GBuffer, surfaces: Sequence[Surface], lights: Sequence[L
                 counts.update(sparkle_pixels=0, sparkle_lit_pixel_lights=0,
                               sparkle_minified_pixels=0)
             obj_xyz += _sparkle_term(surface, k, gbuffer, index, flat, lights,
-                                     light_weights, wl, counts)
+                                     light_weights, wl, counts, channels)
             sparkle_time += time.perf_counter() - t0
 
         if environment is not None:
             t0 = time.perf_counter()
-            obj_xyz += _environment_term(environment, surface, k, px, cov, wl)
+            obj_xyz += _environment_term(environment, surface, k, px, cov, wl, observer)
             counts["environment_pixels"] += int(index.size)
             env_time += time.perf_counter() - t0
         if not whole:
@@ -714,7 +731,7 @@ def shade_rows(gbuffer: GBuffer, surfaces: Sequence[Surface], lights: Sequence[L
 
 def _direct(material, is_substrate: bool, tp: _Pixels, lights: Sequence[Light],
             kernel_of, counts: dict, acc: np.ndarray | None = None,
-            dtype=np.float64) -> np.ndarray:
+            dtype=np.float64, channels: int = 3) -> np.ndarray:
     """XYZ (n, 3) of one term of f (a material, an ink or the substrate) under the lights,
     added to ``acc`` (a new array if None: the (3, n) rows of :func:`_rows_buffer`).
 
@@ -725,7 +742,7 @@ def _direct(material, is_substrate: bool, tp: _Pixels, lights: Sequence[Light],
     """
     dtype = np.dtype(dtype)
     if acc is None:
-        acc = _rows_buffer(tp.size, dtype)
+        acc = _rows_buffer(tp.size, dtype, channels)
     acc_t = acc.T                                             # (3, n): contiguous rows
     scratch = _Scratch(dtype, min(BLOCK, tp.size))
     point = any(L.kind == "point" for L in lights)
@@ -780,10 +797,10 @@ def _direct(material, is_substrate: bool, tp: _Pixels, lights: Sequence[Light],
     return acc
 
 
-def _rows_buffer(n: int, dtype) -> np.ndarray:
-    """Zeros (n, 3) whose columns are contiguous: the transpose of a (3, n) array, so
-    per-channel accumulation runs on contiguous rows (and ``.T`` gives them back)."""
-    return np.zeros((3, n), dtype).T
+def _rows_buffer(n: int, dtype, channels: int = 3) -> np.ndarray:
+    """Zeros (n, channels) whose columns are contiguous: the transpose of a (channels, n)
+    array, so per-channel accumulation runs on contiguous rows (``.T`` gives them back)."""
+    return np.zeros((channels, n), dtype).T
 
 
 def _dot_rows(a: np.ndarray, b: np.ndarray, out: np.ndarray, scratch) -> np.ndarray:
@@ -823,13 +840,13 @@ def sparkle_reflectance(rgb: np.ndarray, wavelength_nm: np.ndarray) -> np.ndarra
 
 def _sparkle_term(surface: Surface, k: int, gbuffer: GBuffer, index: np.ndarray,
                   flat: dict, lights: Sequence[Light], light_weights, wl: np.ndarray,
-                  counts: dict) -> np.ndarray:
+                  counts: dict, channels: int = 3) -> np.ndarray:
     """XYZ (n, 3) of the sparkle lobe of one object's pixels (module docstring): work
     only at samples whose texel has a bit set, and per light only where it is lit."""
     from ..sparkle import sample_texture
 
     sp = surface.sparkle
-    out = np.zeros((index.size, 3))
+    out = np.zeros((index.size, channels))
     if gbuffer.uv is None:
         raise InputError(f"object {k} has sparkles but the GBuffer has no uv",
                          fix="give the mesh texture coordinates")
@@ -858,7 +875,7 @@ def _sparkle_term(surface: Surface, k: int, gbuffer: GBuffer, index: np.ndarray,
     lit = scale > 0
     counts["sparkle_lit_pixel_lights"] += int(np.count_nonzero(lit))
     term = sp.table(t[sel], cos_nh)                               # (n_sel, n_lights)
-    acc = np.zeros((sel.size, 3))
+    acc = np.zeros((sel.size, channels))
     for j, light in enumerate(lights):
         if not lit[:, j].any():
             continue
@@ -869,7 +886,8 @@ def _sparkle_term(surface: Surface, k: int, gbuffer: GBuffer, index: np.ndarray,
 
 
 def _environment_term(environment, surface: Surface, k: int, px: _Pixels,
-                      cov: np.ndarray | None, wl: np.ndarray) -> np.ndarray:
+                      cov: np.ndarray | None, wl: np.ndarray,
+                      observer: np.ndarray | None = None) -> np.ndarray:
     """Environment light of one object's pixels (n, 3) XYZ; printed: coverage-weighted."""
     from .environment import environment_xyz, substrate_environment_xyz
 
@@ -879,21 +897,22 @@ def _environment_term(environment, surface: Surface, k: int, px: _Pixels,
         if not isinstance(surface.lobes, Lobes):
             raise InputError(f"{where} has no lobes; environment light needs gonio lobes fit",
                              fix=fix)
-        return environment_xyz(environment, surface.lobes, px.get("normal"), px.get("view"), wl)
+        return environment_xyz(environment, surface.lobes, px.get("normal"), px.get("view"), wl,
+                               observer)
     lobes = surface.lobes
     if isinstance(lobes, Lobes) or lobes is None or len(lobes) != 3:
         raise InputError(f"{where} is printed: environment light needs one lobes file per "
                          "ink (3)", fix=fix)
-    out = np.zeros((px.size, 3))
+    out = np.zeros((px.size, 3 if observer is None else observer.shape[1]))
     normal, view = px.get("normal"), px.get("view")
     for j, lob in enumerate(lobes):
         sel = cov[:, j] > 0
         if np.any(sel):
             out[sel] += cov[sel, j, None] * environment_xyz(
-                environment, lob, normal[sel], view[sel], wl)
+                environment, lob, normal[sel], view[sel], wl, observer)
     bare = np.clip(1.0 - cov.sum(axis=1), 0.0, 1.0)
     if surface.substrate is not None and np.any(bare > 0):
         sel = bare > 0
         out[sel] += bare[sel, None] * substrate_environment_xyz(
-            environment, surface.substrate, normal[sel], view[sel], wl)
+            environment, surface.substrate, normal[sel], view[sel], wl, observer)
     return out

@@ -31,6 +31,7 @@ them) and return display-linear values in [0, 1]:
 from __future__ import annotations
 
 import functools
+from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
@@ -185,13 +186,91 @@ def xyz_to_linear_matrix(adapt: str = DEFAULT_ADAPTATION,
                          white_xyz: np.ndarray | None = None) -> np.ndarray:
     """(3, 3): XYZ → linear sRGB after adapting ``white_xyz`` (the scene white) to the
     display white (:func:`gonio_cli.spectra.srgb_white_xyz`, D65). No white: no adaptation."""
-    from ..spectra import srgb_white_xyz, xyz_to_linear_srgb_matrix
+    return xyz_to_exr_matrix("srgb", adapt, white_xyz)
 
-    adaptation = get_adaptation(adapt)
-    m = xyz_to_linear_srgb_matrix()
+
+@dataclass(frozen=True)
+class ExrSpace:
+    """A colour space of the colour EXR (``gonio render --exr-space``).
+
+    Attributes
+    ----------
+    matrix : () → (3, 3), XYZ as seen under the display white (after ``--adapt``: D65)
+        → the EXR's three channels.
+    chromaticities : () → 8 floats, CIE xy of R, G, B and white for the EXR header's
+        ``chromaticities`` attribute (OpenEXR's order).
+    channels : the channel names in the file.
+    help : what the file then holds.
+    """
+
+    matrix: Callable[[], np.ndarray]
+    chromaticities: Callable[[], tuple]
+    channels: tuple[str, str, str]
+    help: str
+
+
+def _rgb_space(key: str) -> Callable[[], np.ndarray]:
+    def matrix():
+        from ..spectra import (chromatic_adaptation_matrix, rgb_space_matrix,
+                               rgb_space_white_xyz, srgb_white_xyz)
+
+        m = rgb_space_matrix(key)
+        white = rgb_space_white_xyz(key)
+        if np.allclose(white, srgb_white_xyz(), rtol=0, atol=1e-9):
+            return m
+        # the display white (D65) to the space's white: Bradford, as the ACES
+        # reference transforms convert Rec. 709 / sRGB to ACES
+        return m @ chromatic_adaptation_matrix(srgb_white_xyz(), white, "bradford")
+    return matrix
+
+
+def _chromaticities(key: str) -> Callable[[], tuple]:
+    def chromaticities():
+        from ..spectra import rgb_space_chromaticities
+
+        return rgb_space_chromaticities(key)
+    return chromaticities
+
+
+#: OpenEXR's ``chromaticities`` for CIE XYZ data (OpenEXR, "Technical Introduction":
+#: red (1, 0), green (0, 1), blue (0, 0), white (1/3, 1/3)).
+XYZ_CHROMATICITIES = (1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0 / 3.0, 1.0 / 3.0)
+
+#: Colour spaces of the colour EXR by name (STYLE 3). Every one holds the same colours
+#: (the XYZ after ``--adapt``), so they differ only by a 3 × 3 matrix; the matrices come
+#: from colour-science's tables (:func:`gonio_cli.spectra.rgb_space_matrix`). The first
+#: is the default (docs/conventions.md).
+EXR_SPACES: dict[str, ExrSpace] = {
+    "srgb": ExrSpace(_rgb_space("srgb"), _chromaticities("srgb"), ("R", "G", "B"),
+                     "linear sRGB (IEC 61966-2-1 primaries, D65 white); colours outside "
+                     "sRGB have negative channels"),
+    "xyz": ExrSpace(lambda: np.eye(3), lambda: XYZ_CHROMATICITIES, ("X", "Y", "Z"),
+                    "CIE 1931 XYZ (2°), never negative"),
+    "acescg": ExrSpace(_rgb_space("acescg"), _chromaticities("acescg"), ("R", "G", "B"),
+                       "linear ACEScg (AP1 primaries, ACES white; Bradford from D65), "
+                       "holds nearly every surface colour"),
+}
+DEFAULT_EXR_SPACE = "srgb"
+
+
+def get_exr_space(name: str) -> ExrSpace:
+    """The EXR colour space called ``name``; an unknown name gets the list of valid ones."""
+    if name not in EXR_SPACES:
+        raise InputError(f"EXR colour space {name!r} is unknown",
+                         fix=f"use one of {', '.join(EXR_SPACES)}")
+    return EXR_SPACES[name]
+
+
+def xyz_to_exr_matrix(space: str = DEFAULT_EXR_SPACE, adapt: str = DEFAULT_ADAPTATION,
+                      white_xyz: np.ndarray | None = None) -> np.ndarray:
+    """(3, 3): XYZ → the EXR's channels in ``space`` (:data:`EXR_SPACES`), after adapting
+    ``white_xyz`` (the scene white) to the display white as :func:`xyz_to_linear_matrix`."""
+    from ..spectra import srgb_white_xyz
+
+    m = get_exr_space(space).matrix()
     if white_xyz is None:
         return m
-    return m @ adaptation(white_xyz, srgb_white_xyz())
+    return m @ get_adaptation(adapt)(white_xyz, srgb_white_xyz())
 
 
 def xyz_to_linear(xyz: np.ndarray, matrix: np.ndarray | None = None) -> np.ndarray:
