@@ -122,6 +122,11 @@ def halftone(
         raise InputError("--dpi and --print-width-mm go together",
                          fix="give both, or --size WxH")
     target_size = cov.parse_size(size) if size is not None else None
+    from ..outputs import declare
+    declare({"-o": output, "--report": report,
+             **{f"--split ({ink})": p for ink, p in
+                zip(core.INKS, split_paths(output) if split else [])}},
+            [image])
     img = read_image(image, keep_integers=True)     # 8/16-bit files as stored: no float copy
     if dpi is not None:
         target_size = cov.size_from_dpi(dpi, print_width_mm, img.pixels.shape[:2])

@@ -96,6 +96,9 @@ def render(
     if exr is not None and exr.suffix.lower() != ".exr":
         raise InputError(f"--exr {exr}: not an .exr name", fix="name it *.exr")
 
+    from ..outputs import declare
+    outs = {"-o": output, "--exr": exr, "--report": report, "--gamut-warning": gamut_warning}
+    declare(outs, [scene])
     stats = Stats()
     with log.timer() as t:
         sc = load_scene(scene, variables=variables,
@@ -103,6 +106,7 @@ def render(
                                    "spectral": spectral, "exposure": exposure,
                                    "tonemap": tonemap, "adapt": adapt, "grid_nm": grid_nm})
     stats.time_s["scene"] = t["time_s"]
+    declare(outs, sc.inputs)  # the files the scene reads
     frame = render_scene(sc, stats)
     write_outputs(frame, sc, stats, png=output, exr=exr, start=start,
                   gamut_warning=gamut_warning)
