@@ -140,8 +140,7 @@ def clean_stale(folder: str | os.PathLike) -> list[str]:
 
 #: What ``stat`` calls a file that is not a regular file, for the message.
 _KINDS = ((stat.S_ISFIFO, "a FIFO (named pipe)"), (stat.S_ISCHR, "a character device"),
-          (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"),
-          (stat.S_ISDIR, "a folder"))
+          (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"))
 
 
 def same_file(a: str | os.PathLike, b: str | os.PathLike) -> bool:
@@ -172,6 +171,10 @@ def check_output(flag: str, path: str | os.PathLike, *, folder: bool = False) ->
         st = os.stat(path)
     except FileNotFoundError:
         return  # absent: fine (a dangling link is replaced by the file)
+    except NotADirectoryError as exc:  # a file where a folder of the path should be
+        from .artifact import folder_error
+
+        raise folder_error(os.path.dirname(path), exc) from None
     except OSError as exc:
         raise _error(f"{flag} {path}: cannot be examined ({exc.strerror})",
                      fix=f"choose another {flag}") from None
@@ -181,11 +184,12 @@ def check_output(flag: str, path: str | os.PathLike, *, folder: bool = False) ->
         if not os.access(path, os.W_OK | os.X_OK):
             raise _error(f"{flag} {path} is a read-only folder", fix=f"choose another {flag}")
         return
+    if stat.S_ISDIR(st.st_mode):
+        raise _error("is a folder", path=path, fix="give a file name for the output")
     for test, kind in _KINDS:
         if test(st.st_mode):
-            fix = ("give a file name for the output" if kind == "a folder" else
-                   f"choose another {flag}: gonio writes regular files only")
-            raise _error(f"{flag} {path} is {kind}, not a regular file", fix=fix)
+            raise _error(f"{flag} {path} is {kind}, not a regular file",
+                         fix=f"choose another {flag}: gonio writes regular files only")
     # root passes os.access on any file: a file without any write bit is read-only too
     if not (st.st_mode & 0o222) or not os.access(path, os.W_OK):
         raise _error(f"{flag} {path} is read-only", fix=f"choose another {flag}, or make "

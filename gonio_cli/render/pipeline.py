@@ -273,44 +273,53 @@ SHADE_BYTES_PER_SAMPLE = 12 + 12
 #: Bytes per output pixel: XYZ float64, linear float32, coverage, display uint8 and the
 #: encoders' copies.
 OUTPUT_BYTES_PER_PIXEL = 24 + 12 + 8 + 3 + 24
+#: Peak bytes per triangle of a mesh through loading, transform and the rasterizer's
+#: set-up: measured with ru_maxrss on a 64² frame of builtin:sphere?segments=1024 … 3072
+#: (1 M … 9.4 M triangles): 185 bytes a triangle above the baseline, linear in the count
+#: (tests/test_memory.py checks the estimate against a measured peak).
+MESH_BYTES_PER_TRIANGLE = 190
 
 
 def memory_estimate(scene: Scene) -> int:
     """Peak bytes of a frame's buffers (:func:`render_scene`), as if every sample were
     covered: the compact float32 G-buffer with its keys and indices
     (:func:`gonio_cli.render.raster.gbuffer_bytes`), the shaded rows, the supersampled
-    image of the resolve and the output images. Meshes and materials are not counted."""
+    image of the resolve and the output images. Built-in meshes count
+    :data:`MESH_BYTES_PER_TRIANGLE` (:func:`mesh_triangles`); OBJ files and materials are
+    not counted."""
     from .raster import gbuffer_bytes
 
     cam, ssaa = scene.camera, scene.output.ssaa
     samples = cam.width * cam.height * ssaa ** 2
     return (gbuffer_bytes(cam.height, cam.width, ssaa, uv=scene.needs_uvs,
                           position=needs_positions(scene))
-            + samples * SHADE_BYTES_PER_SAMPLE + cam.width * cam.height * OUTPUT_BYTES_PER_PIXEL)
+            + samples * SHADE_BYTES_PER_SAMPLE + cam.width * cam.height * OUTPUT_BYTES_PER_PIXEL
+            + mesh_triangles(scene) * MESH_BYTES_PER_TRIANGLE)
 
 
-def machine_memory() -> int | None:
-    """Physical memory of the machine in bytes (``os.sysconf``), or None if unknown."""
-    import os
+def mesh_triangles(scene: Scene) -> int:
+    """Triangles of the scene's built-in meshes, one copy per object (each is
+    transformed into world space)."""
+    from .mesh import builtin_triangles
 
-    try:
-        return int(os.sysconf("SC_PAGE_SIZE")) * int(os.sysconf("SC_PHYS_PAGES"))
-    except (ValueError, OSError, AttributeError):
-        return None
+    return sum(builtin_triangles(o.mesh) or 0 for o in scene.objects)
 
 
 def check_memory(scene: Scene) -> int:
-    """Refuse, before allocating anything, a frame whose buffers exceed the machine's
-    memory; the message gives the estimate and the options that lower it."""
-    need = memory_estimate(scene)
-    have = machine_memory()
-    if have is not None and need > have:
-        cam = scene.camera
-        raise InputError(f"a {cam.width}x{cam.height} render at ssaa {scene.output.ssaa} "
-                         f"needs about {need / 2**30:.1f} GiB of buffers, more than this "
-                         f"machine's {have / 2**30:.1f} GiB", path=scene.display,
-                         fix="lower --ssaa or --width/--height")
-    return need
+    """Refuse, before allocating anything, a frame whose buffers and meshes exceed the
+    memory available (:func:`gonio_cli.memory.check`); the message gives the estimate
+    and the options that lower it."""
+    from ..memory import check
+
+    cam = scene.camera
+    triangles = mesh_triangles(scene)
+    if triangles * MESH_BYTES_PER_TRIANGLE > memory_estimate(scene) / 2:
+        return check(memory_estimate(scene), f"a {cam.width}x{cam.height} render of "
+                     f"{triangles / 1e6:.1f} M built-in mesh triangles", path=scene.display,
+                     fix="lower segments= (and rings=) of the builtin: mesh")
+    return check(memory_estimate(scene), f"a {cam.width}x{cam.height} render at ssaa "
+                 f"{scene.output.ssaa}", path=scene.display,
+                 fix="lower --ssaa or --width/--height")
 
 
 def needs_positions(scene: Scene) -> bool:
