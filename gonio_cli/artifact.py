@@ -107,10 +107,10 @@ def atomic_path(path: str | os.PathLike, *, immediate: bool = False) -> Iterator
     Any writer (JSON, PNG through OpenImageIO, EXR) writes to the yielded path, named
     ``.gonio-tmp-<pid>-<random>-<name>`` (:mod:`gonio_cli.outputs`). If the block raises,
     or the run is interrupted (Ctrl-C), the temporary file is removed and ``path`` is
-    untouched. Inside a command's output transaction (:func:`gonio_cli.outputs.transaction`)
-    the finished file is staged and moved at the transaction's commit, with the command's
-    other outputs; ``immediate=True`` (caches, which are not outputs) and files inside a
-    staged folder are moved at once. A folder that cannot take the file is a
+    untouched. A command's declared output (:func:`gonio_cli.outputs.declare`) is staged
+    and moved at the transaction's commit, with the command's other outputs; anything else
+    (``immediate=True``: caches; intermediate files; files inside a staged folder) is
+    moved at once. A folder that cannot take the file is a
     :class:`WriteError` naming the folder, not the temporary file (it is also an
     ``OSError``, so optional writes such as caches can still ignore it).
     """
@@ -121,8 +121,8 @@ def atomic_path(path: str | os.PathLike, *, immediate: bool = False) -> Iterator
     if path.is_dir():
         raise WriteError("is a folder", path=path, fix="give a file name for the output")
     tx = None if immediate else outputs.current()
-    if tx is not None and tx.inside_staged_folder(path):
-        tx = None
+    if tx is not None and not tx.is_output(path):
+        tx = None  # not a declared output: a cache or a file the command reads back
     outputs.clean_stale(folder)
     try:
         fd, tmp = tempfile.mkstemp(prefix=outputs.tmp_prefix(),

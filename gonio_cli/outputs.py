@@ -10,7 +10,8 @@ Every command that writes files runs inside one :class:`Transaction` (opened by
   device, a FIFO, a socket, a folder) or is read-only. It also removes temporary files
   left in the output folders by gonio runs that were killed (:func:`clean_stale`).
 * :func:`gonio_cli.artifact.atomic_path` writes each output to a temporary file beside it
-  (:data:`TMP_PREFIX`) and, inside a transaction, *stages* it instead of moving it: the
+  (:data:`TMP_PREFIX`) and, for an output :func:`declare` named, *stages* it instead of
+  moving it: the
   moves happen in :meth:`Transaction.commit`, after the command has finished, with Ctrl-C
   held back for the few renames. A failure or an interrupt before that point removes every
   staged file: the set of outputs is complete or absent, never partial.
@@ -34,6 +35,7 @@ heavy writers live in :mod:`gonio_cli.artifact` and :mod:`gonio_cli.imageio`.
 from __future__ import annotations
 
 import contextlib
+import contextvars
 import os
 import re
 import stat
@@ -237,8 +239,11 @@ def declare(outputs: Mapping[str, str | os.PathLike | None],
         if path is not None:
             check_output(flag, path, folder=flag in folders)
     check_distinct(outputs, inputs)
+    tx = current()
     for path in outputs.values():
         if path is not None:
+            if tx is not None:
+                tx.outputs.add(_key(path))
             parent = os.path.dirname(os.path.abspath(path))
             if os.path.isdir(parent):
                 clean_stale(parent)
@@ -279,10 +284,22 @@ def forget_written() -> None:
     _written.clear()
 
 
+def _key(path: str | os.PathLike) -> str:
+    """A path as the transaction compares them: its folder's links resolved."""
+    path = os.fspath(path)
+    return os.path.join(os.path.realpath(os.path.dirname(os.path.abspath(path))),
+                        os.path.basename(path))
+
+
 class Transaction:
-    """The outputs of one command: staged temporary files moved into place together."""
+    """The outputs of one command: staged temporary files moved into place together.
+
+    Only the files :func:`declare` named are staged; anything else the command writes
+    (a cache, an intermediate file it reads back) is moved into place at once.
+    """
 
     def __init__(self) -> None:
+        self.outputs: set[str] = set()                # declared outputs (:func:`_key`)
         self.files: list[tuple[Path, Path]] = []      # (staged temporary, final path)
         self.folders: list[tuple[Path, Path, bool]] = []  # (staged folder, final, merge)
         self.done = False
@@ -318,6 +335,10 @@ class Transaction:
             raise folder_error(parent, exc) from None
         self.folders.append((tmp, final, merge))
         return tmp
+
+    def is_output(self, path: str | os.PathLike) -> bool:
+        """Is ``path`` one of the declared outputs (so staged, not moved at once)?"""
+        return _key(path) in self.outputs
 
     def inside_staged_folder(self, path: str | os.PathLike) -> bool:
         """Is ``path`` inside a folder this transaction staged (so written directly)?"""
@@ -360,6 +381,8 @@ class Transaction:
                 moved.append(final)
             for tmp, final, merge in self.folders:
                 self._move_folder(tmp, final, merge, moved)
+            for path in moved:  # before Ctrl-C is let through, so its message is right
+                note_written(path)
         except BaseException:
             for path in moved:
                 with contextlib.suppress(OSError):
@@ -370,8 +393,6 @@ class Transaction:
         finally:
             if masked:
                 signal.pthread_sigmask(signal.SIG_SETMASK, old_mask)
-        for path in moved:
-            note_written(path)
         self.files.clear()
         self.folders.clear()
         self.done = True
@@ -405,25 +426,26 @@ def _umask() -> int:
     return mask
 
 
-#: The transaction of the command running now (None outside :func:`transaction`).
-_current: Transaction | None = None
+#: The transaction of the command running now (None outside :func:`transaction`); a
+#: context variable, so commands run in threads each see their own.
+_current: contextvars.ContextVar[Transaction | None] = contextvars.ContextVar(
+    "gonio_outputs_transaction", default=None)
 
 
 def current() -> Transaction | None:
     """The open transaction, if a command is running inside one."""
-    return _current
+    return _current.get()
 
 
 @contextlib.contextmanager
 def transaction() -> Iterator[Transaction]:
     """Open the outputs' transaction; leaving it without :meth:`Transaction.commit`
     (an error, Ctrl-C, a non-zero exit) removes everything staged."""
-    global _current
-    outer, tx = _current, Transaction()
-    _current = tx
+    tx = Transaction()
+    token = _current.set(tx)
     try:
         yield tx
     finally:
-        _current = outer
+        _current.reset(token)
         if not tx.done:
             tx.abort()

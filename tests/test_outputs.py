@@ -273,12 +273,16 @@ def test_a_transaction_left_without_commit_removes_what_it_staged(tmp_path):
     from gonio_cli.artifact import write_json
 
     with outputs.transaction() as tx:
+        outputs.declare({"-o": tmp_path / "a.json"})
         write_json(tmp_path / "a.json", {"x": 1})
         assert temporaries(tmp_path) and not (tmp_path / "a.json").exists()
+        write_json(tmp_path / "scratch.json", {"x": 0})   # not declared: written at once
+        assert (tmp_path / "scratch.json").exists()
         assert tx.files
-    assert list(tmp_path.iterdir()) == []
+    assert [p.name for p in tmp_path.iterdir()] == ["scratch.json"]
     with outputs.transaction() as tx:
+        outputs.declare({"-o": tmp_path / "a.json", "--report": tmp_path / "b.json"})
         write_json(tmp_path / "a.json", {"x": 1})
         write_json(tmp_path / "b.json", {"x": 2})
         tx.commit()
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.json", "b.json"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.json", "b.json", "scratch.json"]

@@ -130,10 +130,10 @@ def halftone(
     img = read_image(image, keep_integers=True)     # 8/16-bit files as stored: no float copy
     if dpi is not None:
         target_size = cov.size_from_dpi(dpi, print_width_mm, img.pixels.shape[:2])
-    from ..memory import check
+    from .. import memory
 
     width, height = target_size or (img.pixels.shape[1], img.pixels.shape[0])
-    check(core.memory_estimate(width, height), f"a {width}x{height} halftone", path=image,
+    memory.check(core.memory_estimate(width, height), f"a {width}x{height} halftone", path=image,
           fix="lower --size (or --dpi)" if size or dpi else "resample it first with --size")
     with log.timer() as t:
         prepared, result = core.prepare_and_halftone(

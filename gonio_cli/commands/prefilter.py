@@ -129,10 +129,10 @@ def prefilter(
     if replaced:
         log.warn(f"{envmap_path}: replaced {replaced} NaN, inf or negative texels "
                  "(negative → 0, NaN/inf → the mean of their row)")
-    from ..memory import check
+    from .. import memory
 
     n_maps = len(set(exps) | {1.0})
-    check(core.memory_estimate(pixels.shape[0], pixels.shape[1], n_maps),
+    memory.check(core.memory_estimate(pixels.shape[0], pixels.shape[1], n_maps),
           f"prefiltering a {pixels.shape[1]}x{pixels.shape[0]} map into {n_maps} maps",
           path=envmap_path, fix="give a smaller map (or fewer --exponents)")
     with log.timer() as t:
