@@ -213,9 +213,19 @@ def check_distinct(outputs: Mapping[str, str | os.PathLike | None],
                              fix=f"choose another {flag}")
 
 
+def check_not_inside(flag: str, folder: str | os.PathLike,
+                     inputs: Iterable[str | os.PathLike]) -> None:
+    """Refuse a folder output that is replaced as a whole while it holds an input."""
+    root = os.path.realpath(folder)
+    for src in inputs:
+        if os.path.realpath(src).startswith(root.rstrip(os.sep) + os.sep):
+            raise _error(f"{flag} {folder} holds the input {src}, which replacing the "
+                         "folder would delete", fix=f"choose another {flag}")
+
+
 def declare(outputs: Mapping[str, str | os.PathLike | None],
             inputs: Iterable[str | os.PathLike | None] = (), *,
-            folders: Iterable[str] = ()) -> None:
+            folders: Iterable[str] = (), replaced: Iterable[str] = ()) -> None:
     """Check a command's outputs before any work (see the module docstring).
 
     Parameters
@@ -227,17 +237,23 @@ def declare(outputs: Mapping[str, str | os.PathLike | None],
         Every file the command reads; an output may be none of them.
     folders : flags
         The outputs that are folders.
+    replaced : flags
+        The folder outputs replaced as a whole (``gonio report -o DIR``): none of the
+        inputs may be inside them.
 
     Raises
     ------
     OutputError
         One line naming the option, the file and the fix.
     """
-    folders = set(folders)
+    replaced = set(replaced)
+    folders = set(folders) | replaced
     inputs = [p for p in inputs if p is not None]
     for flag, path in outputs.items():
         if path is not None:
             check_output(flag, path, folder=flag in folders)
+            if flag in replaced:
+                check_not_inside(flag, path, inputs)
     check_distinct(outputs, inputs)
     tx = current()
     for path in outputs.values():

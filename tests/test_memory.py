@@ -234,3 +234,21 @@ def test_prefilter_estimate_matches_the_measured_peak(tmp_path):
         index = json.loads((tmp_path / f"maps{w}" / "index.json").read_text())
         assert len(index["maps"]) == 3
     assert_close(runs[2048][0] - runs[512][0], runs[2048][1] - runs[512][1])
+
+
+@linux_only
+def test_render_buffer_estimate_matches_the_measured_peak(scene):
+    """A plane filling a 256² frame (every sample covered, the case the estimate
+    assumes) at ssaa 1 and 8 (65 k and 4.2 M samples)."""
+    from gonio_cli.render.pipeline import memory_estimate
+    from gonio_cli.render.scene import load_scene
+
+    text = scene.read_text().replace("builtin:sphere?segments=${seg}", "builtin:plane")
+    scene.write_text(text.replace("fov_deg = 32.0", "fov_deg = 20.0"))  # 4 tan 10° < 1
+    runs = {}
+    for ssaa in (1, 8):
+        args = ["-q", "render", "scene.toml", "-o", "o.png", "--width", "256", "--height",
+                "256", "--ssaa", str(ssaa)]
+        sc = load_scene(scene, overrides={"ssaa": ssaa, "width": 256, "height": 256})
+        runs[ssaa] = (peak_bytes(args, scene.parent), memory_estimate(sc))
+    assert_close(runs[8][0] - runs[1][0], runs[8][1] - runs[1][1])

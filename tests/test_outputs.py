@@ -286,3 +286,48 @@ def test_a_transaction_left_without_commit_removes_what_it_staged(tmp_path):
         write_json(tmp_path / "b.json", {"x": 2})
         tx.commit()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.json", "b.json", "scratch.json"]
+
+
+# ---------------------------------------------------------------- every command --
+
+@pytest.fixture(scope="module")
+def fitted(tmp_path_factory):
+    """A measurement and its material (made once for the module)."""
+    from gonio_cli import cli, log
+
+    folder = tmp_path_factory.mktemp("fitted")
+    meas, mat = folder / "red.measurement.json", folder / "red.material.json"
+    assert cli.run(["-q", "ingest", str(SAMPLE / "ink_red.csv"), "-o", str(meas)]) == 0
+    assert cli.run(["-q", "fit", str(meas), "-o", str(mat)]) == 0
+    log.set_quiet(False)
+    return meas, mat
+
+
+@pytest.mark.parametrize("case", ["lobes basis -o", "lobes basis --plot", "lobes fit -o",
+                                  "ingest -o", "report -o holds an input", "prefilter -o"])
+def test_every_command_refuses_outputs_that_collide(run_gonio, fitted, tmp_path, case):
+    meas, mat = fitted
+    work = tmp_path / "work"
+    work.mkdir()
+    m, d = work / mat.name, work / meas.name
+    shutil.copy(mat, m)
+    shutil.copy(meas, d)
+    sky = work / "sky.exr"
+    shutil.copy(SAMPLE / "sky.exr", sky)
+    csv = work / "ink.csv"
+    shutil.copy(SAMPLE / "ink_red.csv", csv)
+    args, needles = {
+        "lobes basis -o": (["lobes", "basis", m, "-o", m], [f"-o {m} is the input {m}"]),
+        "lobes basis --plot": (["lobes", "basis", m, "-o", work / "b.json", "--plot",
+                                work / "b.json"], ["--plot", "is the same file as -o"]),
+        "lobes fit -o": (["lobes", "fit", m, "--exponents", "1,10", "-o", m],
+                         [f"-o {m} is the input {m}"]),
+        "ingest -o": (["ingest", csv, "-o", csv], ["is both an input and the output"]),
+        "report -o holds an input": (["report", d, "--sections", "fit", "-o", work],
+                                     [f"-o {work} holds the input {d}",
+                                      "replacing the folder would delete"]),
+        "prefilter -o": (["prefilter", sky, "--exponents", "8", "-o", sky], [str(sky)]),
+    }[case]
+    before = snapshot(work)
+    refused(run_gonio(*args), *needles)
+    assert snapshot(work) == before

@@ -57,7 +57,7 @@ def report(
                                                           "gonio.material JSON files")
     if output.exists() and not output.is_dir():
         raise InputError(f"-o {output} is a file", fix="name a folder")
-    declare({"-o": output}, paths, folders=["-o"])
+    declare({"-o": output}, paths, replaced=["-o"])
     # REPORT_DIR is staged whole and replaces the old one when the command succeeds
     with folder_output(output) as stage:
         with tempfile.TemporaryDirectory(prefix="gonio-report-") as work:
