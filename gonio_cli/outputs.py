@@ -9,15 +9,20 @@ Every command that writes files runs inside one :class:`Transaction` (opened by
   :func:`os.path.samefile`), and an output that exists but is not a regular file (a
   device, a FIFO, a socket, a folder) or is read-only. It also removes temporary files
   left in the output folders by gonio runs that were killed (:func:`clean_stale`).
-* :func:`gonio_cli.artifact.atomic_path` writes each output to a temporary file beside it
+* :func:`gonio_cli.artifact.atomic_path` writes each file to a temporary file beside it
   (:data:`TMP_PREFIX`) and, for an output :func:`declare` named, *stages* it instead of
-  moving it: the
-  moves happen in :meth:`Transaction.commit`, after the command has finished, with Ctrl-C
-  held back for the few renames. A failure or an interrupt before that point removes every
-  staged file: the set of outputs is complete or absent, never partial.
+  moving it: the moves happen in :meth:`Transaction.commit`, after the command has
+  finished, with Ctrl-C held back for the few renames. A failure or an interrupt before
+  that point removes every staged file: the set of outputs is complete or absent, never
+  partial. Files the command did not declare (caches, intermediate files it reads back)
+  are moved into place at once, as outside a transaction.
 * A folder output (``gonio report``, ``gonio prefilter``) is staged as a whole with
-  :meth:`Transaction.stage_folder`; files written inside a staged folder are written there
-  directly.
+  :meth:`Transaction.stage_folder` (:func:`folder_output`); files written inside a staged
+  folder are written there directly.
+
+The outputs' transaction lives here and not in :mod:`gonio_cli.artifact` because the CLI
+opens it around every command, ``gonio --version`` included: this module imports only
+the standard library.
 
 Temporary names are ``.gonio-tmp-<pid>-<random>-<name>``: the pid says which process
 owns the file, the name keeps the extension (writers choose the format by it). A later run
@@ -26,10 +31,8 @@ removes one whose process is alive, however old the file: a long render stages i
 outputs only at its end, and a pid test cannot mistake a live gonio for a dead one (a pid
 reused by an unrelated process only keeps a dead file longer, which is harmless). A file
 made on another machine sharing the folder (NFS) is judged by a pid of this machine: it
-is removed only when it is also older than :data:`STALE_AGE_S`.
-
-This module imports only the standard library, so ``gonio --version`` stays fast; the
-heavy writers live in :mod:`gonio_cli.artifact` and :mod:`gonio_cli.imageio`.
+is removed only when it is also older than :data:`STALE_AGE_S`. A process ended by
+SIGTERM or SIGKILL runs no clean-up of its own; its files wait for that later run.
 """
 
 from __future__ import annotations
