@@ -32,6 +32,8 @@ import numpy as np
 
 from . import __version__
 from .errors import ArtifactError, GonioError, WriteError, binary_kind
+# the record of written files lives with the outputs' transaction (gonio_cli.outputs)
+from .outputs import forget_written, note_written, written_files  # noqa: F401
 
 #: Keys every artifact carries besides its payload.
 ENVELOPE_KEYS = ("schema", "schema_version", "gonio_version", "created_utc", "inputs",
@@ -59,26 +61,6 @@ def _umask() -> int:
     mask = os.umask(0)
     os.umask(mask)
     return mask
-
-
-#: Files this process has moved into place (:func:`atomic_path`, :func:`note_written`),
-#: so that an interrupted run can say what it had already written.
-_written: list[Path] = []
-
-
-def note_written(path: str | os.PathLike) -> None:
-    """Record that ``path`` is complete and in place (done by :func:`atomic_path`)."""
-    _written.append(Path(path))
-
-
-def written_files() -> list[Path]:
-    """Files written by this process so far (in order; see :func:`forget_written`)."""
-    return list(_written)
-
-
-def forget_written() -> None:
-    """Start a new record of written files (the CLI does so at the start of a run)."""
-    _written.clear()
 
 
 def folder_error(folder: str | os.PathLike, exc: OSError) -> WriteError:
@@ -119,22 +101,32 @@ def make_folder(folder: str | os.PathLike) -> Path:
 
 
 @contextlib.contextmanager
-def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
+def atomic_path(path: str | os.PathLike, *, immediate: bool = False) -> Iterator[Path]:
     """Yield a temporary path beside ``path``; move it onto ``path`` only on success.
 
-    Any writer (JSON, PNG through OpenImageIO, EXR) writes to the yielded path. If the
-    block raises, or the run is interrupted (Ctrl-C), the temporary file is removed and
-    ``path`` is untouched. A folder that cannot take the file is a :class:`WriteError`
-    naming the folder, not the temporary file (it is also an ``OSError``, so optional
-    writes such as caches can still ignore it).
+    Any writer (JSON, PNG through OpenImageIO, EXR) writes to the yielded path, named
+    ``.gonio-tmp-<pid>-<random>-<name>`` (:mod:`gonio_cli.outputs`). If the block raises,
+    or the run is interrupted (Ctrl-C), the temporary file is removed and ``path`` is
+    untouched. A command's declared output (:func:`gonio_cli.outputs.declare`) is staged
+    and moved at the transaction's commit, with the command's other outputs; anything else
+    (``immediate=True``: caches; intermediate files; files inside a staged folder) is
+    moved at once. A folder that cannot take the file is a
+    :class:`WriteError` naming the folder, not the temporary file (it is also an
+    ``OSError``, so optional writes such as caches can still ignore it).
     """
+    from . import outputs
+
     path = Path(path)
     folder = make_folder(path.parent)
     if path.is_dir():
         raise WriteError("is a folder", path=path, fix="give a file name for the output")
+    tx = None if immediate else outputs.current()
+    if tx is not None and not tx.is_output(path):
+        tx = None  # not a declared output: a cache or a file the command reads back
+    outputs.clean_stale(folder)
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=f".tmp{path.suffix}",
-                                   dir=folder)
+        fd, tmp = tempfile.mkstemp(prefix=outputs.tmp_prefix(),
+                                   suffix=outputs.tmp_suffix(path.name), dir=folder)
     except OSError as exc:
         raise folder_error(folder, exc) from None
     tmp_path = Path(tmp)
@@ -143,14 +135,18 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
         yield tmp_path
         # mkstemp creates the file 0600; give the result the permissions of a normal file
         os.chmod(tmp_path, 0o666 & ~_umask())
-        os.replace(tmp_path, path)
+        if tx is None:
+            os.replace(tmp_path, path)
     except BaseException as exc:  # KeyboardInterrupt too: never leave the temporary file
         tmp_path.unlink(missing_ok=True)
         if isinstance(exc, OSError) and not isinstance(exc, GonioError) and (
                 exc.errno in _FULL_OR_READ_ONLY):
             raise folder_error(folder, exc) from None
         raise
-    note_written(path)
+    if tx is None:
+        note_written(path)
+    else:
+        tx.stage(tmp_path, path)
 
 
 #: errno values of a write that fails for the folder's disk, not for the writer.

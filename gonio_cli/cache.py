@@ -42,7 +42,7 @@ def cached_arrays(name: str, compute: Callable[[], dict[str, np.ndarray]],
         pass
     data = compute()
     try:
-        with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+        with atomic_path(path, immediate=True) as tmp, open(tmp, "wb") as fh:
             np.savez(fh, **data)
     except OSError:
         pass  # read-only cache: computed again next time

@@ -17,7 +17,7 @@ from typing import Optional, Sequence
 
 import typer
 
-from . import __version__, log
+from . import __version__, log, outputs
 from .commands import STAGES, Group, apply_help_style
 from .errors import EXIT_INTERRUPTED, EXIT_USAGE, GonioError
 
@@ -90,8 +90,12 @@ def run(argv: Sequence[str] | None = None) -> int:
     apply_help_style(app)  # commands registered since import (tests) get the same help
     args = list(argv) if argv is not None else sys.argv[1:]
     try:
-        code = _app_for(args)(args=args, prog_name="gonio", standalone_mode=False)
-        code = code if isinstance(code, int) else 0
+        # every output is staged and moved into place only when the command succeeds
+        with outputs.transaction() as tx:
+            code = _app_for(args)(args=args, prog_name="gonio", standalone_mode=False)
+            code = code if isinstance(code, int) else 0
+            if code == 0:
+                tx.commit()
         # typer turns Ctrl-C inside a command into exit status 130 without a word
         return _interrupted() if code == EXIT_INTERRUPTED else code
     except GonioError as exc:
@@ -151,21 +155,16 @@ def _app_for(args: Sequence[str]) -> typer.Typer:
 
 
 def _forget_written() -> None:
-    """Start this run's record of written files (if anything ever loaded the writer)."""
-    artifact = sys.modules.get(f"{__package__}.artifact")
-    if artifact is not None:
-        artifact.forget_written()
+    """Start this run's record of written files."""
+    outputs.forget_written()
 
 
 def _outputs_written() -> list[str]:
     """Files this run moved into place that still exist, outside gonio's cache."""
-    artifact = sys.modules.get(f"{__package__}.artifact")
-    if artifact is None:
-        return []
     cache = sys.modules.get(f"{__package__}.cache")
     cache_dir = os.path.abspath(cache.cache_dir()) if cache is not None else None
     out = []
-    for path in artifact.written_files():
+    for path in outputs.written_files():
         full = os.path.abspath(path)
         if os.path.exists(full) and not (cache_dir and full.startswith(cache_dir + os.sep)) \
                 and os.fspath(path) not in out:

@@ -95,6 +95,16 @@ class WriteError(GonioError, OSError):
     optional (the on-disk cache) still catches it."""
 
 
+class MemoryLimitError(InputError):
+    """Work whose estimated memory exceeds what the machine has (:mod:`gonio_cli.memory`),
+    refused before it starts."""
+
+
+class OutputError(GonioError):
+    """Outputs refused before any work: two outputs (or an output and an input) that are
+    the same file, or an output that exists and is not a writable regular file."""
+
+
 # ------------------------------------------------------- naming the real cause --
 
 #: Leading bytes of binary files users hand to gonio by mistake → what the file is.

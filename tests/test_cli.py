@@ -260,8 +260,9 @@ def test_ctrl_c_while_writing_leaves_no_partial_or_temporary_file(tmp_path):
 
 
 @posix_only
-def test_ctrl_c_after_one_output_names_it(run_gonio, tmp_path):
-    """fit writes the material, then draws the plot: interrupted there, it says so."""
+def test_ctrl_c_after_one_output_leaves_none(run_gonio, tmp_path):
+    """fit stages the material, then draws the plot: interrupted there, neither is written
+    (the outputs are one transaction), and no temporary file is left."""
     measurement = tmp_path / "red.measurement.json"
     assert run_gonio("ingest", SAMPLE / "ink_red.csv", "-o", measurement).exit_code == 0
     patch = f"""
@@ -276,10 +277,10 @@ def test_ctrl_c_after_one_output_names_it(run_gonio, tmp_path):
     r = interrupt(tmp_path, patch, "fit", measurement.name, "-o", "red.material.json",
                   "--plot", "red.png")
     assert r.returncode == 130
-    assert r.stderr == ("gonio: interrupted after writing red.material.json; nothing else "
-                        "was written\n")
-    assert (tmp_path / "red.material.json").is_file()
+    assert r.stderr == "gonio: interrupted; nothing was written\n"
+    assert not (tmp_path / "red.material.json").exists()
     assert not (tmp_path / "red.png").exists()
+    assert not [p.name for p in tmp_path.iterdir() if p.name.startswith(".gonio-tmp-")]
 
 
 def test_keyboard_interrupt_inside_atomic_path_removes_the_temporary_file(tmp_path):

@@ -286,11 +286,15 @@ def test_spectral_image_beyond_the_machine_is_refused(run_gonio, scene, tmp_path
     sc = load_scene(scene)
     plain, spectral = pipeline.memory_estimate(sc), pipeline.memory_estimate(sc, True)
     assert spectral - plain >= sc.camera.width * sc.camera.height * GRID.size * 4
-    monkeypatch.setattr(pipeline, "machine_memory", lambda: (plain + spectral) // 2)
+    from gonio_cli import memory
+
+    have = int((plain + spectral) / 2 / memory.MARGIN)
+    monkeypatch.setattr(memory, "available_bytes", lambda: (have, "test memory"))
     png, spec = tmp_path / "o.png", tmp_path / "s.exr"
     r = run_gonio("render", scene, "-o", png, "--spectral-exr", spec)
     assert r.exit_code == 2 and r.stderr.count("\n") == 1, r.stderr
-    assert "a 40x24 spectral image on 41 wavelengths needs about" in r.stderr
+    assert ("a 40x24 spectral image on 41 wavelengths with the frame's buffers needs about"
+            in r.stderr)
     assert "coarser --grid-nm" in r.stderr
     assert not png.exists() and not spec.exists()
     assert run_gonio("render", scene, "-o", png).exit_code == 0

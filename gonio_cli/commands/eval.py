@@ -48,6 +48,8 @@ def evaluate(
         raise InputError(f"--plot {plot} is also -o", fix="choose another --plot")
     if plot is not None and plot.suffix.lower() != ".png":
         raise InputError(f"--plot {plot}: the plot is written as PNG", fix="name it *.png")
+    from ..outputs import declare
+    declare({"-o": output, "--plot": plot}, [material, at])
     mat = read_material(material)
     data = read_measurement(at)
     if mat.status == "failed":  # a poor fit is what eval is for: comparing it with data
@@ -67,11 +69,9 @@ def evaluate(
 
 def _same_file(a: Path, b: Path) -> bool:
     """Do two paths name the same file (the same path, or a link to it)?"""
-    import os
+    from ..outputs import same_file
 
-    if a.exists() and b.exists():
-        return os.path.samefile(a, b)
-    return os.path.abspath(a) == os.path.abspath(b)
+    return same_file(a, b)
 
 
 EXAMPLE = ("gonio eval red.material.json --at red.measurement.json -o red.model.json "

@@ -92,6 +92,8 @@ def fit(
         raise InputError(f"--max-error {max_error:g} is not a CIEDE2000 limit",
                          fix="give a number in (0, 1000), e.g. 1.0")
     check_optimizer(optimizer)
+    from ..outputs import declare
+    declare({"-o": output, "--plot": plot}, [measurement, weights])
     m = read_measurement(measurement)
     w = read_weights(weights, m) if weights is not None else None
     options = FitOptions(refine=refine, step2=step2, optimizer=optimizer, alpha=alpha)

@@ -122,9 +122,19 @@ def halftone(
         raise InputError("--dpi and --print-width-mm go together",
                          fix="give both, or --size WxH")
     target_size = cov.parse_size(size) if size is not None else None
+    from ..outputs import declare
+    declare({"-o": output, "--report": report,
+             **{f"--split ({ink})": p for ink, p in
+                zip(core.INKS, split_paths(output) if split else [])}},
+            [image])
     img = read_image(image, keep_integers=True)     # 8/16-bit files as stored: no float copy
     if dpi is not None:
         target_size = cov.size_from_dpi(dpi, print_width_mm, img.pixels.shape[:2])
+    from .. import memory
+
+    width, height = target_size or (img.pixels.shape[1], img.pixels.shape[0])
+    memory.check(core.memory_estimate(width, height), f"a {width}x{height} halftone", path=image,
+          fix="lower --size (or --dpi)" if size or dpi else "resample it first with --size")
     with log.timer() as t:
         prepared, result = core.prepare_and_halftone(
             img.pixels, is_float=img.is_float, encoding=input_encoding, gamut=gamut,

@@ -88,6 +88,8 @@ def ingest(
 
     require_files(inputs)
     _refuse_overwriting_an_input(output, inputs, InputError)
+    from ..outputs import declare
+    declare({"-o": output}, [*inputs, dark])
     options = dict(quantity=quantity, white_reflectance=white_reflectance,
                    aperture_mm=aperture_mm, distance_mm=distance_mm, dark=dark,
                    grid_nm=grid_nm, scale=scale, sample=sample)

@@ -52,6 +52,8 @@ def basis(
     from ..schemas import LobeBasis, read_material, write_lobe_basis
 
     core.check_channels(channels)
+    from ..outputs import declare
+    declare({"-o": output, "--plot": plot}, materials)
     mats = [read_material(p) for p in materials]
     s = core.sample_set(samples)
     with log.timer() as t:
@@ -125,6 +127,8 @@ def fit(
                          fix="e.g. --basis basis.json")
     if not (time_limit_s > 0):
         raise InputError(f"--time-limit-s {time_limit_s:g} is not positive")
+    from ..outputs import declare
+    declare({"-o": output}, [material, basis_path])
     inputs = [material]
     if basis_path is not None:
         e = read_lobe_basis(basis_path).exponents(n_lobes, path=basis_path)

@@ -3,7 +3,8 @@
 Reads a lat-long HDR map and the exponents (a list, or the top-level ``exponents`` of a
 ``gonio.lobes`` artifact), computes every map in memory, then writes them: all files go
 first into a temporary folder beside OUTDIR and are moved into OUTDIR one by one with
-:func:`os.replace`, ``index.json`` last. A failure before that point (bad input, a bad
+:func:`os.replace`, ``index.json`` last, when the command succeeds (the outputs'
+transaction, :mod:`gonio_cli.outputs`). A failure before that point (bad input, a bad
 option, an interrupted run) leaves OUTDIR untouched; ``index.json`` only ever lists maps
 that are complete.
 """
@@ -113,6 +114,8 @@ def prefilter(
     if output.exists() and not output.is_dir():
         raise InputError("exists and is not a folder", path=output,
                          fix="give a folder name for -o")
+    from ..outputs import declare
+    declare({"-o": output}, [envmap_path, lobes], folders=["-o"])
     exps = parse_exponents(exponents) if exponents is not None else read_lobe_exponents(lobes)
     exps = core.validate_exponents(exps, path=lobes)
     image = read_image(envmap_path)
@@ -126,6 +129,12 @@ def prefilter(
     if replaced:
         log.warn(f"{envmap_path}: replaced {replaced} NaN, inf or negative texels "
                  "(negative → 0, NaN/inf → the mean of their row)")
+    from .. import memory
+
+    n_maps = len(set(exps) | {1.0})
+    memory.check(core.memory_estimate(pixels.shape[0], pixels.shape[1], n_maps),
+          f"prefiltering a {pixels.shape[1]}x{pixels.shape[0]} map into {n_maps} maps",
+          path=envmap_path, fix="give a smaller map (or fewer --exponents)")
     with log.timer() as t:
         results = core.prefilter(pixels, exps, method=method, resolution=resolution,
                                  check=check, path=str(envmap_path))
@@ -154,19 +163,12 @@ def summary_line(output: Path, results, time_s: float) -> str:
 def _write(output: Path, envmap_path: Path, lobes, shape, results, names, parameters,
            replaced: int, time_s: float) -> None:
     """Write the maps and index.json through a temporary folder beside OUTDIR."""
-    import os
-    import shutil
-    import tempfile
-
-    from ..artifact import folder_error, make_document, make_folder, note_written, write_json
+    from ..artifact import make_document, write_json
     from ..imageio import write_exr
+    from ..outputs import folder_output
 
-    parent = make_folder(output.parent)
-    try:
-        tmp = Path(tempfile.mkdtemp(prefix=f".{output.name}.", suffix=".tmp", dir=parent))
-    except OSError as exc:
-        raise folder_error(parent, exc) from None
-    try:
+    # staged as a whole, moved into OUTDIR when the command succeeds, index.json last
+    with folder_output(output, merge=True) as tmp:
         entries = []
         for r, name in zip(results, names):
             meta = {"schema": INDEX_SCHEMA, "exponent": r.exponent, "method": r.method,
@@ -188,12 +190,6 @@ def _write(output: Path, envmap_path: Path, lobes, shape, results, names, parame
         }, inputs=[envmap_path] + ([lobes] if lobes else []), parameters=parameters,
             time_s=time_s)
         write_json(tmp / "index.json", doc)
-        make_folder(output)
-        for name in names + ["index.json"]:
-            os.replace(tmp / name, output / name)
-            note_written(output / name)
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
 
 
 EXAMPLE = "gonio prefilter sky.exr --exponents 8,64,512 -o sky.prefiltered"

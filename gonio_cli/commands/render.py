@@ -109,6 +109,10 @@ def render(
         raise InputError(f"--exr-space {exr_space!r} is unknown",
                          fix=f"use one of {', '.join(EXR_SPACE_NAMES)}")
 
+    from ..outputs import declare
+    outs = {"-o": output, "--exr": exr, "--report": report, "--gamut-warning": gamut_warning,
+            "--spectral-exr": spectral_exr}
+    declare(outs, [scene])
     stats = Stats()
     with log.timer() as t:
         sc = load_scene(scene, variables=variables,
@@ -116,6 +120,7 @@ def render(
                                    "spectral": spectral, "exposure": exposure,
                                    "tonemap": tonemap, "adapt": adapt, "grid_nm": grid_nm})
     stats.time_s["scene"] = t["time_s"]
+    declare(outs, sc.inputs)  # the files the scene reads
     frame = render_scene(sc, stats, spectra=spectral_exr is not None)
     write_outputs(frame, sc, stats, png=output, exr=exr, start=start,
                   gamut_warning=gamut_warning, exr_space=exr_space, spectral_exr=spectral_exr)

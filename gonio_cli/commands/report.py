@@ -39,14 +39,13 @@ def report(
       gonio report --quick -o report/
       gonio report out/rgbink/*.measurement.json out/rgbink/*.material.json -o report/
     """
-    import os
-    import shutil
     import tempfile
     import time
 
     from .. import log
     from ..artifact import atomic_path, make_document, write_json
     from ..errors import InputError
+    from ..outputs import declare, folder_output
     from ..report import SCHEMA, SCHEMA_VERSION, parse_sections, run_report
 
     start = time.perf_counter()
@@ -58,10 +57,9 @@ def report(
                                                           "gonio.material JSON files")
     if output.exists() and not output.is_dir():
         raise InputError(f"-o {output} is a file", fix="name a folder")
-    parent = output.resolve().parent
-    parent.mkdir(parents=True, exist_ok=True)
-    stage = Path(tempfile.mkdtemp(prefix=f".{output.name}.", suffix=".tmp", dir=parent))
-    try:
+    declare({"-o": output}, paths, replaced=["-o"])
+    # REPORT_DIR is staged whole and replaces the old one when the command succeeds
+    with folder_output(output) as stage:
         with tempfile.TemporaryDirectory(prefix="gonio-report-") as work:
             result = run_report(names, Path(work), paths=paths, quick=quick,
                                 progress=lambda it: log.progress(it, "report sections",
@@ -77,27 +75,8 @@ def report(
         write_json(stage / "report.json", doc)
         with atomic_path(stage / "report.md") as tmp:  # last
             tmp.write_text(result.markdown(), encoding="utf-8")
-        os.chmod(stage, 0o777 & ~_umask())
-        old = None
-        if output.exists():
-            old = parent / f".{output.name}.old-{os.getpid()}"
-            os.replace(output, old)
-        os.replace(stage, output)
-        if old is not None:
-            shutil.rmtree(old, ignore_errors=True)
-    except BaseException:
-        shutil.rmtree(stage, ignore_errors=True)
-        raise
     log.info(f"{output / 'report.md'}: {len(result.sections)} sections "
              f"({', '.join(names)}), {result.time_s:.1f} s")
-
-
-def _umask() -> int:
-    import os
-
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
 
 
 EXAMPLE = "gonio report --quick -o report/"

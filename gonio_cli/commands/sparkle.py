@@ -60,6 +60,8 @@ def sparkle(
     if output.suffix.lower() != ".png":
         raise InputError("the sparkle texture must be a PNG", path=output, fix="name it *.png")
     angles = parse_angles(theta_i)
+    from ..outputs import declare
+    declare({"-o": output}, photos)
     if len(photos) > core.N_BITS:
         raise InputError(f"{len(photos)} photos; a sparkle texture holds at most "
                          f"{core.N_BITS} (one bit each, eq. 16)")

@@ -287,7 +287,7 @@ def blue_noise_ranks(size: int) -> tuple[np.ndarray, str]:
         pass
     ranks = void_and_cluster_ranks(size)
     try:
-        with atomic_path(path) as tmp, open(tmp, "wb") as fh:
+        with atomic_path(path, immediate=True) as tmp, open(tmp, "wb") as fh:
             np.save(fh, ranks.astype(np.int32))
     except OSError as exc:
         return ranks, f"generated (cache not writable: {exc.strerror or exc})"

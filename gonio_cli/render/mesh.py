@@ -140,6 +140,26 @@ def _int_option(options: dict, key: str, default, lo: int, spec: str) -> int | N
     return value
 
 
+def builtin_triangles(spec: str) -> int | None:
+    """Triangles of a ``builtin:`` mesh without building it (None for anything else or
+    options that :func:`_builtin` refuses): 2 S (R − 1) for the sphere, 2 N² for the
+    plane. The memory estimate of a render counts them (:mod:`gonio_cli.memory`)."""
+    if not spec.startswith(BUILTIN_PREFIX):
+        return None
+    kind, _, query = spec[len(BUILTIN_PREFIX):].partition("?")
+    options = dict(parse_qsl(query, keep_blank_values=True))
+    try:
+        if kind == "sphere":
+            s = int(options.get("segments", SPHERE_SEGMENTS))
+            r = int(options.get("rings", max(SPHERE_MIN_RINGS, s // 2)))
+            return 2 * s * max(r - 1, 0)
+        if kind == "plane":
+            return 2 * int(options.get("segments", 1)) ** 2
+    except ValueError:
+        return None
+    return None
+
+
 def _builtin(spec: str) -> Mesh:
     body = spec[len(BUILTIN_PREFIX):]
     kind, _, query = body.partition("?")

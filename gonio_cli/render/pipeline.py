@@ -277,6 +277,11 @@ SHADE_BYTES_PER_SAMPLE = 12 + 12
 #: Bytes per output pixel: XYZ float64, linear float32, coverage, display uint8 and the
 #: encoders' copies.
 OUTPUT_BYTES_PER_PIXEL = 24 + 12 + 8 + 3 + 24
+#: Peak bytes per triangle of a mesh through loading, transform and the rasterizer's
+#: set-up: measured with ru_maxrss on a 64² frame of builtin:sphere?segments=1024 … 3072
+#: (1 M … 9.4 M triangles): 185 bytes a triangle above the baseline, linear in the count
+#: (tests/test_memory.py checks the estimate against a measured peak).
+MESH_BYTES_PER_TRIANGLE = 190
 
 
 #: Bytes per value (pixel × wavelength) of a spectral image: the float32 image and, while
@@ -297,7 +302,8 @@ def memory_estimate(scene: Scene, spectra: bool = False) -> int:
     covered: the compact float32 G-buffer with its keys and indices
     (:func:`gonio_cli.render.raster.gbuffer_bytes`), the shaded rows, the supersampled
     image of the resolve and the output images; with ``spectra``, plus
-    :func:`spectral_image_bytes`. Meshes and materials are not counted."""
+    :func:`spectral_image_bytes`. Built-in meshes count :data:`MESH_BYTES_PER_TRIANGLE`
+    (:func:`mesh_triangles`); OBJ files and materials are not counted."""
     from .raster import gbuffer_bytes
 
     cam, ssaa = scene.camera, scene.output.ssaa
@@ -305,6 +311,7 @@ def memory_estimate(scene: Scene, spectra: bool = False) -> int:
     return (gbuffer_bytes(cam.height, cam.width, ssaa, uv=scene.needs_uvs,
                           position=needs_positions(scene))
             + samples * SHADE_BYTES_PER_SAMPLE + cam.width * cam.height * OUTPUT_BYTES_PER_PIXEL
+            + mesh_triangles(scene) * MESH_BYTES_PER_TRIANGLE
             + (spectral_image_bytes(scene) if spectra else 0))
 
 
@@ -325,39 +332,36 @@ def bands_per_pass(rows: int, n_wavelengths: int) -> int:
     return int(max(1, min(n_wavelengths, fit)))
 
 
-def machine_memory() -> int | None:
-    """Physical memory of the machine in bytes (``os.sysconf``), or None if unknown."""
-    import os
+def mesh_triangles(scene: Scene) -> int:
+    """Triangles of the scene's built-in meshes, one copy per object (each is
+    transformed into world space)."""
+    from .mesh import builtin_triangles
 
-    try:
-        return int(os.sysconf("SC_PAGE_SIZE")) * int(os.sysconf("SC_PHYS_PAGES"))
-    except (ValueError, OSError, AttributeError):
-        return None
+    return sum(builtin_triangles(o.mesh) or 0 for o in scene.objects)
 
 
 def check_memory(scene: Scene, spectra: bool = False) -> int:
-    """Refuse, before allocating anything, a frame whose buffers exceed the machine's
-    memory; the message gives the estimate and the options that lower it. With
-    ``spectra`` (a spectral image) the frame is checked first, then frame + image.
-    Returns the estimate in bytes."""
-    have = machine_memory()
+    """Refuse, before allocating anything, a frame whose buffers and meshes exceed the
+    memory available (:func:`gonio_cli.memory.check`); the message gives the estimate
+    and the options that lower it. With ``spectra`` (a spectral image) the frame is
+    checked first, then frame + image. Returns the estimate in bytes."""
+    from ..memory import check
+
     cam = scene.camera
     frame = memory_estimate(scene)
-    if have is not None and frame > have:
-        raise InputError(f"a {cam.width}x{cam.height} render at ssaa {scene.output.ssaa} "
-                         f"needs about {frame / 2**30:.1f} GiB of buffers, more than this "
-                         f"machine's {have / 2**30:.1f} GiB", path=scene.display,
-                         fix="lower --ssaa or --width/--height")
+    triangles = mesh_triangles(scene)
+    if triangles * MESH_BYTES_PER_TRIANGLE > frame / 2:
+        check(frame, f"a {cam.width}x{cam.height} render of {triangles / 1e6:.1f} M "
+              "built-in mesh triangles", path=scene.display,
+              fix="lower segments= (and rings=) of the builtin: mesh")
+    check(frame, f"a {cam.width}x{cam.height} render at ssaa {scene.output.ssaa}",
+          path=scene.display, fix="lower --ssaa or --width/--height")
     if not spectra:
         return frame
-    need = memory_estimate(scene, spectra=True)
-    if have is not None and need > have:
-        raise InputError(f"a {cam.width}x{cam.height} spectral image on "
-                         f"{np.size(scene.grid_nm)} wavelengths needs about "
-                         f"{need / 2**30:.1f} GiB with the frame's buffers, more than this "
-                         f"machine's {have / 2**30:.1f} GiB", path=scene.display,
-                         fix="use a coarser --grid-nm, or lower --width/--height or --ssaa")
-    return need
+    return check(memory_estimate(scene, spectra=True),
+                 f"a {cam.width}x{cam.height} spectral image on {np.size(scene.grid_nm)} "
+                 "wavelengths with the frame's buffers", path=scene.display,
+                 fix="use a coarser --grid-nm, or lower --width/--height or --ssaa")
 
 
 def needs_positions(scene: Scene) -> bool:
