@@ -1,0 +1,164 @@
+"""One batch job, run inside a worker process: the idempotence test and the record.
+
+A job runs through gonio's own CLI in the worker (:func:`run_gonio`), not a subprocess,
+so what a stage keeps at module level (colour tables, compiled kernels, meshes,
+prefiltered maps) is loaded once per worker and reused by its next jobs; what belongs to
+one run (the list of files written, ``--quiet``) is reset by :func:`gonio_cli.cli.run`.
+A bad input ends that job with gonio's one-line error; it is a result, not an exception,
+so Dask never retries it. The record a job returns is one line of the manifest.
+
+Nothing here imports Dask: the engine (:mod:`.engine`) submits :func:`execute`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import os
+import socket
+import time
+from typing import Any, Callable, Mapping
+
+from .. import __version__
+from .plan import Job
+
+#: Statuses of a record: ran now; up to date (earlier outputs kept); its command failed;
+#: not run because a job it needs failed.
+STATUSES = ("ok", "skipped", "failed", "blocked")
+#: Statuses whose outputs are valid (a later job may use them; a rerun may keep them).
+GOOD = ("ok", "skipped")
+#: Folder of the output folder holding each job's attempt log (one line per start).
+ATTEMPTS_DIR = ".gonio-batch/attempts"
+
+
+def sha256(path: str) -> str | None:
+    from ..artifact import sha256_file
+
+    try:
+        return sha256_file(path)
+    except OSError:
+        return None
+
+
+def stamp(job: Job) -> str:
+    """Hash of what decides a job's outputs besides its input files: its command as the
+    plan writes it (relocatable: ``${out}`` and plan-relative paths) and gonio's version."""
+    import hashlib
+
+    text = json.dumps({"argv": list(job.template), "gonio_version": __version__})
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def files(paths) -> list[dict[str, Any]]:
+    return [{"path": p, "sha256": sha256(p)} for p in paths]
+
+
+def up_to_date(job: Job, previous: Mapping[str, Any] | None) -> list[dict] | None:
+    """The job's input records if ``previous`` (its record of an earlier run) still
+    stands: same stamp, same input hashes, every output there with its recorded hash;
+    else None."""
+    if not previous or previous.get("status") not in GOOD or previous.get("stamp") != stamp(job):
+        return None
+    inputs = files(job.inputs)
+    if [(i["path"], i["sha256"]) for i in inputs] != \
+            [(i["path"], i["sha256"]) for i in previous.get("inputs", [])]:
+        return None
+    outputs = previous.get("outputs", [])
+    if [o["path"] for o in outputs] != list(job.outputs) or any(
+            o["sha256"] is None or sha256(o["path"]) != o["sha256"] for o in outputs):
+        return None
+    return inputs
+
+
+def record(job: Job, status: str, **fields) -> dict[str, Any]:
+    """A manifest line: key, command, status and whatever ``fields`` adds."""
+    out = {"key": job.key, "command": "gonio " + " ".join(job.template), "status": status,
+           "stamp": stamp(job), "gonio_version": __version__, "inputs": [], "outputs": [],
+           "time_s": 0.0, "worker": None, "attempts": 0, "error": None,
+           "labels": dict(job.labels)}
+    out.update(fields)
+    return out
+
+
+def note_attempt(outdir: str, job: Job) -> int:
+    """Log one start of ``job`` (host:pid) and return how many starts this batch made,
+    counting those of workers that died mid-job (the log outlives them)."""
+    folder = os.path.join(outdir, ATTEMPTS_DIR)
+    os.makedirs(folder, exist_ok=True)
+    path = os.path.join(folder, job.file_name + ".log")
+    with open(path, "a", encoding="utf-8") as fh:
+        fh.write(f"{worker_name()}\n")
+    with open(path, encoding="utf-8") as fh:
+        return sum(1 for _ in fh)
+
+
+def worker_name() -> str:
+    return f"{socket.gethostname()}:{os.getpid()}"
+
+
+# --------------------------------------------------------------------------- runners --
+
+def run_gonio(job: Job) -> str | None:
+    """Run ``gonio ARGV`` in this process; None, or the error line on failure."""
+    from .. import cli
+
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+        code = cli.run(["--quiet", *job.argv])
+    if code == 0:
+        return None
+    lines = [l for l in err.getvalue().splitlines() if l.startswith("gonio: ")]
+    text = lines[-1] if lines else f"exit status {code}"
+    for prefix in ("gonio: error: ", "gonio: "):
+        if text.startswith(prefix):
+            return text[len(prefix):]
+    return text
+
+
+def run_preview(job: Job) -> str | None:
+    """Assemble a turntable's frames (the job's inputs, in order) into an animated PNG."""
+    from ..imageio import write_apng
+
+    frames = list(job.inputs)
+    write_apng(job.outputs[0], frames, metadata={"turntable_frames": len(frames)})
+    return None
+
+
+#: How a worker runs each kind of job (:data:`gonio_cli.batch.plan.COMMANDS`).
+RUNNERS: dict[str, Callable[[Job], str | None]] = {"gonio": run_gonio, "preview": run_preview}
+
+
+def execute(job: Job, outdir: str, previous: Mapping[str, Any] | None,
+            *upstream: Mapping[str, Any]) -> dict[str, Any]:
+    """Run one job in a worker and return its manifest record.
+
+    ``upstream``: the records of the jobs that make its inputs (Dask passes the results
+    of the futures it was given); a failed one blocks this job. A job whose earlier
+    record still stands (:func:`up_to_date`) is skipped.
+    """
+    attempts = note_attempt(outdir, job)
+    failed = [u["key"] for u in upstream if u.get("status") not in GOOD]
+    if failed:
+        return record(job, "blocked", attempts=attempts, worker=worker_name(),
+                      error=f"not run: {', '.join(failed)} failed")
+    kept = up_to_date(job, previous)
+    if kept is not None:
+        return {**previous, "status": "skipped", "attempts": attempts, "labels": dict(job.labels)}
+    inputs = files(job.inputs)
+    start = time.perf_counter()
+    try:
+        error = RUNNERS[job.runner](job)
+    except Exception as exc:  # a bug in a runner: one line in the record, not a retry loop
+        from ..errors import GonioError
+
+        error = exc.format() if isinstance(exc, GonioError) else \
+            f"internal error: {type(exc).__name__}: {exc}"
+    time_s = time.perf_counter() - start
+    outputs = files(job.outputs)
+    if error is None and any(o["sha256"] is None for o in outputs):
+        missing = next(o["path"] for o in outputs if o["sha256"] is None)
+        error = f"{missing}: the command did not write it"
+    return record(job, "failed" if error else "ok", inputs=inputs,
+                  outputs=outputs if not error else [], time_s=time_s,
+                  worker=worker_name(), attempts=attempts, error=error)
