@@ -43,6 +43,7 @@ def batch(
     dashboard: bool = typer.Option(False, "--dashboard",
                                    help="Serve the Dask dashboard (on 127.0.0.1)."),
 ) -> None:
+    import sys
     import time
 
     from .. import log
@@ -84,8 +85,8 @@ def batch(
                  f"failed, {counts['blocked']} not run, {counts['skipped']} up to date)")
     log.info(f"gonio batch: {what} in {total:.1f} s; {output}/manifest.jsonl, {sheet}")
     bad = [r for r in records if r["status"] in ("failed", "blocked")]
-    for r in bad:
-        log.info(f"gonio: failed: {r['key']}: {r['error']}")
+    for r in bad:  # shown with --quiet too, like every error
+        print(f"gonio: failed: {r['key']}: {r['error']}", file=sys.stderr)
     if bad:
         raise typer.Exit(1)
 
