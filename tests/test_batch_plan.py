@@ -151,3 +151,49 @@ def test_render_turntable_options_are_checked(run_gonio, tmp_path):
         assert r.exit_code == 2 and words in r.stderr and len(r.stderr.splitlines()) == 1, \
             r.stderr
     assert not list(tmp_path.iterdir())
+
+
+def test_plain_job_options_become_gonio_words(tmp_path):
+    (tmp_path / "in.csv").write_text("x\n")
+    plan = _write(tmp_path / "plan.toml", """
+[[job]]
+key = "fit/x"
+command = "fit"
+inputs = ["${out}/x.measurement.json"]
+output = "${out}/x.material.json"
+options = { refine = false, std-weights = true, exclude-theta-i = [60, 70.0], plot = "${out}/x.png" }
+
+[[job]]
+key = "ingest/x"
+command = "ingest"
+inputs = ["in.csv"]
+output = "${out}/x.measurement.json"
+options = { scale = 0.01 }
+""")
+    p = read_plan(plan, tmp_path / "out")
+    fit, ingest = p.jobs
+    out = str(tmp_path / "out")
+    assert fit.argv == ("fit", f"{out}/x.measurement.json", "-o", f"{out}/x.material.json",
+                        "--no-refine", "--std-weights", "--exclude-theta-i", "60",
+                        "--exclude-theta-i", "70", "--plot", f"{out}/x.png")
+    assert fit.outputs == (f"{out}/x.material.json", f"{out}/x.png")  # --plot is one too
+    assert ingest.argv == ("ingest", str(tmp_path / "in.csv"), "-o",
+                           f"{out}/x.measurement.json", "--scale", "0.01")
+    # the fit waits for the ingest although the plan lists it first
+    from gonio_cli.batch.plan import check_graph
+
+    assert check_graph(p) == ["ingest/x", "fit/x"]
+
+
+def test_folder_outputs_hash_their_files(tmp_path):
+    from gonio_cli.batch.jobs import sha256
+
+    d = tmp_path / "maps"
+    (d / "sub").mkdir(parents=True)
+    (d / "a.bin").write_bytes(b"1")
+    (d / "sub" / "b.bin").write_bytes(b"2")
+    first = sha256(str(d))
+    assert first is not None and sha256(str(d)) == first
+    (d / "sub" / "b.bin").write_bytes(b"3")
+    assert sha256(str(d)) != first
+    assert sha256(str(tmp_path / "missing")) is None

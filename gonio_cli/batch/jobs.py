@@ -33,10 +33,22 @@ ATTEMPTS_DIR = ".gonio-batch/attempts"
 
 
 def sha256(path: str) -> str | None:
+    """Hex SHA-256 of a file, or of a folder (``gonio prefilter -o DIR``): of the list of
+    its files' relative paths and hashes; None if it is not there."""
+    import hashlib
+
     from ..artifact import sha256_file
 
     try:
-        return sha256_file(path)
+        if not os.path.isdir(path):
+            return sha256_file(path)
+        h = hashlib.sha256()
+        for folder, dirs, names in sorted(os.walk(path)):
+            dirs.sort()
+            for name in sorted(names):
+                full = os.path.join(folder, name)
+                h.update(f"{os.path.relpath(full, path)}\0{sha256_file(full)}\n".encode())
+        return h.hexdigest()
     except OSError:
         return None
 
