@@ -197,3 +197,36 @@ def test_folder_outputs_hash_their_files(tmp_path):
     (d / "sub" / "b.bin").write_bytes(b"3")
     assert sha256(str(d)) != first
     assert sha256(str(tmp_path / "missing")) is None
+
+
+def test_render_turntable_writes_frames_and_an_animated_preview(run_gonio, tmp_path):
+    """``--turntable 3`` = three ``--frame K`` renders; frame 0 is the scene unturned."""
+    from PIL import Image
+
+    from gonio_cli.schemas import write_material
+    sys.path.insert(0, str(ROOT / "tests"))
+    from test_render_reference import ink
+
+    material = tmp_path / "ink.material.json"
+    write_material(material, ink(620.0, 0.18))
+    scene = SAMPLE_PLAN.parent / "scenes" / "sphere.toml"
+    common = (scene, "--var", f"material={material}", "--width", "32", "--height", "32")
+    assert run_gonio("render", *common, "-o", tmp_path / "spin.png", "--turntable", "3",
+                     "--exr", tmp_path / "spin.exr").exit_code == 0
+    assert run_gonio("render", *common, "-o", tmp_path / "still.png").exit_code == 0
+    assert run_gonio("render", *common, "-o", tmp_path / "k2.png", "--turntable", "3",
+                     "--frame", "2").exit_code == 0
+
+    def pixels(name):
+        with Image.open(tmp_path / name) as im:
+            return np.asarray(im.convert("RGB"))
+
+    assert np.array_equal(pixels("spin.frame000.png"), pixels("still.png"))
+    assert np.array_equal(pixels("spin.frame002.png"), pixels("k2.png"))
+    assert not np.array_equal(pixels("spin.frame000.png"), pixels("spin.frame001.png"))
+    assert all((tmp_path / f"spin.frame{k:03d}.exr").is_file() for k in range(3))
+    with Image.open(tmp_path / "spin.png") as im:
+        assert im.n_frames == 3
+        for k in range(3):
+            im.seek(k)
+            assert np.array_equal(np.asarray(im.convert("RGB")), pixels(f"spin.frame{k:03d}.png"))

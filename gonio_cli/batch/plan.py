@@ -164,7 +164,7 @@ class _Reader:
 
     def add(self, key: str, command: str, positional: list[str], output: str | None,
             options: list[str], outputs: list[str], needs: list[str], where: str,
-            labels: Mapping[str, Any] | None = None, output_flag: bool = True) -> Job:
+            labels: Mapping[str, Any] | None = None) -> Job:
         if command.split()[0] not in COMMANDS:
             raise self.error(f"{where} command", f"{command!r} is not a command a plan runs",
                              fix=f"use one of {', '.join(COMMANDS)}")
@@ -176,7 +176,7 @@ class _Reader:
                 raise self.error(f"{where} output", f"{o!r} is not inside the output folder",
                                  fix=f"write it as \"{OUT}/{os.path.basename(o)}\"")
         template = [*command.split(), *positional]
-        if output is not None and output_flag:
+        if output is not None:
             template += ["-o", output]
         template += options
         argv = [self.resolve_word(w) for w in template]
@@ -333,8 +333,7 @@ def _matrix(r: _Reader, m, materials: Mapping[str, str]) -> None:
                            "--orbit", orbit], extra, [material, *needs], where,
                           {**labels, "role": "frame", "frame": k})
                 r.add(f"preview/{name}/{stem}{tag}", "preview", pngs, f"{base}.png", [], [],
-                      [], where, {**labels, "role": "preview", "frames": frames},
-                      output_flag=True)
+                      [], where, {**labels, "role": "preview", "frames": frames})
 
 
 def _plain_job(r: _Reader, raw, where: str) -> None:

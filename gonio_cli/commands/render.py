@@ -71,11 +71,15 @@ def render(
       gonio render scene.toml -o a.png --exr a.exr --ssaa 3 --report run.json
       gonio render scene.toml -o a.png --grid-nm 400:700:10
     """
+    if turntable is not None and frame is None:  # every frame, then the preview
+        return render_turntable(dict(locals()))  # (the options: nothing else is defined)
     import time
 
     start = time.perf_counter()  # the total: scene loading to images written
     from .. import log
     from ..errors import InputError
+    from ..render import Stats
+    from ..render.pipeline import frame_time, render_scene, write_outputs, write_report
     from ..render.scene import load_scene
 
     variables = {}
@@ -103,74 +107,20 @@ def render(
         raise InputError(f"-o {output}: the image is written as PNG", fix="name it *.png")
     if exr is not None and exr.suffix.lower() != ".exr":
         raise InputError(f"--exr {exr}: not an .exr name", fix="name it *.exr")
-    frames = turntable_frames(turntable, frame, orbit)
+    check_turntable(turntable, frame, orbit)
 
+    stats = Stats()
     with log.timer() as t:
         sc = load_scene(scene, variables=variables,
                         overrides={"width": width, "height": height, "ssaa": ssaa,
                                    "spectral": spectral, "exposure": exposure,
                                    "tonemap": tonemap, "adapt": adapt, "grid_nm": grid_nm})
-    pngs = []
-    for k in frames:
-        one = frame_name if turntable is not None and frame is None else (lambda p, k: p)
-        png = one(output, k)
-        pngs.append(png)
-        _render_one(sc if k is None else orbit_scene(sc, k, turntable, orbit), t["time_s"],
-                    start, png=png, exr=exr and one(exr, k), report=report and one(report, k),
-                    gamut_warning=gamut_warning and one(gamut_warning, k))
-        start = time.perf_counter()
-    if len(pngs) > 1:
-        from ..imageio import write_apng
+    stats.time_s["scene"] = t["time_s"]
+    if turntable is not None:
+        from ..render.scene import orbit as turn
 
-        write_apng(output, pngs, metadata={"turntable_frames": len(pngs), "orbit": orbit})
-        log.info(f"{output}: turntable preview of {len(pngs)} frames ({orbit} orbit)")
-
-
-def turntable_frames(turntable, frame, orbit) -> list:
-    """The turntable frames to render: [None] (no turntable), [K] or 0 … N-1."""
-    from ..errors import InputError
-    from ..render.scene import ORBITS
-
-    if orbit not in ORBITS:
-        raise InputError(f"--orbit {orbit!r} is unknown", fix=f"use one of {', '.join(ORBITS)}")
-    if turntable is None:
-        if frame is not None:
-            raise InputError("--frame needs --turntable N", fix="add --turntable N")
-        return [None]
-    if turntable < 1:
-        raise InputError(f"--turntable {turntable} is not a number of frames",
-                         fix="give N >= 1, e.g. --turntable 8")
-    if frame is None:
-        return list(range(turntable))
-    if not 0 <= frame < turntable:
-        raise InputError(f"--frame {frame} is outside 0 to {turntable - 1}",
-                         fix=f"give a frame from 0 to {turntable - 1}")
-    return [frame]
-
-
-def frame_name(path: Path, k: int) -> Path:
-    """Frame ``k`` of a turntable written to ``path``: ``OUT.frame007.png`` beside it."""
-    return path.with_name(f"{path.stem}.frame{k:03d}{path.suffix}")
-
-
-def orbit_scene(sc, k: int, n: int, orbit: str):
-    from ..render.scene import orbit as turn
-
-    return turn(sc, k, n, orbit)
-
-
-def _render_one(sc, scene_s: float, start: float, *, png, exr, report, gamut_warning) -> None:
-    """Render one frame and write its files (the whole of a render without --turntable)."""
-    import time
-
-    from .. import log
-    from ..render import Stats
-    from ..render.pipeline import frame_time, render_scene, write_outputs, write_report
-
-    stats = Stats()
-    stats.time_s["scene"] = scene_s
+        sc = turn(sc, frame, turntable, orbit)
     frame = render_scene(sc, stats)
-    output = png
     write_outputs(frame, sc, stats, png=output, exr=exr, start=start,
                   gamut_warning=gamut_warning)
     total = time.perf_counter() - start
@@ -185,6 +135,56 @@ def _render_one(sc, scene_s: float, start: float, *, png, exr, report, gamut_war
     log.info(f"{output}: {sc.camera.width}x{sc.camera.height}, ssaa {sc.output.ssaa}, "
              f"{sc.output.spectral} spectra, frame {frame_ms:.0f} ms, total {total:.2f} s"
              f"{shown}")
+
+
+
+def check_turntable(turntable: int | None, frame: int | None, orbit: str) -> None:
+    """Refuse turntable options that do not fit together."""
+    from ..errors import InputError
+    from ..render.scene import ORBITS
+
+    if orbit not in ORBITS:
+        raise InputError(f"--orbit {orbit!r} is unknown", fix=f"use one of {', '.join(ORBITS)}")
+    if turntable is None:
+        if frame is not None:
+            raise InputError("--frame needs --turntable N", fix="add --turntable N")
+        return
+    if turntable < 1:
+        raise InputError(f"--turntable {turntable} is not a number of frames",
+                         fix="give N >= 1, e.g. --turntable 8")
+    if frame is not None and not 0 <= frame < turntable:
+        raise InputError(f"--frame {frame} is outside 0 to {turntable - 1}",
+                         fix=f"give a frame from 0 to {turntable - 1}")
+
+
+def frame_name(path: Path, k: int) -> Path:
+    """Frame ``k`` of a turntable written to ``path``: ``OUT.frame007.png`` beside it."""
+    return path.with_name(f"{path.stem}.frame{k:03d}{path.suffix}")
+
+
+#: Options naming files a turntable writes once per frame (``frame_name``).
+PER_FRAME = ("output", "exr", "report", "gamut_warning")
+
+
+def render_turntable(options: dict) -> None:
+    """``--turntable N`` without ``--frame``: each frame as ``render --frame K`` writes
+    it, to ``OUT.frameK.png`` (and its EXR, report, gamut warning), then ``OUT.png``, an
+    animated PNG of the frames."""
+    from .. import log
+    from ..imageio import write_apng
+
+    check_turntable(options["turntable"], None, options["orbit"])
+    pngs = []
+    for k in range(options["turntable"]):
+        named = {key: frame_name(options[key], k) for key in PER_FRAME
+                 if options[key] is not None}
+        render(**{**options, **named, "frame": k})
+        pngs.append(named["output"])
+    write_apng(options["output"], pngs,
+               metadata={"turntable_frames": len(pngs), "orbit": options["orbit"]})
+    log.info(f"{options['output']}: turntable preview of {len(pngs)} frames "
+             f"({options['orbit']} orbit)")
+
 
 EXAMPLE = "gonio render sample_data/scenes/spheres.toml -o red.png --exr red.exr --report run.json"
 
