@@ -19,7 +19,7 @@ import shutil
 from typing import Any, Callable, Mapping
 
 from . import MANIFEST_NAME
-from .jobs import ATTEMPTS_DIR, GOOD, execute, record, up_to_date
+from .jobs import ATTEMPTS_DIR, execute, failed_roots, record, up_to_date
 from .plan import Plan, check_graph, dependencies
 
 #: Seconds to wait for a scheduler given with ``--scheduler`` (and for its workers).
@@ -158,11 +158,13 @@ def _submit(plan, stale, settled, previous, workers, scheduler, retries, dashboa
             try:
                 rec = future.result()
             except Exception as exc:  # the job's worker kept dying, or a lost cluster
-                bad = [d for d in deps[key] if d in out and out[d]["status"] not in GOOD]
+                bad = failed_roots([out[d] for d in deps[key] if d in out])
                 rec = record(jobs[key], "blocked" if bad else "failed",
                              attempts=_attempts(outdir, jobs[key]),
                              error=(f"not run: {', '.join(bad)} failed" if bad else
-                                    f"lost its worker: {type(exc).__name__}: {exc}"))
+                                    " ".join(f"lost its worker: {type(exc).__name__}: "
+                                             f"{exc}".split())),
+                             **({"failed_roots": bad} if bad else {}))
             out[key] = rec
             if on_record is not None:
                 on_record(rec)

@@ -93,6 +93,18 @@ def record(job: Job, status: str, **fields) -> dict[str, Any]:
     return out
 
 
+def failed_roots(upstream) -> list[str]:
+    """The failed jobs behind the records ``upstream``: a failed one's key, or what
+    blocked a blocked one (so a message names the cause, not the chain)."""
+    roots: list[str] = []
+    for u in upstream:
+        if u.get("status") == "failed":
+            roots.append(u["key"])
+        elif u.get("status") not in GOOD:
+            roots += u.get("failed_roots") or [u["key"]]
+    return list(dict.fromkeys(roots))
+
+
 def note_attempt(outdir: str, job: Job) -> int:
     """Log one start of ``job`` (host:pid) and return how many starts this batch made,
     counting those of workers that died mid-job (the log outlives them)."""
@@ -150,10 +162,10 @@ def execute(job: Job, outdir: str, previous: Mapping[str, Any] | None,
     record still stands (:func:`up_to_date`) is skipped.
     """
     attempts = note_attempt(outdir, job)
-    failed = [u["key"] for u in upstream if u.get("status") not in GOOD]
+    failed = failed_roots(upstream)
     if failed:
         return record(job, "blocked", attempts=attempts, worker=worker_name(),
-                      error=f"not run: {', '.join(failed)} failed")
+                      error=f"not run: {', '.join(failed)} failed", failed_roots=failed)
     kept = up_to_date(job, previous)
     if kept is not None:
         return {**previous, "status": "skipped", "attempts": attempts, "labels": dict(job.labels)}

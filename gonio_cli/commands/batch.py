@@ -84,10 +84,14 @@ def batch(
             else f"ran {ran} of {len(records)} jobs ({counts['ok']} ok, {counts['failed']} "
                  f"failed, {counts['blocked']} not run, {counts['skipped']} up to date)")
     log.info(f"gonio batch: {what} in {total:.1f} s; {output}/manifest.jsonl, {sheet}")
-    bad = [r for r in records if r["status"] in ("failed", "blocked")]
-    for r in bad:  # shown with --quiet too, like every error
+    failed = [r for r in records if r["status"] == "failed"]
+    blocked = [r["key"] for r in records if r["status"] == "blocked"]
+    for r in failed:  # shown with --quiet too, like every error
         print(f"gonio: failed: {r['key']}: {r['error']}", file=sys.stderr)
-    if bad:
+    if blocked:
+        print(f"gonio: not run, as a job they need failed: {', '.join(blocked)}",
+              file=sys.stderr)
+    if failed or blocked:
         raise typer.Exit(1)
 
 
