@@ -124,51 +124,54 @@ def run_plan(plan: Plan, *, workers: int | None = None, scheduler: str | None = 
         make_folder(folder)
     shutil.rmtree(os.path.join(outdir, ATTEMPTS_DIR), ignore_errors=True)
     records, stale = settle(plan, previous)
-    if stale:
-        records.update(_submit(plan, stale, records, previous, workers, scheduler,
-                               retries, dashboard, on_start, on_record))
-    elif on_start is not None:
-        on_start(0, None)
-    ordered = [records[j.key] for j in plan.jobs]
-    write_manifest(outdir, ordered)
-    return ordered
+    try:
+        if stale:
+            _submit(plan, stale, records, previous, workers, scheduler, retries, dashboard,
+                    on_start, on_record)
+        elif on_start is not None:
+            on_start(0, None)
+    finally:  # also after Ctrl-C: what ran is kept (a job without a record runs next time)
+        write_manifest(outdir, [records.get(j.key) or previous[j.key] for j in plan.jobs
+                                if j.key in records or j.key in previous])
+    return [records[j.key] for j in plan.jobs]
 
 
-def _submit(plan, stale, settled, previous, workers, scheduler, retries, dashboard,
-            on_start, on_record) -> dict[str, dict]:
+def _submit(plan, stale, records, previous, workers, scheduler, retries, dashboard,
+            on_start, on_record) -> None:
+    """Run the ``stale`` jobs on Dask, adding each one's record to ``records`` (which
+    holds the settled ones) as it ends."""
     jobs = {j.key: j for j in plan.jobs}
     deps = dependencies(plan)
     outdir = os.fspath(plan.outdir)
     client, cluster = connect(workers, scheduler, dashboard, retries)
     from distributed import as_completed
+
     try:
         if on_start is not None:
             on_start(len(stale), client.dashboard_link if dashboard else None)
         futures: dict[str, Any] = {}
         token = os.urandom(4).hex()
         for key in stale:
-            upstream = [futures[d] if d in futures else settled[d] for d in deps[key]]
+            upstream = [futures[d] if d in futures else records[d] for d in deps[key]]
             futures[key] = client.submit(execute, jobs[key], outdir, previous.get(key),
                                          *upstream, key=f"gonio-{key}-{token}", pure=False,
                                          retries=retries)
         keys = {f.key: k for k, f in futures.items()}
-        out: dict[str, dict] = {}
         for future in as_completed(list(futures.values())):
             key = keys[future.key]
             try:
                 rec = future.result()
             except Exception as exc:  # the job's worker kept dying, or a lost cluster
-                bad = failed_roots([out[d] for d in deps[key] if d in out])
+                bad = failed_roots([records[d] for d in deps[key] if d in records])
                 rec = record(jobs[key], "blocked" if bad else "failed",
                              attempts=_attempts(outdir, jobs[key]),
                              error=(f"not run: {', '.join(bad)} failed" if bad else
                                     " ".join(f"lost its worker: {type(exc).__name__}: "
                                              f"{exc}".split())),
                              **({"failed_roots": bad} if bad else {}))
-            out[key] = rec
+            records[key] = rec
             if on_record is not None:
                 on_record(rec)
-        return out
     finally:
         client.close()
         if cluster is not None:
