@@ -4,7 +4,8 @@ Every image the batch wrote is a thumbnail linked to the full image, grouped by 
 and scene, with the material's fit verdict and colour errors (read from its
 gonio.material file), each job's time and status, and the turntable previews (animated
 PNGs, which browsers play in an ``<img>``). Failed jobs are listed with their one-line
-errors. Links are relative, so the folder can be copied or served as it is.
+errors. Links are relative, so the folder can be copied or served as it is; images
+larger than twice the thumbnail width get a small copy in ``OUTDIR/thumbs/``.
 """
 
 from __future__ import annotations
@@ -55,15 +56,45 @@ def _verdict(material_path: str | None) -> str:
     return "fit: " + ", ".join(p for p in parts if p)
 
 
+#: Folder of the thumbnails, inside the output folder.
+THUMBS_DIR = "thumbs"
+
+
+def thumbnail(outdir: str, image: str) -> str:
+    """A small copy of ``image`` for the sheet (``OUTDIR/thumbs/…``, remade when older
+    than the image), or the image itself if it is small already or animated (a
+    turntable preview plays as it is)."""
+    from PIL import Image
+
+    with Image.open(image) as im:
+        if max(im.size) <= 2 * THUMB_PX or getattr(im, "n_frames", 1) > 1:
+            return image
+        thumb = os.path.join(outdir, THUMBS_DIR, os.path.relpath(image, outdir))
+        if os.path.isfile(thumb) and os.path.getmtime(thumb) >= os.path.getmtime(image):
+            return thumb
+        small = im.convert("RGB")
+        small.thumbnail((2 * THUMB_PX, 2 * THUMB_PX))  # sharp on 2x displays
+    from ..artifact import atomic_path, make_folder
+
+    make_folder(os.path.dirname(thumb))
+    with atomic_path(thumb) as tmp:
+        small.save(tmp, format="PNG")
+    return thumb
+
+
 def _figure(outdir: str, rec: Mapping[str, Any], caption: str, preview: bool = False) -> str:
-    if not rec.get("outputs"):
+    if not rec.get("outputs") or not os.path.isfile(rec["outputs"][0]["path"]):
         return (f"<figure><div class='{_e(rec['status'])}' style='width:{THUMB_PX}px'>"
                 f"{_e(rec['status'])}</div><figcaption>{_e(caption)}</figcaption></figure>")
-    src = os.path.relpath(rec["outputs"][0]["path"], outdir)
-    link = _e(src.replace(os.sep, "/"))
+    image = rec["outputs"][0]["path"]
+
+    def rel(path: str) -> str:
+        return _e(os.path.relpath(path, outdir).replace(os.sep, "/"))
+
     cls = " class='preview'" if preview else ""
-    return (f"<figure{cls}><a href='{link}'><img src='{link}' alt='{_e(rec['key'])}' "
-            f"class='thumb'></a><figcaption>{_e(caption)}</figcaption></figure>")
+    return (f"<figure{cls}><a href='{rel(image)}'><img src='{rel(thumbnail(outdir, image))}' "
+            f"alt='{_e(rec['key'])}' class='thumb'></a><figcaption>{_e(caption)}"
+            "</figcaption></figure>")
 
 
 def write_sheet(outdir: str | os.PathLike, records: Sequence[Mapping[str, Any]], *,
