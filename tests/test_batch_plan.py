@@ -230,3 +230,18 @@ def test_render_turntable_writes_frames_and_an_animated_preview(run_gonio, tmp_p
         for k in range(3):
             im.seek(k)
             assert np.array_equal(np.asarray(im.convert("RGB")), pixels(f"spin.frame{k:03d}.png"))
+
+
+def test_help_and_plan_errors_do_not_import_dask(tmp_path):
+    """Dask is imported only when a cluster is needed (``gonio --version`` stays light:
+    tests/test_cli.py)."""
+    import subprocess
+
+    plan = _write(tmp_path / "plan.toml", "[[material]]\nname = 'x'\ncsv = ['none.csv']\n")
+    code = ("import sys\nfrom gonio_cli import cli\n"
+            f"a = cli.run(['batch', '--help'])\nb = cli.run(['batch', {str(plan)!r}, '-o', "
+            f"{str(tmp_path / 'out')!r}])\n"
+            "print(a, b, sorted(m for m in ('dask', 'distributed') if m in sys.modules))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=120)
+    assert done.stdout.strip().splitlines()[-1] == "0 2 []", done.stdout + done.stderr
