@@ -382,7 +382,7 @@ def check_graph(plan: Plan) -> list[str]:
             made_by[o] = j.key
     for j in plan.jobs:
         for i in j.inputs:
-            if i not in made_by and not os.path.isfile(i):
+            if i not in made_by and not os.path.exists(i):
                 raise PlanError(f"job {j.key!r}: input {i} does not exist and no job makes it",
                                 path=plan.path,
                                 fix="check the path (relative to the plan) or add the job "
