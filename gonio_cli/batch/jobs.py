@@ -87,7 +87,7 @@ def record(job: Job, status: str, **fields) -> dict[str, Any]:
     """A manifest line: key, command, status and whatever ``fields`` adds."""
     out = {"key": job.key, "command": "gonio " + " ".join(job.template), "status": status,
            "stamp": stamp(job), "gonio_version": __version__, "inputs": [], "outputs": [],
-           "time_s": 0.0, "worker": None, "attempts": 0, "error": None,
+           "time_s": 0.0, "worker": None, "attempts": 0, "error": None, "warnings": [],
            "labels": dict(job.labels)}
     out.update(fields)
     return out
@@ -123,16 +123,23 @@ def worker_name() -> str:
 
 # --------------------------------------------------------------------------- runners --
 
-def run_gonio(job: Job) -> str | None:
-    """Run ``gonio ARGV`` in this process; None, or the error line on failure."""
+#: What a command's warnings start with on stderr (:func:`gonio_cli.log.warn`).
+WARNING_PREFIX = "gonio: warning: "
+
+
+def run_gonio(job: Job, warnings: list[str]) -> str | None:
+    """Run ``gonio ARGV`` in this process; None, or the error line on failure. The
+    command's warnings are appended to ``warnings``; its other output is dropped."""
     from .. import cli
 
     err = io.StringIO()
     with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
-        code = cli.run(["--quiet", *job.argv])
+        code = cli.run(list(job.argv))
+    lines = err.getvalue().splitlines()
+    warnings += [l[len(WARNING_PREFIX):] for l in lines if l.startswith(WARNING_PREFIX)]
     if code == 0:
         return None
-    lines = [l for l in err.getvalue().splitlines() if l.startswith("gonio: ")]
+    lines = [l for l in lines if l.startswith("gonio: ") and not l.startswith(WARNING_PREFIX)]
     text = lines[-1] if lines else f"exit status {code}"
     for prefix in ("gonio: error: ", "gonio: "):
         if text.startswith(prefix):
@@ -140,7 +147,7 @@ def run_gonio(job: Job) -> str | None:
     return text
 
 
-def run_preview(job: Job) -> str | None:
+def run_preview(job: Job, warnings: list[str]) -> str | None:  # noqa: ARG001
     """Assemble a turntable's frames (the job's inputs, in order) into an animated PNG."""
     from ..imageio import write_apng
 
@@ -150,7 +157,7 @@ def run_preview(job: Job) -> str | None:
 
 
 #: How a worker runs each kind of job (:data:`gonio_cli.batch.plan.COMMANDS`).
-RUNNERS: dict[str, Callable[[Job], str | None]] = {"gonio": run_gonio, "preview": run_preview}
+RUNNERS: dict[str, Callable[[Job, list[str]], str | None]] = {"gonio": run_gonio, "preview": run_preview}
 
 
 def execute(job: Job, outdir: str, previous: Mapping[str, Any] | None,
@@ -171,8 +178,9 @@ def execute(job: Job, outdir: str, previous: Mapping[str, Any] | None,
         return {**previous, "status": "skipped", "attempts": attempts, "labels": dict(job.labels)}
     inputs = files(job.inputs)
     start = time.perf_counter()
+    warnings: list[str] = []
     try:
-        error = RUNNERS[job.runner](job)
+        error = RUNNERS[job.runner](job, warnings)
     except Exception as exc:  # a bug in a runner: one line in the record, not a retry loop
         from ..errors import GonioError
 
@@ -185,4 +193,4 @@ def execute(job: Job, outdir: str, previous: Mapping[str, Any] | None,
         error = f"{missing}: the command did not write it"
     return record(job, "failed" if error else "ok", inputs=inputs,
                   outputs=outputs if not error else [], time_s=time_s,
-                  worker=worker_name(), attempts=attempts, error=error)
+                  worker=worker_name(), attempts=attempts, error=error, warnings=warnings)

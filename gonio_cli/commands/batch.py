@@ -84,6 +84,11 @@ def batch(
             else f"ran {ran} of {len(records)} jobs ({counts['ok']} ok, {counts['failed']} "
                  f"failed, {counts['blocked']} not run, {counts['skipped']} up to date)")
     log.info(f"gonio batch: {what} in {total:.1f} s; {output}/manifest.jsonl, {sheet}")
+    warned = [r["key"] for r in records if r["status"] == "ok" and r.get("warnings")]
+    if warned:
+        log.warn(f"{len(warned)} job(s) warned ({', '.join(warned[:3])}"
+                 f"{', ...' if len(warned) > 3 else ''}): their warnings are in "
+                 f"{output}/manifest.jsonl")
     failed = [r for r in records if r["status"] == "failed"]
     blocked = [r["key"] for r in records if r["status"] == "blocked"]
     for r in failed:  # shown with --quiet too, like every error
