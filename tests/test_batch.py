@@ -205,6 +205,14 @@ inputs = ["{SAMPLE / 'batch' / 'scenes' / 'sphere.toml'}"]
 needs = ["{material}"]
 output = "${{out}}/slow.png"
 options = {{ var = {{ material = "{material}" }}, width = 640, height = 640, ssaa = 4, spectral = "exact" }}
+
+[[job]]
+key = "coarse"
+command = "render"
+inputs = ["{SAMPLE / 'batch' / 'scenes' / 'sphere.toml'}"]
+needs = ["{material}"]
+output = "${{out}}/coarse.png"
+options = {{ var = {{ material = "{material}" }}, width = 16, height = 16, grid-nm = "400:700:20" }}
 """)
     out = tmp_path / "out"
     log = out / ".gonio-batch" / "attempts" / "slow.log"
@@ -227,6 +235,11 @@ options = {{ var = {{ material = "{material}" }}, width = 640, height = 640, ssa
     assert records["slow"]["worker"].rsplit(":", 1)[1] != str(pid)
     assert all(r["status"] == "ok" for r in records.values())
     assert (out / "slow.png").is_file() and (out / "blue" / "sphere.png").is_file()
+    # a command's warnings are kept in its record (a coarser grid resamples the material)
+    assert records["coarse"]["warnings"] == [
+        f"{material}: material resampled from 41 wavelengths onto the render's grid "
+        "(16 samples)"]
+    assert records["slow"]["warnings"] == [] and "1 job(s) warned (coarse)" in err
 
 
 def test_external_scheduler_and_worker_give_the_same_outputs(runs, tmp_path):
