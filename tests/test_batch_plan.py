@@ -245,3 +245,37 @@ def test_help_and_plan_errors_do_not_import_dask(tmp_path):
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           timeout=120)
     assert done.stdout.strip().splitlines()[-1] == "0 2 []", done.stdout + done.stderr
+
+
+def test_matrix_expands_materials_scenes_vars_and_frames(tmp_path):
+    for name in ("a.material.json", "b.material.json", "s.toml", "t.toml"):
+        (tmp_path / name).write_text("{}")
+    plan = _write(tmp_path / "plan.toml", """
+[[material]]
+name = "a"
+material = "a.material.json"
+
+[[material]]
+name = "b"
+material = "b.material.json"
+
+[matrix]
+scenes = ["s.toml", "t.toml"]
+vars = { illuminant = ["D65", "A"], exposure = 1 }
+frames = 3
+orbit = "object"
+""")
+    p = read_plan(plan, tmp_path / "out")
+    frames = [j for j in p.jobs if j.labels["role"] == "frame"]
+    previews = [j for j in p.jobs if j.labels["role"] == "preview"]
+    assert len(frames) == 2 * 2 * 2 * 3 and len(previews) == 2 * 2 * 2
+    j = next(j for j in frames if j.key == "render/b/t-illuminant=A-exposure=1/frame002")
+    assert j.argv == ("render", str(tmp_path / "t.toml"), "-o",
+                      str(tmp_path / "out" / "b" / "t-illuminant=A-exposure=1.frame002.png"),
+                      "--var", "illuminant=A", "--var", "exposure=1",
+                      "--var", f"material={tmp_path / 'b.material.json'}",
+                      "--turntable", "3", "--frame", "2", "--orbit", "object")
+    assert str(tmp_path / "b.material.json") in j.inputs
+    pv = next(p for p in previews if p.key == "preview/b/t-illuminant=A-exposure=1")
+    assert pv.inputs == tuple(str(tmp_path / "out" / "b" / f"t-illuminant=A-exposure=1.frame"
+                                  f"{k:03d}.png") for k in range(3))
