@@ -64,7 +64,7 @@ def batch(
     from ..batch.engine import run_plan
     from ..batch.sheet import write_sheet
 
-    bar = _Progress(len(p.jobs))
+    bar = _Progress()
 
     def started(n: int, link: str | None) -> None:
         if link:
@@ -104,7 +104,7 @@ class _Progress:
     """One bar over the jobs to run (done, running, failed) on stderr, when it is a
     terminal and not --quiet."""
 
-    def __init__(self, total: int):
+    def __init__(self):
         self.bar = self.task = None
         self.done = self.failed = 0
         self.n = 0
