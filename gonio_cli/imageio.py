@@ -234,6 +234,28 @@ def _write_pillow_png(path: str | os.PathLike, image, metadata: Mapping[str, Any
         image.save(tmp, format="PNG", pnginfo=info, compress_level=level, optimize=False)
 
 
+def write_apng(path: str | os.PathLike, frames: Sequence[str | os.PathLike], *,
+               frame_ms: int = 250, metadata: Mapping[str, Any] | None = None) -> None:
+    """Write an animated PNG (APNG, looping) of the PNG files ``frames``, in order,
+    atomically; browsers show it in an ``<img>``. ``frame_ms``: each frame's duration."""
+    from PIL import Image as PILImage
+    from PIL.PngImagePlugin import PngInfo
+
+    from .outputs import readable
+
+    images = []
+    for f in frames:  # frames this command wrote may still be held back (outputs.py)
+        with PILImage.open(readable(f)) as im:
+            images.append(im.convert("RGBA" if "A" in im.getbands() else "RGB"))
+    info = PngInfo()
+    info.add_text(META_PREFIX + "gonio_version", __version__)
+    for key, value in (metadata or {}).items():
+        info.add_text(META_PREFIX + key, _meta_text(value))
+    with atomic_path(path) as tmp:
+        images[0].save(tmp, format="PNG", save_all=True, append_images=images[1:],
+                       duration=frame_ms, loop=0, pnginfo=info)
+
+
 def write_png_1bit(path: str | os.PathLike, mask: np.ndarray,
                    metadata: Mapping[str, Any] | None = None, *,
                    compression: str = DEFAULT_COMPRESSION) -> None:

@@ -303,6 +303,19 @@ def forget_written() -> None:
     _written.clear()
 
 
+def readable(path: str | os.PathLike) -> Path:
+    """Where the content of ``path`` is now: the staged temporary file while this
+    command's transaction holds the output back, else ``path`` itself. For a command that
+    reads back an output it wrote (the turntable's preview is made from its frames)."""
+    tx = current()
+    if tx is not None:
+        key = _key(path)
+        for tmp, final in tx.files:
+            if _key(final) == key:
+                return tmp
+    return Path(path)
+
+
 def _key(path: str | os.PathLike) -> str:
     """A path as the transaction compares them: its folder's links resolved."""
     path = os.fspath(path)

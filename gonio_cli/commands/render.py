@@ -60,6 +60,16 @@ def render(
     report: Optional[Path] = typer.Option(None, "--report", metavar="run.json",
                                           help="Write the run report: each stage's time_s "
                                                "and the total."),
+    turntable: Optional[int] = typer.Option(
+        None, "--turntable", metavar="N",
+        help="Orbit about the scene's up axis in N frames: writes OUT.frame000.png ... "
+             "and OUT.png as an animated PNG of them (with --frame: that frame only, at -o)."),
+    frame: Optional[int] = typer.Option(None, "--frame", metavar="K",
+                                        help="With --turntable: render frame K (0 to N-1) "
+                                             "only, to -o."),
+    orbit: str = typer.Option("camera", "--orbit", metavar="camera|object",
+                              help="With --turntable: move the camera, or turn the objects "
+                                   "under a fixed camera and lights."),
 ) -> None:
     """Render a scene to PNG (and EXR): spectral goniochromatic shading on the CPU.
 
@@ -70,6 +80,8 @@ def render(
       gonio render scene.toml -o a.png --grid-nm 400:700:10
       gonio render scene.toml -o a.png --exr a.exr --exr-space acescg --spectral-exr s.exr
     """
+    if turntable is not None and frame is None:  # every frame, then the preview
+        return render_turntable(dict(locals()))  # (the options: nothing else is defined)
     import time
 
     start = time.perf_counter()  # the total: scene loading to images written
@@ -108,6 +120,7 @@ def render(
     if exr_space not in EXR_SPACE_NAMES:
         raise InputError(f"--exr-space {exr_space!r} is unknown",
                          fix=f"use one of {', '.join(EXR_SPACE_NAMES)}")
+    check_turntable(turntable, frame, orbit)
 
     from ..outputs import declare
     outs = {"-o": output, "--exr": exr, "--report": report, "--gamut-warning": gamut_warning,
@@ -121,6 +134,10 @@ def render(
                                    "tonemap": tonemap, "adapt": adapt, "grid_nm": grid_nm})
     stats.time_s["scene"] = t["time_s"]
     declare(outs, sc.inputs)  # the files the scene reads
+    if turntable is not None:
+        from ..render.scene import orbit as turn
+
+        sc = turn(sc, frame, turntable, orbit)
     frame = render_scene(sc, stats, spectra=spectral_exr is not None)
     write_outputs(frame, sc, stats, png=output, exr=exr, start=start,
                   gamut_warning=gamut_warning, exr_space=exr_space, spectral_exr=spectral_exr)
@@ -136,6 +153,58 @@ def render(
     log.info(f"{output}: {sc.camera.width}x{sc.camera.height}, ssaa {sc.output.ssaa}, "
              f"{sc.output.spectral} spectra, frame {frame_ms:.0f} ms, total {total:.2f} s"
              f"{shown}")
+
+
+
+def check_turntable(turntable: int | None, frame: int | None, orbit: str) -> None:
+    """Refuse turntable options that do not fit together."""
+    from ..errors import InputError
+    from ..render.scene import ORBITS
+
+    if orbit not in ORBITS:
+        raise InputError(f"--orbit {orbit!r} is unknown", fix=f"use one of {', '.join(ORBITS)}")
+    if turntable is None:
+        if frame is not None:
+            raise InputError("--frame needs --turntable N", fix="add --turntable N")
+        return
+    if turntable < 1:
+        raise InputError(f"--turntable {turntable} is not a number of frames",
+                         fix="give N >= 1, e.g. --turntable 8")
+    if frame is not None and not 0 <= frame < turntable:
+        raise InputError(f"--frame {frame} is outside 0 to {turntable - 1}",
+                         fix=f"give a frame from 0 to {turntable - 1}")
+
+
+def frame_name(path: Path, k: int) -> Path:
+    """Frame ``k`` of a turntable written to ``path``: ``OUT.frame007.png`` beside it."""
+    return path.with_name(f"{path.stem}.frame{k:03d}{path.suffix}")
+
+
+#: Options naming files a turntable writes once per frame (``frame_name``).
+PER_FRAME = ("output", "exr", "report", "gamut_warning", "spectral_exr")
+
+
+def render_turntable(options: dict) -> None:
+    """``--turntable N`` without ``--frame``: each frame as ``render --frame K`` writes
+    it, to ``OUT.frameK.png`` (and its EXR, report, gamut warning), then ``OUT.png``, an
+    animated PNG of the frames."""
+    from .. import log
+    from ..imageio import write_apng
+
+    from ..outputs import declare
+
+    check_turntable(options["turntable"], None, options["orbit"])
+    declare({"-o": options["output"]}, [options["scene"]])  # the preview, with the frames
+    pngs = []
+    for k in range(options["turntable"]):
+        named = {key: frame_name(options[key], k) for key in PER_FRAME
+                 if options[key] is not None}
+        render(**{**options, **named, "frame": k})
+        pngs.append(named["output"])
+    write_apng(options["output"], pngs,
+               metadata={"turntable_frames": len(pngs), "orbit": options["orbit"]})
+    log.info(f"{options['output']}: turntable preview of {len(pngs)} frames "
+             f"({options['orbit']} orbit)")
 
 
 EXAMPLE = "gonio render sample_data/scenes/spheres.toml -o red.png --exr red.exr --report run.json"

@@ -1,0 +1,148 @@
+"""``gonio batch``: the thin shell over :mod:`gonio_cli.batch` (Dask imported on first use)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+HELP = """Run a plan of gonio jobs on Dask: locally on every core, or on a cluster.
+
+A plan (TOML, docs/batch.md) names materials (CSV files to ingest and fit), a matrix of
+materials x scenes x --var values x turntable frames, and plain jobs; a job whose input is
+another job's output waits for it. Jobs run inside the workers through gonio's own code.
+A job whose outputs exist with the same input hashes, parameters and gonio version is
+skipped. Writes OUTDIR/manifest.jsonl (one record per job) and OUTDIR/index.html (a
+contact sheet). A failing job is reported with its one-line error and the others still
+run; the exit status is then 1.
+
+\b
+Example:
+  gonio batch sample_data/batch/turntable.toml -o out/batch
+  gonio batch plan.toml -o out/batch --workers 4 --retries 3
+  gonio batch plan.toml -o out/batch --scheduler tcp://10.0.0.5:8786
+"""
+
+
+def batch(
+    plan: Path = typer.Argument(..., metavar="PLAN.toml", show_default=False,
+                                help="The plan; paths in it are relative to it."),
+    output: Path = typer.Option(..., "--output", "-o", metavar="OUTDIR",
+                                help="The output folder (${out} in the plan)."),
+    workers: Optional[int] = typer.Option(
+        None, "--workers", "-w", metavar="N",
+        help="Worker processes of the local cluster [default: one per core]."),
+    scheduler: Optional[str] = typer.Option(
+        None, "--scheduler", metavar="ADDRESS|FILE",
+        help="Use a running Dask scheduler (tcp://host:8786 or a scheduler file) instead "
+             "of a local cluster."),
+    retries: int = typer.Option(2, "--retries", metavar="N",
+                                help="Times a job is run again after its worker dies (bad "
+                                     "input is never retried)."),
+    dashboard: bool = typer.Option(False, "--dashboard",
+                                   help="Serve the Dask dashboard (on 127.0.0.1)."),
+) -> None:
+    import sys
+    import time
+
+    from .. import log
+    from ..batch.plan import read_plan
+    from ..errors import InputError
+
+    start = time.perf_counter()
+    if workers is not None and scheduler is not None:
+        raise InputError("--workers and --scheduler exclude each other",
+                         fix="a running cluster has its own workers; give one of them")
+    if workers is not None and workers < 1:
+        raise InputError(f"--workers {workers} is not a number of processes", fix="give N >= 1")
+    if retries < 0:
+        raise InputError(f"--retries {retries} is negative", fix="give N >= 0")
+    if output.exists() and not output.is_dir():
+        raise InputError(f"-o {output} is a file", fix="name a folder")
+    p = read_plan(plan, output)  # every plan error before anything runs
+    from ..batch.engine import run_plan
+    from ..batch.sheet import write_sheet
+
+    bar = _Progress()
+
+    def started(n: int, link: str | None) -> None:
+        if link:
+            log.info(f"gonio batch: dashboard at {link}")
+        bar.start(n)
+
+    try:
+        records = run_plan(p, workers=workers, scheduler=scheduler, retries=retries,
+                           dashboard=dashboard, on_start=started, on_record=bar.update)
+    finally:
+        bar.stop()
+    sheet = write_sheet(output, records, title=f"gonio batch: {plan.name}")
+    counts = {s: sum(r["status"] == s for r in records) for s in ("ok", "skipped", "failed", "blocked")}
+    ran = counts["ok"] + counts["failed"]
+    total = time.perf_counter() - start
+    what = (f"ran 0 jobs: all {len(records)} are up to date" if not ran and not counts["blocked"]
+            else f"ran {ran} of {len(records)} jobs ({counts['ok']} ok, {counts['failed']} "
+                 f"failed, {counts['blocked']} not run, {counts['skipped']} up to date)")
+    log.info(f"gonio batch: {what} in {total:.1f} s; {output}/manifest.jsonl, {sheet}")
+    warned = [r["key"] for r in records if r["status"] == "ok" and r.get("warnings")]
+    if warned:
+        log.warn(f"{len(warned)} job(s) warned ({', '.join(warned[:3])}"
+                 f"{', ...' if len(warned) > 3 else ''}): their warnings are in "
+                 f"{output}/manifest.jsonl")
+    failed = [r for r in records if r["status"] == "failed"]
+    blocked = [r["key"] for r in records if r["status"] == "blocked"]
+    for r in failed:  # shown with --quiet too, like every error
+        print(f"gonio: failed: {r['key']}: {r['error']}", file=sys.stderr)
+    if blocked:
+        print(f"gonio: not run, as a job they need failed: {', '.join(blocked)}",
+              file=sys.stderr)
+    if failed or blocked:
+        raise typer.Exit(1)
+
+
+class _Progress:
+    """One bar over the jobs to run (done, running, failed) on stderr, when it is a
+    terminal and not --quiet."""
+
+    def __init__(self):
+        self.bar = self.task = None
+        self.done = self.failed = 0
+        self.n = 0
+
+    def start(self, n: int) -> None:
+        import sys
+
+        from .. import log
+
+        self.n = n
+        if not n or log.is_quiet() or not sys.stderr.isatty():
+            return
+        from rich.console import Console
+        from rich.progress import Progress
+
+        self.bar = Progress(console=Console(file=sys.stderr), transient=True)
+        self.bar.start()
+        self.task = self.bar.add_task(self._text(), total=n)
+
+    def _text(self) -> str:
+        return f"jobs: {self.done} done, {self.n - self.done} running or waiting, {self.failed} failed"
+
+    def update(self, rec: dict) -> None:
+        self.done += 1
+        self.failed += rec["status"] in ("failed", "blocked")
+        if self.bar is not None:
+            self.bar.update(self.task, advance=1, description=self._text())
+
+    def stop(self) -> None:
+        if self.bar is not None:
+            self.bar.stop()
+
+
+EXAMPLE = "gonio batch sample_data/batch/turntable.toml -o out/batch"
+
+SHORT_HELP = "Run a plan of jobs on Dask, locally or on a cluster, with a contact sheet."
+
+
+def register(app: typer.Typer) -> None:
+    """Attach ``gonio batch`` to the app."""
+    app.command("batch", help=HELP, short_help=SHORT_HELP)(batch)
