@@ -222,6 +222,11 @@ class Kind:
 KINDS = {"spectral": Kind("spectral", "spectra", "scalar_spectral"),
          "rgb": Kind("rgb", "rgb", "scalar_rgb")}
 
+def kind_of(fields: dict[str, TensorField]) -> Kind:
+    """The :data:`KINDS` entry of a file from its header: spectral if it has wavelengths."""
+    return KINDS["spectral" if "wavelengths" in fields else "rgb"]
+
+
 #: Fields the ``measured`` plugin reads, with their rank (all float32 unless named).
 _RANKS = {"description": 1, "jacobian": 1, "theta_i": 1, "phi_i": 1, "ndf": 2, "sigma": 2,
           "vndf": 4, "luminance": 4}
@@ -237,7 +242,7 @@ def check_bsdf(path: str | os.PathLike) -> tuple[Kind, dict[str, TensorField]]:
     the field's name. Returns the kind (:data:`KINDS`) and the header.
     """
     fields = read_tensor_header(path)
-    kind = KINDS["spectral" if "wavelengths" in fields else "rgb"]
+    kind = kind_of(fields)
     wanted = dict(_RANKS, **{kind.field: 5}, **({"wavelengths": 1}
                                                  if kind.name == "spectral" else {}))
     for name, rank in wanted.items():
@@ -337,7 +342,8 @@ def resolve_parameters(paths: Sequence[str | os.PathLike], *,
 
     One ``.bsdf`` at a time; the CSV-only options (``csv_options``, e.g. ``quantity``) are
     refused when given, since the file holds BRDFs. Reads the file's header (cheap) to
-    record its kind and, for RGB, the RGB → spectrum rule.
+    record its kind and, for RGB, the RGB → spectrum rule; :func:`ingest` checks the rest
+    of the file (:func:`check_bsdf`).
     """
     where = os.fspath(paths[0])
     if len(paths) != 1:
@@ -355,7 +361,7 @@ def resolve_parameters(paths: Sequence[str | os.PathLike], *,
     parse_angles(theta_o, "--theta-o-deg", False, where)
     grid = grid_nm if grid_nm is not None else DEFAULT_GRID_NM
     parse_grid(grid)
-    kind, _ = check_bsdf(where)
+    kind = kind_of(read_tensor_header(where))
     return {"format": FORMAT, "kind": kind.name, "quantity": "brdf", "theta_i_deg": theta_i,
             "theta_o_deg": theta_o, "grid_nm": grid,
             "rgb_to_spectrum": RGB_TO_SPECTRUM if kind.name == "rgb" else None,
