@@ -328,7 +328,9 @@ def parse_angles(spec: str, flag: str, theta_i: bool, path=None) -> np.ndarray:
                              "a multiple of STEP")
             numbers = list(start + step * np.arange(int(round(n)) + 1))
         values += numbers
-    theta = np.unique(np.round(np.asarray(values, dtype=float), 6)) + 0.0  # + 0.0: −0 → 0
+    from .ingest import distinct  # np.unique without its numpy.ma import
+
+    theta = distinct(np.round(np.asarray(values, dtype=float), 6)) + 0.0  # + 0.0: −0 → 0
     ok = (theta >= 0) & (theta < 90) if theta_i else np.abs(theta) < 90
     if not ok.all():
         raise refuse(f"{theta[~ok][0]:g} deg is outside {rng}")

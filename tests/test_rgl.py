@@ -170,6 +170,31 @@ def test_caller_mitsuba_variant_is_set_back(run_gonio, tmp_path, mi):
     assert mi.variant() == "scalar_rgb"
 
 
+def test_reading_a_bsdf_imports_mitsuba_and_nothing_heavy(tmp_path, mi):
+    """Mitsuba is imported for a .bsdf (and only then: tests/test_cli.py checks CSV
+    ingest never imports it); nothing else heavy comes with it."""
+    import ast
+    import subprocess
+
+    from test_cli import HEAVY, SUBMODULES
+
+    from gonio_cli.spectra import colour_tables
+
+    colour_tables()  # the session's cache holds the colour tables, as after any first run
+    for path in (SPEC, RGB):
+        args = ["-q", "ingest", str(path), "-o", str(tmp_path / "m.json")]
+        code = (f"import sys\nfrom gonio_cli import cli\ncode = cli.run({args!r})\n"
+                "print(sorted({m.split('.')[0] for m in sys.modules}\n"
+                f"             | (set({sorted(SUBMODULES)!r}) & set(sys.modules))))\n"
+                "sys.exit(code)\n")
+        r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                           cwd=tmp_path, timeout=120)
+        assert r.returncode == 0, r.stderr
+        loaded = set(ast.literal_eval(r.stdout.strip().splitlines()[-1]))
+        assert "mitsuba" in loaded
+        assert not loaded & (HEAVY - {"mitsuba", "drjit"}), loaded & HEAVY
+
+
 # ------------------------------------------------------------ the known function --
 
 #: The samples' table nodes along u_θ = √(2θm/π) (measured.cpp's theta2u).
