@@ -184,6 +184,11 @@ def write_tensor_file(path: str | os.PathLike, fields: dict[str, Any]) -> None:
 
     arrays = {k: (np.frombuffer(v.encode("utf-8"), np.uint8) if isinstance(v, str)
                   else np.ascontiguousarray(v)) for k, v in fields.items()}
+    for name, a in arrays.items():
+        if a.dtype not in _DTYPE_CODES:
+            raise InputError(f"field {name!r}: type {a.dtype} has no tensor file code",
+                             fix="use one of " + ", ".join(str(np.dtype(t))
+                                                           for t in TENSOR_DTYPES.values()))
     header = bytearray(TENSOR_MAGIC + struct.pack("<BBI", *TENSOR_VERSION, len(arrays)))
     header_size = len(header) + sum(2 + len(k.encode()) + 11 + 8 * a.ndim
                                     for k, a in arrays.items())
@@ -195,9 +200,6 @@ def write_tensor_file(path: str | os.PathLike, fields: dict[str, Any]) -> None:
         body += a.astype(a.dtype.newbyteorder("<"), copy=False).tobytes()
         body += b"\0" * pad(len(body))
     for name, a in arrays.items():
-        if a.dtype not in _DTYPE_CODES:
-            raise InputError(f"field {name!r}: type {a.dtype} has no tensor file code",
-                             fix=f"use one of {', '.join(str(np.dtype(t)) for t in TENSOR_DTYPES.values())}")
         label = name.encode("utf-8")
         header += struct.pack("<H", len(label)) + label
         header += struct.pack("<HBQ", a.ndim, _DTYPE_CODES[a.dtype], offsets[name])
@@ -222,6 +224,7 @@ class Kind:
 KINDS = {"spectral": Kind("spectral", "spectra", "scalar_spectral"),
          "rgb": Kind("rgb", "rgb", "scalar_rgb")}
 
+
 def kind_of(fields: dict[str, TensorField]) -> Kind:
     """The :data:`KINDS` entry of a file from its header: spectral if it has wavelengths."""
     return KINDS["spectral" if "wavelengths" in fields else "rgb"]
@@ -238,8 +241,8 @@ def check_bsdf(path: str | os.PathLike) -> tuple[Kind, dict[str, TensorField]]:
 
     The structure check of ``src/bsdfs/measured.cpp`` (fields, ranks, types and the shapes
     that must agree), plus what its 2-D interpolants need (at least 2 × 2 samples), finite
-    angles and values, and increasing ``theta_i`` and ``wavelengths``, each refused with
-    the field's name. Returns the kind (:data:`KINDS`) and the header.
+    angles and values, and increasing ``theta_i``, ``phi_i`` and ``wavelengths``, each
+    refused with the field's name. Returns the kind (:data:`KINDS`) and the header.
     """
     fields = read_tensor_header(path)
     kind = kind_of(fields)
@@ -286,7 +289,7 @@ def check_bsdf(path: str | os.PathLike) -> tuple[Kind, dict[str, TensorField]]:
             raise InputError(f"field {name!r} holds {a[tuple(bad)]} at index "
                              f"{tuple(int(b) for b in bad)}", path=path,
                              fix="the file is damaged; download it again")
-    for name in ("theta_i", "wavelengths"):
+    for name in ("theta_i", "phi_i", "wavelengths"):  # interpolation nodes
         if name in data and np.any(np.diff(data[name]) <= 0):
             raise InputError(f"field {name!r} is not increasing", path=path,
                              fix="pass an unmodified RGL .bsdf file")
