@@ -403,7 +403,7 @@ def evaluate_in_plane(path: str | os.PathLike, kind: Kind, theta_i_deg, theta_o_
 
     ``theta_i_deg``, ``theta_o_deg``: (n,) in degrees, light at (−sin θi, 0, cos θi), detector
     at (sin θo, 0, cos θo) (docs/conventions.md; Mitsuba's local frame has the normal on
-    +z too). ``channels``: (n_c,) wavelengths in nm for a spectral file, or ``(0, 1, 2)``
+    +z too; ωi's 0 is −0.0, see the comment in the code). ``channels``: (n_c,) wavelengths in nm for a spectral file, or ``(0, 1, 2)``
     (R, G, B) for an RGB one. Returns (n, n_c) float64: Mitsuba's ``eval`` (f·cos θo, in
     float32, as its scalar variants compute) divided by cos θo.
     """
@@ -434,6 +434,12 @@ def _evaluate(mi, path, theta_i_deg, theta_o_deg, channels, spectral: bool) -> n
         raise InputError(f"Mitsuba cannot load it: {text}", path=path,
                          fix="pass an unmodified RGL .bsdf file") from None
     wi, wo = in_plane_directions(theta_i_deg, theta_o_deg)
+    # ωi's y is −0.0 (the same direction): Mitsuba 3.9.1's measured plugin leaves its
+    # symmetry reduction (m_reduction) uninitialised for isotropic files (mitsuba3 PR
+    # #1850) and then flips x and y unless their sign bits are set, which at the mirror
+    # configuration moves the value by ~1e-4 from run to run. With a sign bit on y (and
+    # x < 0) that branch is the identity for any value it holds.
+    wi[..., 1] = -0.0
     channels = np.asarray(channels, dtype=float)
     ctx = mi.BSDFContext()
     si = mi.SurfaceInteraction3f()
