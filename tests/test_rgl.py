@@ -410,3 +410,28 @@ def test_csv_options_with_a_bsdf_and_bsdf_options_with_a_csv(refuse):
 def test_one_bsdf_at_a_time(refuse):
     refuse(SPEC, RGB, expect=["2 inputs given with an RGL .bsdf", "one .bsdf"])
     refuse(SAMPLE / "ink_red.csv", SPEC, expect=["2 inputs given with an RGL .bsdf"])
+
+
+# --------------------------------------------------------------------- the chain --
+
+def test_ingest_fit_render_in_three_commands(run_gonio, tmp_path, mi):
+    """docs/rgl.md's three commands: the fit (every model, ``auto``) picks the model the
+    sample was made from and recovers its α, and the measurement renders as ``measured``
+    beside the fitted material."""
+    meas, mat, png = (tmp_path / n for n in ("w.measurement.json", "w.material.json",
+                                              "w.png"))
+    res = run_gonio("ingest", SPEC, "-o", meas, "--theta-i-deg", "20:60:20",
+                    "--theta-o-deg", "-60:80:5")
+    assert res.exit_code == 0, res.stderr
+    res = run_gonio("fit", meas, "--model", "auto", "-o", mat)
+    assert res.exit_code == 0, res.stderr
+    doc = json.loads(mat.read_text())
+    assert doc["model"] == FX.MODEL
+    # The data are the model up to the table's linear interpolation (the fit's rel-RMSE
+    # is ~0.7 %), which biases α by +0.6 % here (0.302); 3 % is five times that.
+    assert doc["alpha"] == pytest.approx(FX.ALPHA, rel=0.03)
+    res = run_gonio("render", SAMPLE / "scenes" / "measured_vs_fitted.toml", "-o", png,
+                    "--var", f"measurement={meas}", "--var", f"material={mat}",
+                    "--width", "64", "--height", "32")
+    assert res.exit_code == 0, res.stderr
+    assert png.stat().st_size > 0
