@@ -435,10 +435,11 @@ def _evaluate(mi, path, theta_i_deg, theta_o_deg, channels, spectral: bool) -> n
                          fix="pass an unmodified RGL .bsdf file") from None
     wi, wo = in_plane_directions(theta_i_deg, theta_o_deg)
     # ωi's y is −0.0 (the same direction): Mitsuba 3.9.1's measured plugin leaves its
-    # symmetry reduction (m_reduction) uninitialised for isotropic files (mitsuba3 PR
-    # #1850) and then flips x and y unless their sign bits are set, which at the mirror
-    # configuration moves the value by ~1e-4 from run to run. With a sign bit on y (and
-    # x < 0) that branch is the identity for any value it holds.
+    # symmetry reduction (m_reduction) uninitialised for isotropic files (open upstream fix:
+    # github.com/mitsuba-renderer/mitsuba3/pull/1850) and then flips x and y unless their
+    # sign bits are set, which at the mirror configuration moves the value by ~1e-4 from
+    # run to run. With a sign bit on y (and x < 0) that branch is the identity whatever
+    # value it holds.
     wi[..., 1] = -0.0
     channels = np.asarray(channels, dtype=float)
     ctx = mi.BSDFContext()

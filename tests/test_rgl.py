@@ -61,9 +61,10 @@ def mitsuba_in_plane(mi, variant, path, theta_i_deg, theta_o_deg, channels):
     """Mitsuba's measured plugin at in-plane configurations, written from
     docs/conventions.md: ωi = (−sin θi, 0, cos θi), ωo = (sin θo, 0, cos θo); returns
     eval (f·cos θo) / cos θo, (n, n_channels). ωi's 0 is written −0.0: Mitsuba 3.9.1
-    leaves the plugin's symmetry reduction uninitialised for isotropic files (mitsuba3 PR
-    #1850), so with +0.0 its value at the mirror configuration depends on leftover memory
-    (seen here: 3.4e-5 either side of the model, depending on the tests run before)."""
+    leaves the plugin's symmetry reduction uninitialised for isotropic files
+    (github.com/mitsuba-renderer/mitsuba3/pull/1850), so with +0.0 its value at the
+    mirror configuration depends on leftover memory (seen here: 3.4e-5 either side of
+    the model, depending on the tests run before)."""
     previous = mi.variant()
     mi.set_variant(variant)
     try:
