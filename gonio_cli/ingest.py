@@ -990,7 +990,8 @@ def resolve_parameters(paths: Sequence[str | os.PathLike], *, quantity: str | No
                        aperture_mm: float | None = None, distance_mm: float | None = None,
                        dark: str | os.PathLike | None = None,
                        grid_nm: str | None = None, scale: float | None = None,
-                       sample: str | None = None) -> dict[str, Any]:
+                       sample: str | None = None, theta_i_deg: str | None = None,
+                       theta_o_deg: str | None = None) -> dict[str, Any]:
     """Check the options against each other and fill in defaults.
 
     Returns the effective parameters (recorded in the artifact): ``quantity`` (default
@@ -1000,6 +1001,16 @@ def resolve_parameters(paths: Sequence[str | os.PathLike], *, quantity: str | No
     an error (it would be silently ignored otherwise, STYLE 7).
     """
     where = os.fspath(paths[0]) if paths else None
+    fmt = input_format(paths)
+    if fmt is not None:
+        return fmt.load().resolve_parameters(
+            paths, theta_i_deg=theta_i_deg, theta_o_deg=theta_o_deg, grid_nm=grid_nm,
+            quantity=quantity, white_reflectance=white_reflectance, aperture_mm=aperture_mm,
+            distance_mm=distance_mm, dark=dark, scale=scale, sample=sample)
+    for flag, value in (("--theta-i-deg", theta_i_deg), ("--theta-o-deg", theta_o_deg)):
+        if value is not None:
+            raise InputError(f"{flag} is for an RGL .bsdf input (its in-plane grid); a CSV "
+                             "holds its own angles", path=where, fix=f"drop {flag}")
     quantity = DEFAULT_QUANTITY if quantity is None else quantity
     if quantity not in QUANTITIES:
         raise InputError(f"--quantity {quantity!r} is not known", path=where,
@@ -1152,13 +1163,50 @@ def average_repeats(theta_i_deg, theta_o_deg, values):
     return keys[:, 0], keys[:, 1], mean, std, counts
 
 
+# ------------------------------------------------------------- other input formats --
+
+@dataclass(frozen=True)
+class InputFormat:
+    """An input format besides CSV, routed by file suffix to its own module.
+
+    The module (imported on first use, so a CSV run never loads it) has the three
+    functions the CSV path has here: ``resolve_parameters(paths, **options)``,
+    ``ingest(paths, **options)`` and ``file_lines(info)`` (its ``--summary`` lines).
+    """
+
+    name: str
+    suffix: str
+    module: str
+
+    def load(self):
+        import importlib
+
+        return importlib.import_module(self.module)
+
+
+#: Input formats besides CSV by name; :func:`input_format` picks one by file suffix.
+FORMATS = {"rgl-bsdf": InputFormat("rgl-bsdf", ".bsdf", "gonio_cli.rgl")}
+
+
+def input_format(paths: Sequence[str | os.PathLike]) -> InputFormat | None:
+    """The :data:`FORMATS` entry of the first input with its suffix (any case), or None
+    for CSV input."""
+    for p in paths:
+        suffix = Path(p).suffix.lower()
+        for fmt in FORMATS.values():
+            if suffix == fmt.suffix:
+                return fmt
+    return None
+
+
 # ------------------------------------------------------------------------ the stage --
 
 def ingest(paths: Sequence[str | os.PathLike], *, quantity: str | None = None,
            white_reflectance: float | str | None = None, aperture_mm: float | None = None,
            distance_mm: float | None = None, dark: str | os.PathLike | None = None,
            grid_nm: str | None = None, scale: float | None = None,
-           sample: str | None = None) -> Measurement:
+           sample: str | None = None, theta_i_deg: str | None = None,
+           theta_o_deg: str | None = None) -> Measurement:
     """Read goniometer CSVs and return one measurement on the working grid.
 
     Parameters
@@ -1180,6 +1228,9 @@ def ingest(paths: Sequence[str | os.PathLike], *, quantity: str | None = None,
         like percent are refused (:func:`check_percent`).
     sample : of files holding several samples (a ``Name``, ``Sample`` or ``ID`` column
         with several values), the one to read (:func:`select_sample`).
+    theta_i_deg, theta_o_deg : for an input of another format (:data:`FORMATS`, e.g. an
+        RGL ``.bsdf``, read by :func:`gonio_cli.rgl.ingest`), the in-plane grid to
+        evaluate it at; refused for CSV input.
 
     Returns
     -------
@@ -1189,9 +1240,16 @@ def ingest(paths: Sequence[str | os.PathLike], *, quantity: str | None = None,
     """
     if not paths:
         raise InputError("no input files", fix="gonio ingest INPUT.csv [...] -o OUT.json")
+    fmt = input_format(paths)
+    if fmt is not None:
+        return fmt.load().ingest(
+            paths, theta_i_deg=theta_i_deg, theta_o_deg=theta_o_deg, grid_nm=grid_nm,
+            quantity=quantity, white_reflectance=white_reflectance, aperture_mm=aperture_mm,
+            distance_mm=distance_mm, dark=dark, scale=scale, sample=sample)
     params = resolve_parameters(paths, quantity=quantity, white_reflectance=white_reflectance,
                                 aperture_mm=aperture_mm, distance_mm=distance_mm, dark=dark,
-                                grid_nm=grid_nm, scale=scale, sample=sample)
+                                grid_nm=grid_nm, scale=scale, sample=sample,
+                                theta_i_deg=theta_i_deg, theta_o_deg=theta_o_deg)
     _refuse_repeated_inputs(paths)
     grid = parse_grid(params["grid_nm"])
     dark_spectrum = read_spectrum(dark, "dark") if dark is not None else None
@@ -1370,6 +1428,9 @@ def format_summary(summary: dict[str, Any]) -> str:
     """The human summary printed by ``gonio ingest --summary`` (a string, not printed)."""
     out = []
     for f in summary["files"]:
+        if f.get("format") in FORMATS:
+            out += FORMATS[f["format"]].load().file_lines(f)
+            continue
         out.append(f"read {f['path']}: {f['layout']} layout, {f['delimiter']}-delimited"
                    f"{', decimal comma' if f['decimal_comma'] else ''}, {f['rows']} rows, "
                    f"{f['spectra']} spectra, {f['wavelength_nm']}")

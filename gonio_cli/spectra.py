@@ -371,8 +371,25 @@ def rgb_spectral_basis(grid_nm) -> np.ndarray:
     docs/conventions.md: D65(λ) · Σc rgb_c B_c(λ), with B_c the Mallett–Yuksel 2019 sRGB basis and
     D65 scaled to Y = 1, so (1, 1, 1) is D65 with Y = 1 and each channel is carried alone.
     """
+    g = np.asarray(grid_nm, dtype=float)
+    return illuminant("D65", g)[:, None] * rgb_reflectance_basis(g)
+
+
+def rgb_reflectance_basis(grid_nm) -> np.ndarray:
+    """(n_λ, 3): a linear-sRGB reflectance (or BRDF) ``rgb`` is the spectrum ``basis @ rgb``.
+
+    The Mallett–Yuksel 2019 sRGB basis B_c(λ) alone, the conventions' RGB → spectrum
+    without its D65 factor: (1, 1, 1) → 1 at every wavelength, and under D65 the spectrum
+    shows the colour ``rgb``. Defined on :func:`rgb_reflectance_basis_range_nm` (held
+    constant beyond it).
+    """
     t = colour_tables()
     g = np.asarray(grid_nm, dtype=float)
-    basis = np.stack([np.interp(g, t["basis_wl"], t["basis_values"][:, k]) for k in range(3)],
-                     axis=-1)
-    return illuminant("D65", g)[:, None] * basis
+    return np.stack([np.interp(g, t["basis_wl"], t["basis_values"][:, k]) for k in range(3)],
+                    axis=-1)
+
+
+def rgb_reflectance_basis_range_nm() -> tuple[float, float]:
+    """The wavelengths (nm) the Mallett–Yuksel basis is tabulated on: (380, 780)."""
+    wl = colour_tables()["basis_wl"]
+    return float(wl[0]), float(wl[-1])

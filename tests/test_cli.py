@@ -308,7 +308,7 @@ def test_outputs_are_recorded_for_the_interrupt_message(tmp_path):
 #: option conversion (~0.1 s), replaced for gonio's plain option types
 #: (:func:`gonio_cli.commands.plain_coercion`).
 HEAVY = {"matplotlib", "numba", "trimesh", "colour", "scipy", "OpenImageIO", "PIL", "pydantic",
-         "numpy.ma"}
+         "numpy.ma", "mitsuba", "drjit"}
 
 #: Parts of a library counted on their own in :data:`HEAVY` (numpy.ma: ~10 ms, loaded by
 #: the first np.median or plain np.unique).

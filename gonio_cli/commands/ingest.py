@@ -26,6 +26,11 @@ the header are skipped, label columns (Name, Date/Time, Sample, ID ...) set asid
 a file holding several samples --sample picks one. Values that look like percent are
 refused (--scale 0.01 reads them).
 
+An RGL measured BSDF (a .bsdf file of the RGL material database, RGB or spectral) is read
+through Mitsuba 3's measured plugin (the optional extra gonio[mitsuba]) and evaluated in
+plane at --theta-i-deg x --theta-o-deg, as BRDF without the cosine; RGB files become
+spectra through the Mallett-Yuksel basis (docs/rgl.md).
+
 \b
 Example:
   gonio ingest ink_blue_a.csv ink_blue_b.csv -o blue.measurement.json --summary
@@ -33,6 +38,7 @@ Example:
       -o green.measurement.json
   gonio ingest export.csv --sample PANEL_2 --quantity reflectance-factor --scale 0.01 \\
       --grid-nm 400:700:10 -o panel2.measurement.json
+  gonio ingest cc_ibiza_sunset_rgb.bsdf --theta-i-deg 10:70:10 -o wrap.measurement.json
 """
 
 
@@ -44,7 +50,8 @@ def _optional(flag: str, metavar: str, help: str):
 def ingest(
     inputs: List[Path] = typer.Argument(
         ..., metavar="INPUT.csv", show_default=False,
-        help="Goniometer CSV files; several merge into one artifact (same wavelengths)."),
+        help="Goniometer CSV files; several merge into one artifact (same wavelengths). "
+             "Or one RGL .bsdf file."),
     output: Path = typer.Option(
         ..., "--output", "-o", metavar="MEASUREMENT.json", show_default=False,
         help="The measurement artifact to write (gonio.measurement v1)."),
@@ -76,6 +83,14 @@ def ingest(
         "--sample", "NAME",
         "Of a file holding several samples (a Name, Sample or ID column), the one to read, "
         "as the file writes it."),
+    theta_i_deg: Optional[str] = _optional(
+        "--theta-i-deg", "LIST|START:STOP:STEP",
+        ".bsdf only: angles of incidence to evaluate at, degrees, e.g. 10,30,50 or "
+        "10:70:10 [default: 10:70:10]."),
+    theta_o_deg: Optional[str] = _optional(
+        "--theta-o-deg", "LIST|START:STOP:STEP",
+        ".bsdf only: signed detector angles for every angle of incidence, degrees "
+        "[default: -80:85:5]."),
     summary: bool = typer.Option(
         False, "--summary", help="Print what was read (angles, grid, repeats, values, "
                                  "anything dropped or clipped) to stdout."),
@@ -92,12 +107,14 @@ def ingest(
     declare({"-o": output}, [*inputs, dark])
     options = dict(quantity=quantity, white_reflectance=white_reflectance,
                    aperture_mm=aperture_mm, distance_mm=distance_mm, dark=dark,
-                   grid_nm=grid_nm, scale=scale, sample=sample)
+                   grid_nm=grid_nm, scale=scale, sample=sample, theta_i_deg=theta_i_deg,
+                   theta_o_deg=theta_o_deg)
     params = core.resolve_parameters(inputs, **options)  # refused before anything is read
     with log.timer() as t:
         # the options as given: the core warns about a default it had to choose
         measurement = core.ingest(inputs, **options)
-    extra = [p for p in (params["dark"], params["white_reflectance"]) if isinstance(p, str)]
+    extra = [p for p in (params.get("dark"), params.get("white_reflectance"))
+             if isinstance(p, str)]
     write_measurement(output, measurement, inputs=[*inputs, *extra], parameters=params,
                       time_s=t["time_s"])
     if summary:

@@ -832,10 +832,9 @@ def mirror_peak(material, wavelength_nm: np.ndarray) -> float:
 def sparkle_reflectance(rgb: np.ndarray, wavelength_nm: np.ndarray) -> np.ndarray:
     """C_s(λ) (n_λ,): a linear-sRGB reflectance colour through the Mallett–Yuksel basis
     (the conventions' RGB → spectrum without its D65 factor; (1, 1, 1) → 1)."""
-    from ..spectra import illuminant, rgb_spectral_basis
+    from ..spectra import rgb_reflectance_basis
 
-    basis = rgb_spectral_basis(wavelength_nm) / illuminant("D65", wavelength_nm)[:, None]
-    return basis @ np.asarray(rgb, dtype=float)
+    return rgb_reflectance_basis(wavelength_nm) @ np.asarray(rgb, dtype=float)
 
 
 def _sparkle_term(surface: Surface, k: int, gbuffer: GBuffer, index: np.ndarray,

@@ -1,0 +1,589 @@
+"""RGL measured BSDFs (``.bsdf``) in: Mitsuba 3's ``measured`` plugin, evaluated in plane.
+
+The RGL material database (Dupuy & Jakob 2018, "An adaptive parameterization for efficient
+material acquisition and rendering") ships each material as a Mitsuba *tensor file*, RGB
+(``*_rgb.bsdf``) or spectral (``*_spec.bsdf``). :func:`ingest` turns one into a
+:class:`~gonio_cli.schemas.Measurement` on an in-plane goniometer grid, so it fits and
+renders like a CSV measurement:
+
+1. :func:`read_tensor_header` and :func:`check_bsdf` read and check the file without
+   Mitsuba: the ``tensor_file`` header, every field inside the file, and the fields,
+   ranks, types and shapes the ``measured`` plugin requires (its constructor,
+   ``src/bsdfs/measured.cpp``). Mitsuba maps the file into memory and trusts it, so a
+   truncated file would crash it; here it is one line naming the field.
+2. :func:`evaluate_in_plane` loads the file with Mitsuba's ``measured`` plugin (a scalar
+   variant, ``scalar_spectral`` for spectral files, ``scalar_rgb`` for RGB ones: the plugin
+   accepts nothing else) and evaluates it for the light at θi on the −x side and the
+   detector at signed θo (docs/conventions.md). The plugin's ``eval`` returns f·cos θo,
+   Mitsuba's convention for every BSDF (its tables store the BRDF times the cosine); it is
+   divided by cos θo here, so the measurement holds f in sr⁻¹ without any cosine.
+3. Spectral files are evaluated at their own wavelengths and resampled onto the working
+   grid by :func:`gonio_cli.spectra.resample` (as CSV input is); RGB files (linear sRGB)
+   become spectra through the Mallett–Yuksel 2019 basis without an illuminant
+   (:func:`gonio_cli.spectra.rgb_reflectance_basis`, docs/conventions.md), which is named
+   in the artifact's parameters (``rgb_to_spectrum``).
+
+Mitsuba is the optional extra ``gonio[mitsuba]``, imported only here and only when a
+``.bsdf`` is read. :func:`write_tensor_file` writes the format (the synthetic samples
+are made with it: sample_data/make_rgl_wrap.py).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import struct
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+
+from . import log
+from .errors import InputError
+from .schemas import Measurement
+from .spectra import DEFAULT_GRID_NM, covers, parse_grid, resample, same_grid
+
+#: The format's name in summaries and in the artifact's parameters.
+FORMAT = "rgl-bsdf"
+
+#: File suffix that routes an input here (:data:`gonio_cli.ingest.FORMATS`).
+SUFFIX = ".bsdf"
+
+#: What to install when Mitsuba is missing (the optional extra of pyproject.toml).
+INSTALL_FIX = "pip install 'gonio[mitsuba]'"
+
+#: Default in-plane grid, as a goniometer run measures it (θi 10…70° by 10, θo −80…85° by 5).
+DEFAULT_THETA_I_DEG = "10:70:10"
+DEFAULT_THETA_O_DEG = "-80:85:5"
+
+#: What an RGB file's linear sRGB triples become (docs/conventions.md, reflectances).
+RGB_TO_SPECTRUM = ("Mallett-Yuksel 2019 sRGB basis, no illuminant (reflectance: "
+                   "(1, 1, 1) -> 1), as in docs/conventions.md")
+
+#: Mitsuba's scalar variants evaluate 4 wavelengths per call (``UnpolarizedSpectrum``).
+SPECTRAL_LANES = 4
+
+# ----------------------------------------------------------------- the tensor file --
+
+#: Mitsuba's tensor file: 12-byte magic, version (major, minor), field count, then per field
+#: name, rank, type code, offset and shape, all little-endian (``src/core/tensor.cpp``,
+#: ``mitsuba/python/tensor_io.py``).
+TENSOR_MAGIC = b"tensor_file\0"
+TENSOR_VERSION = (1, 0)
+
+#: Type codes of the tensor file (Mitsuba's ``Struct`` types, as tensor_io.py maps them).
+TENSOR_DTYPES = {1: np.uint8, 2: np.int8, 3: np.uint16, 4: np.int16, 5: np.uint32,
+                 6: np.int32, 7: np.uint64, 8: np.int64, 9: np.float16, 10: np.float32,
+                 11: np.float64}
+_DTYPE_CODES = {np.dtype(t): code for code, t in TENSOR_DTYPES.items()}
+
+#: Fields are written at offsets aligned to this many bytes (as tensor_io.write does).
+TENSOR_ALIGN = 8
+
+
+@dataclass(frozen=True)
+class TensorField:
+    """One field of a tensor file: its type, shape and where its data start."""
+
+    dtype: np.dtype
+    shape: tuple[int, ...]
+    offset: int
+
+    @property
+    def nbytes(self) -> int:
+        return int(np.prod(self.shape, dtype=np.int64)) * self.dtype.itemsize
+
+
+def _not_bsdf(path, what: str) -> InputError:
+    return InputError(f"is not an RGL .bsdf file ({what})", path=path,
+                      fix="pass a material file from the RGL database (rgl.epfl.ch/materials)"
+                          ", downloaded completely; CSV spectra go in as CSV")
+
+
+def read_tensor_header(path: str | os.PathLike) -> dict[str, TensorField]:
+    """The fields of a Mitsuba tensor file by name, each checked to lie inside the file.
+
+    Raises :class:`InputError` for a missing or unreadable file, another kind of file, an
+    unknown version or type code, and a truncated file (a header or a field running past
+    its end), naming the field.
+    """
+    try:
+        size = os.path.getsize(path)
+        with open(path, "rb") as f:
+            head = f.read(min(size, 1 << 20))
+    except OSError as exc:
+        raise InputError(f"cannot read it ({exc.strerror or exc})", path=path) from None
+    if not head.startswith(TENSOR_MAGIC):
+        from .errors import binary_kind
+
+        kind = binary_kind(head[:16]) or ("empty" if size == 0 else
+                                          "no 'tensor_file' header")
+        raise _not_bsdf(path, kind)
+    pos = len(TENSOR_MAGIC)
+
+    def take(fmt: str, what: str):
+        nonlocal pos
+        n = struct.calcsize(fmt)
+        if pos + n > len(head):
+            raise InputError(f"is truncated: the header ends inside {what} (file size "
+                             f"{size} bytes)", path=path,
+                             fix="download the .bsdf file again")
+        out = struct.unpack_from(fmt, head, pos)
+        pos += n
+        return out
+
+    version = take("<BB", "the version")
+    if version != TENSOR_VERSION:
+        raise InputError(f"tensor file version {version[0]}.{version[1]} is unknown (gonio "
+                         f"reads {TENSOR_VERSION[0]}.{TENSOR_VERSION[1]})", path=path,
+                         fix="pass a .bsdf file of the RGL database")
+    (n_fields,) = take("<I", "the field count")
+    fields: dict[str, TensorField] = {}
+    for k in range(n_fields):
+        (name_length,) = take("<H", f"field {k + 1}'s name")
+        (raw,) = take(f"<{name_length}s", f"field {k + 1}'s name")
+        name = raw.decode("utf-8", "replace")
+        ndim, code, offset = take("<HBQ", f"field {name!r}")
+        shape = take(f"<{ndim}Q", f"field {name!r}'s shape")
+        if code not in TENSOR_DTYPES:
+            raise InputError(f"field {name!r} has the unknown type code {code}", path=path,
+                             fix="download the .bsdf file again")
+        field = TensorField(np.dtype(TENSOR_DTYPES[code]).newbyteorder("<"),
+                            tuple(int(s) for s in shape), int(offset))
+        if field.offset + field.nbytes > size:
+            raise InputError(f"is truncated: field {name!r} ({'x'.join(map(str, shape))} "
+                             f"{field.dtype.name}) runs to byte {field.offset + field.nbytes}, "
+                             f"the file has {size}", path=path,
+                             fix="download the .bsdf file again (it is incomplete)")
+        fields[name] = field
+    return fields
+
+
+def read_tensor_file(path: str | os.PathLike,
+                     names: Sequence[str] | None = None) -> dict[str, np.ndarray]:
+    """The fields ``names`` (default: all) of a tensor file as read-only numpy arrays
+    (memory-mapped: a database file can be large). Checked by :func:`read_tensor_header`.
+    """
+    fields = read_tensor_header(path)
+    out = {}
+    for name in fields if names is None else names:
+        f = fields[name]
+        if f.nbytes == 0:
+            out[name] = np.zeros(f.shape, f.dtype)
+        else:
+            out[name] = np.memmap(path, dtype=f.dtype, mode="r", offset=f.offset,
+                                  shape=f.shape)
+    return out
+
+
+def write_tensor_file(path: str | os.PathLike, fields: dict[str, Any]) -> None:
+    """Write ``fields`` (name → numpy array, or str, stored as uint8 text) as a Mitsuba
+    tensor file, atomically; the layout :func:`read_tensor_header` and Mitsuba read."""
+    from .artifact import atomic_path
+
+    arrays = {k: (np.frombuffer(v.encode("utf-8"), np.uint8) if isinstance(v, str)
+                  else np.ascontiguousarray(v)) for k, v in fields.items()}
+    for name, a in arrays.items():
+        if a.dtype not in _DTYPE_CODES:
+            raise InputError(f"field {name!r}: type {a.dtype} has no tensor file code",
+                             fix="use one of " + ", ".join(str(np.dtype(t))
+                                                           for t in TENSOR_DTYPES.values()))
+    header = bytearray(TENSOR_MAGIC + struct.pack("<BBI", *TENSOR_VERSION, len(arrays)))
+    header_size = len(header) + sum(2 + len(k.encode()) + 11 + 8 * a.ndim
+                                    for k, a in arrays.items())
+    pad = lambda n: -n % TENSOR_ALIGN  # noqa: E731
+    body, offsets = bytearray(), {}
+    start = header_size + pad(header_size)
+    for name, a in arrays.items():
+        offsets[name] = start + len(body)
+        body += a.astype(a.dtype.newbyteorder("<"), copy=False).tobytes()
+        body += b"\0" * pad(len(body))
+    for name, a in arrays.items():
+        label = name.encode("utf-8")
+        header += struct.pack("<H", len(label)) + label
+        header += struct.pack("<HBQ", a.ndim, _DTYPE_CODES[a.dtype], offsets[name])
+        header += struct.pack(f"<{a.ndim}Q", *a.shape)
+    header += b"\0" * (start - len(header))
+    with atomic_path(path) as tmp:
+        Path(tmp).write_bytes(bytes(header + body))
+
+
+# ------------------------------------------------------------- the measured plugin --
+
+@dataclass(frozen=True)
+class Kind:
+    """An RGL file kind: the field holding its values and the Mitsuba variant it needs."""
+
+    name: str
+    field: str
+    variant: str
+
+
+#: The two kinds of RGL file, told apart by a ``wavelengths`` field (as measured.cpp does).
+KINDS = {"spectral": Kind("spectral", "spectra", "scalar_spectral"),
+         "rgb": Kind("rgb", "rgb", "scalar_rgb")}
+
+
+def kind_of(fields: dict[str, TensorField]) -> Kind:
+    """The :data:`KINDS` entry of a file from its header: spectral if it has wavelengths."""
+    return KINDS["spectral" if "wavelengths" in fields else "rgb"]
+
+
+#: Fields the ``measured`` plugin reads, with their rank (all float32 unless named).
+_RANKS = {"description": 1, "jacobian": 1, "theta_i": 1, "phi_i": 1, "ndf": 2, "sigma": 2,
+          "vndf": 4, "luminance": 4}
+_UINT8 = ("description", "jacobian")
+
+
+def check_bsdf(path: str | os.PathLike) -> tuple[Kind, dict[str, TensorField]]:
+    """Check a ``.bsdf`` file the way Mitsuba's ``measured`` plugin needs it.
+
+    The structure check of ``src/bsdfs/measured.cpp`` (fields, ranks, types and the shapes
+    that must agree), plus what its 2-D interpolants need (at least 2 × 2 samples), finite
+    angles and values, and increasing ``theta_i``, ``phi_i`` and ``wavelengths``, each
+    refused with the field's name. Returns the kind (:data:`KINDS`) and the header.
+    """
+    fields = read_tensor_header(path)
+    kind = kind_of(fields)
+    wanted = dict(_RANKS, **{kind.field: 5}, **({"wavelengths": 1}
+                                                 if kind.name == "spectral" else {}))
+    for name, rank in wanted.items():
+        if name not in fields:
+            raise InputError(f"has no field {name!r} (fields: {', '.join(fields) or 'none'}), "
+                             f"which an RGL {kind.name} .bsdf has", path=path,
+                             fix="pass a material file from the RGL database; a tensor file "
+                                 "of anything else is not a measured BSDF")
+        f = fields[name]
+        dtype = np.uint8 if name in _UINT8 else np.float32
+        if len(f.shape) != rank or f.dtype != np.dtype(dtype):
+            raise InputError(f"field {name!r} is {len(f.shape)}-D {f.dtype.name}, the "
+                             f"measured BSDF needs {rank}-D {np.dtype(dtype).name}",
+                             path=path, fix="pass an unmodified RGL .bsdf file")
+    shape = {n: fields[n].shape for n in wanted}
+    n_phi, n_theta = shape["phi_i"][0], shape["theta_i"][0]
+    n_channels = shape["wavelengths"][0] if kind.name == "spectral" else 3
+    values = shape[kind.field]
+    rules = [
+        ("vndf", shape["vndf"][:2] == (n_phi, n_theta), "(phi_i, theta_i, ...)"),
+        ("luminance", shape["luminance"][:2] == (n_phi, n_theta)
+         and shape["luminance"][2] == shape["luminance"][3], "(phi_i, theta_i, n, n)"),
+        (kind.field, values[:3] == (n_phi, n_theta, n_channels) and values[3] == values[4]
+         and values[3:] == shape["luminance"][2:],
+         f"(phi_i, theta_i, {'wavelengths' if kind.name == 'spectral' else '3'}, n, n) "
+         "with n x n that of 'luminance'"),
+        ("jacobian", shape["jacobian"] == (1,), "(1,)"),
+        ("theta_i", n_theta >= 1 and n_phi >= 1, "at least one angle"),
+    ]
+    rules += [(n, min(shape[n][-2:]) >= 2, "at least 2 x 2 samples")
+              for n in ("ndf", "sigma", "vndf", "luminance", kind.field)]
+    for name, ok, needed in rules:
+        if not ok:
+            raise InputError(f"field {name!r} has shape {'x'.join(map(str, shape[name]))}, "
+                             f"the measured BSDF needs {needed} (phi_i {n_phi}, theta_i "
+                             f"{n_theta})", path=path, fix="pass an unmodified RGL .bsdf file")
+    data = read_tensor_file(path, [n for n in wanted if n not in _UINT8])
+    for name, a in data.items():
+        if not np.isfinite(a).all():
+            bad = np.argwhere(~np.isfinite(a))[0]
+            raise InputError(f"field {name!r} holds {a[tuple(bad)]} at index "
+                             f"{tuple(int(b) for b in bad)}", path=path,
+                             fix="the file is damaged; download it again")
+    for name in ("theta_i", "phi_i", "wavelengths"):  # interpolation nodes
+        if name in data and np.any(np.diff(data[name]) <= 0):
+            raise InputError(f"field {name!r} is not increasing", path=path,
+                             fix="pass an unmodified RGL .bsdf file")
+    return kind, fields
+
+
+# ------------------------------------------------------------------------ options --
+
+def parse_angles(spec: str, flag: str, theta_i: bool, path=None) -> np.ndarray:
+    """An angle list option in degrees → sorted distinct (n,) array.
+
+    ``spec`` is comma-separated numbers and inclusive ``START:STOP:STEP`` ranges, e.g.
+    ``10:70:10`` or ``-80:85:5,44,46``. θi must lie in [0, 90), θo in (−90, 90)
+    (docs/conventions.md). Overlapping items are merged. ``path``: the input the angles
+    are for, named in an error.
+    """
+    rng = "[0, 90)" if theta_i else "(-90, 90)"
+    example = DEFAULT_THETA_I_DEG if theta_i else DEFAULT_THETA_O_DEG
+
+    def refuse(what: str) -> InputError:
+        return InputError(f"{flag} {spec!r}: {what}", path=path,
+                          fix=f"a list or START:STOP:STEP in degrees within {rng}, e.g. "
+                              f"{flag} {example}")
+
+    values: list[float] = []
+    for item in str(spec).split(","):
+        item = item.strip()
+        try:
+            numbers = [float(p) for p in item.split(":")]
+        except ValueError:
+            raise refuse(f"{item!r} is not a number or START:STOP:STEP") from None
+        if len(numbers) not in (1, 3) or not all(math.isfinite(x) for x in numbers):
+            raise refuse(f"{item!r} is not a number or START:STOP:STEP")
+        if len(numbers) == 3:
+            start, stop, step = numbers
+            n = (stop - start) / step if step > 0 else -1.0
+            if n < 0 or abs(n - round(n)) > 1e-6:
+                raise refuse(f"range {item!r} needs STEP > 0, START <= STOP and STOP - START "
+                             "a multiple of STEP")
+            numbers = list(start + step * np.arange(int(round(n)) + 1))
+        values += numbers
+    from .ingest import distinct  # np.unique without its numpy.ma import
+
+    theta = distinct(np.round(np.asarray(values, dtype=float), 6)) + 0.0  # + 0.0: −0 → 0
+    ok = (theta >= 0) & (theta < 90) if theta_i else np.abs(theta) < 90
+    if not ok.all():
+        raise refuse(f"{theta[~ok][0]:g} deg is outside {rng}")
+    return theta
+
+
+def resolve_parameters(paths: Sequence[str | os.PathLike], *,
+                       theta_i_deg: str | None = None, theta_o_deg: str | None = None,
+                       grid_nm: str | None = None, **csv_options) -> dict[str, Any]:
+    """Check the options for an RGL input and fill in defaults (recorded in the artifact).
+
+    One ``.bsdf`` at a time; the CSV-only options (``csv_options``, e.g. ``quantity``) are
+    refused when given, since the file holds BRDFs. Reads the file's header (cheap) to
+    record its kind and, for RGB, the RGB → spectrum rule; :func:`ingest` checks the rest
+    of the file (:func:`check_bsdf`).
+    """
+    where = os.fspath(paths[0])
+    if len(paths) != 1:
+        raise InputError(f"{len(paths)} inputs given with an RGL .bsdf: one .bsdf is read "
+                         "at a time, not merged", path=where,
+                         fix="ingest each .bsdf into its own measurement")
+    for name, value in csv_options.items():
+        if value is not None:
+            flag = "--" + name.replace("_", "-")
+            raise InputError(f"{flag} is for CSV input; an RGL .bsdf holds BRDF values",
+                             path=where, fix=f"drop {flag}")
+    theta_i = theta_i_deg if theta_i_deg is not None else DEFAULT_THETA_I_DEG
+    theta_o = theta_o_deg if theta_o_deg is not None else DEFAULT_THETA_O_DEG
+    parse_angles(theta_i, "--theta-i-deg", True, where)
+    parse_angles(theta_o, "--theta-o-deg", False, where)
+    grid = grid_nm if grid_nm is not None else DEFAULT_GRID_NM
+    parse_grid(grid)
+    kind = kind_of(read_tensor_header(where))
+    return {"format": FORMAT, "kind": kind.name, "quantity": "brdf", "theta_i_deg": theta_i,
+            "theta_o_deg": theta_o, "grid_nm": grid,
+            "rgb_to_spectrum": RGB_TO_SPECTRUM if kind.name == "rgb" else None,
+            "mitsuba_variant": kind.variant, "mitsuba_version": mitsuba_version()}
+
+
+def mitsuba_version() -> str | None:
+    """The installed Mitsuba's version (package metadata, without importing it), or None."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("mitsuba")
+    except PackageNotFoundError:
+        return None
+
+
+def import_mitsuba(path=None):
+    """The ``mitsuba`` module; a one-line error naming the extra (and ``path``, the file
+    that needs it) if it is not installed."""
+    try:
+        import mitsuba as mi
+    except ImportError:
+        raise InputError("reading an RGL .bsdf needs Mitsuba 3 (the optional extra "
+                         "gonio[mitsuba]), which is not installed", path=path,
+                         fix=INSTALL_FIX) from None
+    return mi
+
+
+# --------------------------------------------------------------------- evaluation --
+
+def evaluate_in_plane(path: str | os.PathLike, kind: Kind, theta_i_deg, theta_o_deg,
+                      channels) -> np.ndarray:
+    """BRDF f in sr⁻¹ (no cosine) of an RGL file at in-plane configurations.
+
+    ``theta_i_deg``, ``theta_o_deg``: (n,) in degrees, light at (−sin θi, 0, cos θi), detector
+    at (sin θo, 0, cos θo) (docs/conventions.md; Mitsuba's local frame has the normal on
+    +z too; ωi's 0 is −0.0, see the comment in the code). ``channels``: (n_c,) wavelengths in nm for a spectral file, or ``(0, 1, 2)``
+    (R, G, B) for an RGB one. Returns (n, n_c) float64: Mitsuba's ``eval`` (f·cos θo, in
+    float32, as its scalar variants compute) divided by cos θo.
+    """
+    mi = import_mitsuba(path)
+    previous = mi.variant()  # a caller's variant is set back afterwards
+    if kind.variant not in mi.variants():
+        raise InputError(f"this Mitsuba ({mi.__version__}) has no {kind.variant} variant "
+                         f"(it has {', '.join(mi.variants())})",
+                         fix=INSTALL_FIX + " (the PyPI wheels include it)")
+    mi.set_variant(kind.variant)
+    try:
+        return _evaluate(mi, path, theta_i_deg, theta_o_deg, channels,
+                         kind.name == "spectral")
+    finally:
+        if previous is not None:
+            mi.set_variant(previous)
+
+
+def _evaluate(mi, path, theta_i_deg, theta_o_deg, channels, spectral: bool) -> np.ndarray:
+    """:func:`evaluate_in_plane` with ``mi``'s variant set."""
+    from .geometry import in_plane_directions
+
+    try:
+        bsdf = mi.load_dict({"type": "measured", "filename": os.fspath(path)})
+    except RuntimeError as exc:
+        lines = [ln.strip() for ln in str(exc).splitlines() if ln.strip()]
+        text = lines[0].split("] ", 1)[-1] if lines else type(exc).__name__
+        raise InputError(f"Mitsuba cannot load it: {text}", path=path,
+                         fix="pass an unmodified RGL .bsdf file") from None
+    wi, wo = in_plane_directions(theta_i_deg, theta_o_deg)
+    # ωi's y is −0.0 (the same direction): Mitsuba 3.9.1's measured plugin leaves its
+    # symmetry reduction (m_reduction) uninitialised for isotropic files (open upstream fix:
+    # github.com/mitsuba-renderer/mitsuba3/pull/1850) and then flips x and y unless their
+    # sign bits are set, which at the mirror configuration moves the value by ~1e-4 from
+    # run to run. With a sign bit on y (and x < 0) that branch is the identity whatever
+    # value it holds.
+    wi[..., 1] = -0.0
+    channels = np.asarray(channels, dtype=float)
+    ctx = mi.BSDFContext()
+    si = mi.SurfaceInteraction3f()
+    out = np.zeros((wi.shape[0], channels.size))
+    # lanes of SPECTRAL_LANES wavelengths (the last one padded with its last wavelength)
+    lanes = [channels[k:k + SPECTRAL_LANES] for k in range(0, channels.size, SPECTRAL_LANES)]
+    for n in range(wi.shape[0]):
+        si.wi = mi.Vector3f(*wi[n])
+        w = mi.Vector3f(*wo[n])
+        if spectral:
+            k = 0
+            for lane in lanes:
+                padded = np.concatenate([lane, np.repeat(lane[-1], SPECTRAL_LANES - lane.size)])
+                si.wavelengths = mi.Spectrum(padded.tolist())
+                v = bsdf.eval(ctx, si, w)
+                out[n, k:k + lane.size] = [v[j] for j in range(lane.size)]
+                k += lane.size
+        else:
+            v = bsdf.eval(ctx, si, w)
+            out[n] = [v[j] for j in range(3)]
+    return out / wo[:, 2:3]
+
+
+def ingest(paths: Sequence[str | os.PathLike], *, theta_i_deg: str | None = None,
+                theta_o_deg: str | None = None, grid_nm: str | None = None,
+                **csv_options) -> Measurement:
+    """Read one RGL ``.bsdf`` into a measurement: in-plane BRDF on the working grid.
+
+    Parameters
+    ----------
+    paths : one path of an RGL ``.bsdf`` file (RGB or spectral).
+    theta_i_deg, theta_o_deg : angle lists (:func:`parse_angles`; defaults
+        :data:`DEFAULT_THETA_I_DEG`, :data:`DEFAULT_THETA_O_DEG`); every θo for every θi.
+    grid_nm : working grid ``"START:STOP:STEP"`` (default ``380:780:10``).
+    csv_options : the CSV-only options of :func:`gonio_cli.ingest.ingest`, which must be
+        None here.
+
+    Returns
+    -------
+    Measurement
+        ``brdf`` (n_θi · n_θo, n_λ) in sr⁻¹ without the cosine factor, one repeat each,
+        quantity ``brdf``, and a ``summary`` (:func:`gonio_cli.ingest.format_summary`).
+    """
+    params = resolve_parameters(paths, theta_i_deg=theta_i_deg, theta_o_deg=theta_o_deg,
+                                grid_nm=grid_nm, **csv_options)
+    path = os.fspath(paths[0])
+    kind, fields = check_bsdf(path)
+    grid = parse_grid(params["grid_nm"])
+    ti = parse_angles(params["theta_i_deg"], "--theta-i-deg", True, path)
+    to = parse_angles(params["theta_o_deg"], "--theta-o-deg", False, path)
+    ti_all, to_all = (a.ravel() for a in np.meshgrid(ti, to, indexing="ij"))
+    notes: list[str] = []
+    meta = read_tensor_file(path, ["description", "jacobian", "phi_i", "theta_i"])
+    if kind.name == "spectral":
+        wl = np.asarray(read_tensor_file(path, ["wavelengths"])["wavelengths"], dtype=float)
+        if not covers(wl, grid):
+            raise InputError(f"its wavelengths {wl[0]:g}-{wl[-1]:g} nm do not cover the "
+                             f"working grid {grid[0]:g}-{grid[-1]:g} nm", path=path,
+                             column="wavelengths",
+                             fix=f"choose a grid inside the file's, e.g. --grid-nm "
+                                 f"{math.ceil(wl[0] / 10) * 10:g}:"
+                                 f"{math.floor(wl[-1] / 10) * 10:g}:10")
+        from .ingest import used_wavelengths
+
+        used = wl[used_wavelengths(wl, grid)]
+        f = evaluate_in_plane(path, kind, ti_all, to_all, used)
+        brdf = resample(used, f, grid)
+        resampled = not same_grid(used, grid)
+        if resampled:
+            notes.append(f"{path}: resampled from the file's {wl.size} wavelengths "
+                         f"({wl[0]:g}-{wl[-1]:g} nm, {used.size} used) onto the working grid "
+                         f"{params['grid_nm']} nm")
+        file_grid = f"{wl[0]:g}-{wl[-1]:g} nm ({wl.size} wavelengths)"
+    else:
+        from .spectra import rgb_reflectance_basis, rgb_reflectance_basis_range_nm
+
+        lo, hi = rgb_reflectance_basis_range_nm()
+        if grid[0] < lo - 1e-6 or grid[-1] > hi + 1e-6:
+            raise InputError(f"an RGB file becomes spectra through the Mallett-Yuksel basis, "
+                             f"defined on {lo:g}-{hi:g} nm, not the working grid "
+                             f"{grid[0]:g}-{grid[-1]:g} nm", path=path,
+                             fix=f"choose a grid inside it, e.g. --grid-nm {DEFAULT_GRID_NM}")
+        rgb = evaluate_in_plane(path, kind, ti_all, to_all, (0, 1, 2))
+        brdf = rgb @ rgb_reflectance_basis(grid).T
+        resampled = False
+        file_grid = "linear sRGB"
+    negative = int(np.count_nonzero(brdf < 0))
+    if negative:
+        notes.append(f"{path}: clipped {negative} negative values (RGB outside the basis' "
+                     "gamut or interpolation round-off) to 0")
+    brdf = np.maximum(brdf, 0.0)
+    m = Measurement(grid, ti_all, to_all, brdf, None, np.ones(ti_all.size, dtype=int), "brdf")
+    description = bytes(np.asarray(meta["description"])).decode("utf-8", "replace")
+    info = {"format": FORMAT, "path": path, "kind": kind.name, "description": description,
+            "isotropic": bool(meta["phi_i"].shape[0] <= 2),
+            "theta_i_samples": int(meta["theta_i"].shape[0]),
+            "resolution": list(fields[kind.field].shape[3:]),
+            "jacobian": bool(np.asarray(meta["jacobian"])[0]),
+            "wavelength_nm": file_grid, "rgb_to_spectrum": params["rgb_to_spectrum"],
+            "mitsuba_variant": kind.variant, "mitsuba_version": params["mitsuba_version"]}
+    m.summary = _summary(m, info, params, resampled, negative, notes)
+    for note in notes:
+        log.warn(note)
+    return m
+
+
+def _summary(m: Measurement, info: dict, params: dict, resampled: bool, clipped: int,
+             notes: list[str]) -> dict[str, Any]:
+    """The summary of :func:`gonio_cli.ingest.ingest`'s shape for an RGL input."""
+    from .ingest import distinct
+
+    per_theta_i = []
+    for t in distinct(m.theta_i_deg):
+        sel = m.theta_i_deg == t
+        per_theta_i.append({"theta_i_deg": float(t),
+                            "theta_o_min_deg": float(m.theta_o_deg[sel].min()),
+                            "theta_o_max_deg": float(m.theta_o_deg[sel].max()),
+                            "configurations": int(sel.sum())})
+    return {"files": [info], "quantity": "brdf",
+            "conversion": "f = Mitsuba measured eval (f cos theta_o) / cos theta_o",
+            "scale": 1.0, "theta_i_deg": [r["theta_i_deg"] for r in per_theta_i],
+            "theta_o_by_theta_i": per_theta_i, "working_grid_nm": params["grid_nm"],
+            "resampled": resampled, "configurations": m.n_configurations,
+            "spectra": m.n_configurations, "repeats_min": 1, "repeats_max": 1,
+            "brdf_min_per_sr": float(m.brdf.min()), "brdf_max_per_sr": float(m.brdf.max()),
+            "negative_values_read": clipped, "clipped_to_zero": clipped,
+            "warnings": list(notes)}
+
+
+def file_lines(info: dict[str, Any]) -> list[str]:
+    """``--summary`` lines for one RGL input (:func:`gonio_cli.ingest.format_summary`)."""
+    lines = [f"read {info['path']}: RGL {info['kind']} .bsdf \"{info['description']}\", "
+             f"{'isotropic' if info['isotropic'] else 'anisotropic'}, "
+             f"{info['theta_i_samples']} theta_i samples, "
+             f"{'x'.join(map(str, info['resolution']))} per slice, {info['wavelength_nm']}",
+             f"  evaluated in plane by Mitsuba {info['mitsuba_version']} "
+             f"({info['mitsuba_variant']}, measured plugin), divided by cos theta_o"]
+    if info.get("rgb_to_spectrum"):
+        lines.append(f"  RGB to spectrum: {info['rgb_to_spectrum']}")
+    return lines
+
+
+def is_bsdf(path: str | os.PathLike) -> bool:
+    """True for a path routed to this module (suffix :data:`SUFFIX`, any case)."""
+    return Path(path).suffix.lower() == SUFFIX
+
