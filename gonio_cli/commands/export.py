@@ -7,6 +7,8 @@ from typing import List, Optional
 
 import typer
 
+from ..export import TARGETS  # the registry (light: no renderer is imported here)
+
 
 def export(
     material: Path = typer.Argument(..., metavar="MATERIAL.json", show_default=False,
@@ -14,7 +16,7 @@ def export(
     output: Path = typer.Option(..., "--output", "-o", metavar="DIR",
                                 help="The folder to write (made if missing)."),
     to: str = typer.Option("mitsuba", "--to", metavar="TARGET",
-                           help="The renderer to export to: mitsuba."),
+                           help=f"The renderer to export to: {', '.join(TARGETS)}."),
     scene: Optional[Path] = typer.Option(None, "--scene", metavar="SCENE.toml",
                                          help="A gonio scene whose camera and lights the "
                                               "exported scene uses (default: the sample "

@@ -16,8 +16,26 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 
-#: Tried in this order when --variant is not given (LLVM is much faster for a Python BSDF).
-VARIANTS = ("llvm_ad_spectral", "scalar_spectral", "llvm_ad_rgb", "scalar_rgb")
+#: Tried in this order when --variant is not given (LLVM is much faster for a Python BSDF;
+#: it is used only if a probe compiles, :func:`llvm_works`).
+VARIANTS = ("llvm_ad_spectral", "scalar_spectral")
+
+#: A kernel every BSDF needs (a maximum): with an LLVM that Dr.Jit cannot drive (LLVM 15
+#: with Dr.Jit 1.5) compiling it aborts the process, so it is tried in a child process.
+LLVM_PROBE = ("import drjit as dr, mitsuba as mi; mi.set_variant('llvm_ad_spectral'); "
+              "dr.eval(dr.maximum(dr.arange(mi.Float, 8), 1.0))")
+
+
+def llvm_works() -> bool:
+    """Does a Dr.Jit LLVM kernel compile and run here (in a child process)?"""
+    import subprocess
+    import sys
+
+    try:
+        return subprocess.run([sys.executable, "-c", LLVM_PROBE], capture_output=True,
+                              timeout=120).returncode == 0
+    except (OSError, subprocess.TimeoutExpired):
+        return False
 
 
 def load_scene(variant: str | None = None, spp: int = 256, xyz: bool = False):
@@ -25,7 +43,8 @@ def load_scene(variant: str | None = None, spp: int = 256, xyz: bool = False):
     import mitsuba as mi
 
     if variant is None:
-        variant = next(v for v in VARIANTS if v in mi.variants())
+        llvm = "llvm_ad_spectral" in mi.variants() and llvm_works()
+        variant = VARIANTS[0] if llvm else VARIANTS[1]
     mi.set_variant(variant)
     spec = importlib.util.spec_from_file_location("gonio_bsdf", HERE / "gonio_bsdf.py")
     plugin = importlib.util.module_from_spec(spec)
