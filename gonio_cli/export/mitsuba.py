@@ -46,6 +46,10 @@ UNIFORM_SHARE = 0.1
 #: estimated: ρ exp(c x) varies with x = 1 − cos θi there; 45° is mid-range.
 ESTIMATE_THETA_DEG = 45.0
 
+#: Cap of c x in an albedo estimate (exp(50) ~ 5e21): a wild c only makes that lobe the
+#: one sampled, never an overflow.
+ESTIMATE_EXP_MAX = 50.0
+
 #: Relative spread of the grid's steps accepted as a regular grid (the plugin interpolates
 #: on a regular grid; gonio's grids are START:STOP:STEP, float round-off only).
 REGULAR_GRID_RTOL = 1e-6
@@ -99,7 +103,7 @@ def _gonio_lobe(p) -> Lobe:
     """Seed 000 eq. 5: D/4 integrates to ~1 against cos θo, so the albedo is ~ρ exp(c x)."""
     rho, c = np.asarray(p["rho"]), np.asarray(p["c"])
     return Lobe("ggx", float(p["alpha"]), float(np.mean(rho * np.exp(np.minimum(
-        c * _mirror_x(), 50.0)))))
+        c * _mirror_x(), ESTIMATE_EXP_MAX)))))
 
 
 def _ct_lobe(ks, m, f0) -> Lobe:

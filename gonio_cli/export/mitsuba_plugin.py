@@ -37,6 +37,10 @@ import mitsuba as mi
 
 HERE = Path(__file__).resolve().parent
 
+#: Floor of ωo·m in the reflection Jacobian 1/(4 ωo·m): m is the half vector of two
+#: upper-hemisphere directions, so ωo·m > 0 except at ωo = −ωi (never lit and seen).
+MIN_DOT = 1e-12
+
 #: The parameter file's schema this plugin reads.
 SCHEMA = "gonio.mitsuba-bsdf"
 SCHEMA_VERSION = 1
@@ -146,7 +150,7 @@ def bsdf_class():
                 if dist is None:
                     pdf += p * mi.warp.square_to_cosine_hemisphere_pdf(wo)
                 else:
-                    pdf += p * dist.pdf(wi, m) / (4.0 * dr.maximum(dr.dot(wo, m), 1e-12))
+                    pdf += p * dist.pdf(wi, m) / (4.0 * dr.maximum(dr.dot(wo, m), MIN_DOT))
             return pdf
 
         def _lit(self, wi, wo):
