@@ -190,6 +190,27 @@ def test_drjit_port_equals_numpy_models(model):
     np.testing.assert_allclose(got, truth, rtol=3e-5, atol=1e-6 * np.abs(truth).max())
 
 
+@pytest.mark.parametrize("model", list(brdf.MODELS))
+def test_drjit_port_at_grazing_and_mirror_is_finite(model):
+    """Cosines 0, 1e-9 (below COS_EPS), 1e-3 and 1 in every combination, with the
+    smallest roughness a fit gives (1e-3) and the largest c: finite and ≥ 0, and equal to
+    numpy where numpy is below float32's range (values up to 1/(π α²) ~ 3e5 here)."""
+    edges = np.array([0.0, 1e-9, 1e-3, 1.0])
+    grid = np.stack(np.meshgrid(edges, edges, edges, edges, indexing="ij"), -1).reshape(-1, 4)
+    rng = np.random.default_rng(11)
+    params = _random_params(model, rng, 1)
+    params.update({k: 1e-3 for k in params if k.startswith(("alpha", "m"))})
+    if "c" in params:
+        params["c"] = np.array([6.0])
+    truth = brdf.MODELS[model].evaluate(
+        brdf.Cosines(*(grid[:, k] for k in range(4))), **params)[:, 0]
+    cos = tuple(dr.scalar.ArrayXf(grid[:, k]) for k in range(4))
+    got = np.array(port.MODELS[model](cos, **{
+        k: (float(v[0]) if np.ndim(v) else v) for k, v in params.items()}))
+    assert np.all(np.isfinite(got)) and np.all(got >= 0)
+    np.testing.assert_allclose(got, truth, rtol=1e-4, atol=1e-6 * truth.max())
+
+
 def test_exported_port_is_the_same_file(run_gonio, tmp_path):
     out = export(run_gonio, tmp_path, ink(620.0, 0.18))
     assert (out / "gonio_drjit_brdf.py").read_bytes() == open(port.__file__, "rb").read()
