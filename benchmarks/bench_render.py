@@ -1,6 +1,6 @@
 """Benchmark of ``gonio render`` as users measure it: whole processes, then the frame.
 
-    .venv/bin/python benchmarks/bench_render.py [--quick]
+    .venv/bin/python benchmarks/bench_render.py [--quick] [--mitsuba-only]
 
 Scene: the analytic reference's sphere (``tests/test_render_reference.py``) at 512 × 512,
 two directional D65 lights, a synthetic red ink (or the demo's, if ``make demo`` ran),
@@ -15,7 +15,9 @@ with the sphere read from a 20 448-triangle OBJ (v, vt, vn, ``f v/vt/vn``) writt
    < 40 ms, ssaa 2 frame < 120 ms, 1 M triangles < 5 s, 2048² ssaa 2 < 1 GB.
 2. The frame in a warm process: the median per stage (rasterize passes, shade, resolve,
    tone map) of N renders.
-3. Mitsuba 3 on the same sphere, if ``import mitsuba`` works.
+3. gonio and Mitsuba 3 (``gonio export --to mitsuba``: the same material as a Mitsuba
+   plugin, the same scene) side by side at 128 × 128: whole-process time and CIEDE2000
+   against the analytic reference, if ``import mitsuba`` works.
 """
 
 from __future__ import annotations
@@ -113,30 +115,78 @@ def warm_frame(scene: Path, ssaa: int, repeats: int) -> dict[str, float]:
     return med
 
 
-def mitsuba_row(folder: Path) -> str:
+#: Mitsuba beside gonio: image size and samples per pixel (a Python BSDF in a scalar
+#: variant runs once per sample, ~50 µs, so 512² would take minutes).
+MITSUBA_SIZE = 128
+MITSUBA_SPP = 16
+#: LLVM variants run the plugin vectorised: enough samples for the spectral noise to fall.
+MITSUBA_LLVM_SPP = 256
+
+
+def mitsuba_rows(folder: Path, material: Path) -> list[str]:
+    """gonio and Mitsuba 3 (the ``gonio export --to mitsuba`` plugin) on the same sphere
+    scene and material, whole processes: wall s, peak RSS and CIEDE2000 (mean / p99 of
+    interior pixels) against the analytic reference (the converged image of the model).
+    Markdown table rows, or one line saying why Mitsuba is skipped."""
     try:
-        import mitsuba as mi  # noqa: F401
+        import mitsuba as mi
     except ImportError:
-        return "Mitsuba 3: skipped: mitsuba not installed"
-    mi.set_variant("scalar_rgb")
-    scene = mi.load_dict({
-        "type": "scene", "integrator": {"type": "direct"},
-        "sensor": {"type": "perspective", "fov": 32.0, "fov_axis": "y",
-                   "to_world": mi.ScalarTransform4f.look_at(origin=[0, 0, 4], target=[0, 0, 0],
-                                                             up=[0, 1, 0]),
-                   "film": {"type": "hdrfilm", "width": SIZE, "height": SIZE},
-                   "sampler": {"type": "independent", "sample_count": 16}},
-        "sphere": {"type": "obj", "filename": str(folder / "sphere20k.obj"),
-                   "bsdf": {"type": "roughconductor", "alpha": 0.18}},
-        "key": {"type": "directional", "direction": [1.0, -1.0, -1.2], "irradiance": 3.0},
-        "rim": {"type": "directional", "direction": [-1.0, -0.3, 0.6], "irradiance": 3.0}})
-    t0 = time.perf_counter()
-    mi.render(scene)
-    return f"Mitsuba 3 (scalar_rgb, 16 spp, in process): {time.perf_counter() - t0:.2f} s"
+        return ["Mitsuba 3 beside render: skipped (not installed)"]
+    import shutil
+
+    from gonio_cli.schemas import read_material
+    from test_render_reference import delta_e_2000, exr_to_xyz, reference_xyz, sphere_scene
+
+    from gonio_cli.export.mitsuba_render import llvm_works
+
+    work = folder / "mitsuba"
+    work.mkdir()
+    shutil.copy(material, work / material.name)
+    scene = Path(sphere_scene(work, work / material.name, MITSUBA_SIZE, "table", ssaa=2))
+    export = work / "export"
+    process.run_measured([process.gonio_command(), "-q", "export", str(material), "-o",
+                          str(export), "--to", "mitsuba", "--scene", str(scene)])
+    truth, interior = reference_xyz(read_material(material), MITSUBA_SIZE)
+
+    def error(xyz) -> str:
+        de = delta_e_2000(xyz[interior], truth[interior])
+        return f"{de.mean():.3f} / {np.percentile(de, 99):.3f}"
+
+    rows = ["| renderer | wall (s) | peak RSS (MB) | CIEDE2000 mean / p99 vs analytic |",
+            "|---|---:|---:|---|"]
+    out = work / "gonio"
+    out.mkdir()
+    r = run_process(scene, out)
+    rows.append(f"| gonio render, ssaa 2 | {r['wall_s']:.2f} | {r['rss_mb']:.0f} | "
+                f"{error(exr_to_xyz(out / 'o.exr'))} |")
+    variants = [("scalar_rgb", MITSUBA_SPP), ("scalar_spectral", MITSUBA_SPP)]
+    llvm = "llvm_ad_spectral" in mi.variants() and llvm_works()
+    if llvm:
+        variants += [("llvm_ad_rgb", MITSUBA_SPP), ("llvm_ad_spectral", MITSUBA_SPP),
+                     ("llvm_ad_spectral", MITSUBA_LLVM_SPP)]
+    for variant, spp in variants:
+        exr = work / f"{variant}.{spp}.exr"
+        wall, rss, _ = process.run_measured([sys.executable, str(export / "render.py"), "-o",
+                                             str(exr), "--variant", variant, "--spp",
+                                             str(spp), "--xyz"])
+        from gonio_cli.imageio import read_image
+
+        xyz = read_image(exr).pixels[..., :3].astype(np.float64)
+        rows.append(f"| Mitsuba 3 {variant}, {spp} spp, exported plugin | {wall:.2f} "
+                    f"| {rss:.0f} | {error(xyz)} |")
+    if not llvm:
+        rows.append("\nLLVM variants skipped: Dr.Jit cannot compile with this machine's "
+                    "LLVM (docs/export.md).")
+    return rows
 
 
 def main() -> None:
     quick = "--quick" in sys.argv
+    if "--mitsuba-only" in sys.argv:              # just section 3
+        tmp = Path(tempfile.mkdtemp(prefix="bench_render."))
+        make_scene(tmp, "builtin:sphere", "s")
+        print("\n".join(mitsuba_rows(tmp, tmp / "ink.json")))
+        return
     repeats = 3 if quick else 9
     tmp = Path(tempfile.mkdtemp(prefix="bench_render."))
     env = dict(os.environ, GONIO_CACHE_DIR=str(tmp / "cache"))
@@ -185,7 +235,9 @@ def main() -> None:
     print(f"\nTargets: frame < {1e3 * TARGETS['frame_ssaa1_s']:.0f} ms at ssaa 1: "
           f"{1e3 * f1['frame']:.0f} ms; < {1e3 * TARGETS['frame_ssaa2_s']:.0f} ms at ssaa 2: "
           f"{1e3 * f2['frame']:.0f} ms.")
-    print("\n" + mitsuba_row(tmp))
+    print(f"\n## gonio and Mitsuba 3 on the same scene and material ({MITSUBA_SIZE}x"
+          f"{MITSUBA_SIZE}, whole processes)\n")
+    print("\n".join(mitsuba_rows(tmp, tmp / "ink.json")))
 
 
 if __name__ == "__main__":

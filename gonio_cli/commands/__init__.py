@@ -29,8 +29,8 @@ from typer.models import DefaultPlaceholder
 
 #: Stage shells in pipeline order (module names = command names); each module has
 #: ``register(app)`` and ``EXAMPLE``, and ``gonio --help`` lists the commands in this order.
-STAGES = ("ingest", "fit", "eval", "lobes", "halftone", "prefilter", "sparkle", "render", "report",
-          "batch")
+STAGES = ("ingest", "fit", "eval", "lobes", "halftone", "prefilter", "sparkle", "render", "export",
+          "report", "batch")
 
 #: Characters that make a shell word a pattern (POSIX sh and bash globbing).
 GLOB_CHARACTERS = frozenset("*?[")

@@ -1,0 +1,72 @@
+"""``gonio export``: the thin shell over :mod:`gonio_cli.export`."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import List, Optional
+
+import typer
+
+from ..export import TARGETS  # the registry (light: no renderer is imported here)
+
+
+def export(
+    material: Path = typer.Argument(..., metavar="MATERIAL.json", show_default=False,
+                                   help="A gonio.material file (gonio fit)."),
+    output: Path = typer.Option(..., "--output", "-o", metavar="DIR",
+                                help="The folder to write (made if missing)."),
+    to: str = typer.Option("mitsuba", "--to", metavar="TARGET",
+                           help=f"The renderer to export to: {', '.join(TARGETS)}."),
+    scene: Optional[Path] = typer.Option(None, "--scene", metavar="SCENE.toml",
+                                         help="A gonio scene whose camera and lights the "
+                                              "exported scene uses (default: the sample "
+                                              "sphere scene of seed 000 Figure 5)."),
+    var: List[str] = typer.Option([], "--var", metavar="NAME=VALUE",
+                                  help="A ${NAME} of --scene (as in gonio render)."),
+) -> None:
+    """Export a fitted material to another renderer, with a scene that shows it.
+
+    For Mitsuba 3: a BSDF plugin (gonio_bsdf.py, Python, mi.register_bsdf) that evaluates
+    and importance-samples the model, its parameters, scene.xml (the material on a sphere
+    under the scene's lights) and render.py; gonio_scene.toml renders the same scene with
+    gonio render. See docs/export.md.
+
+    \b
+    Example:
+      gonio export red.material.json -o red.mitsuba --to mitsuba
+      python red.mitsuba/render.py -o red-mitsuba.exr
+    """
+    from .. import log
+    from ..errors import InputError
+    from ..export import get_target
+    from ..schemas import read_material
+    from . import require_files
+
+    target = get_target(to)
+    require_files([material], missing_fix="check the path or make it with gonio fit")
+    if scene is not None:
+        require_files([scene], missing_fix="check the path of the scene file")
+    variables = {}
+    for item in var:
+        name, eq, value = item.partition("=")
+        if not eq or not name:
+            raise InputError(f"--var {item!r} is not NAME=VALUE", fix="e.g. --var out=/data")
+        variables[name] = value
+    if variables and scene is None:
+        raise InputError("--var needs --scene", fix="name the scene the variables are for")
+    mat = read_material(material)
+    if mat.status == "failed":
+        log.warn(f"{material}: a fit with status {mat.status!r} is exported")
+    with log.timer() as t:
+        files = target.write(mat, material, output, scene, variables or None)
+    log.info(f"{output}: {mat.model} for {target.name} ({len(files)} files, "
+             f"{t['time_s']:.2f} s)")
+
+
+EXAMPLE = "gonio export red.material.json -o red.mitsuba --to mitsuba"
+
+SHORT_HELP = "Export a fitted material to another renderer (Mitsuba 3), with a scene."
+
+
+def register(app: typer.Typer) -> None:
+    app.command("export", short_help=SHORT_HELP)(export)
