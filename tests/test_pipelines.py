@@ -17,6 +17,7 @@ import os
 import shlex
 import shutil
 import subprocess
+import time
 from collections import Counter
 from pathlib import Path
 
@@ -24,7 +25,8 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 MAKE = shutil.which("make")
-COPIED = ("Makefile", "pipelines", "sample_data", "pyproject.toml", "requirements.lock")
+COPIED = ("Makefile", "pipelines", "sample_data", "pyproject.toml", "requirements.lock",
+          "setup.py", "gonio_cli/halftone/_diffuse.c")
 
 pytestmark = pytest.mark.skipif(
     MAKE is None, reason="`make` is not on PATH: the pipelines are Makefiles (install GNU make)")
@@ -143,6 +145,7 @@ def built(tmp_path_factory):
         if src.is_dir():
             shutil.copytree(src, root / name, ignore=shutil.ignore_patterns("__pycache__"))
         else:
+            (root / name).parent.mkdir(parents=True, exist_ok=True)
             shutil.copy2(src, root / name)
     tree = Tree(root)
     fresh_plan = tree.plan()
@@ -306,4 +309,9 @@ def test_stamp_is_order_only(tree):
     stamp.touch()
     assert tree.plan(stamp=str(stamp)) == set()
     tree.touch("requirements.lock")
+    assert tree.plan(stamp=str(stamp)) == {str(stamp)}
+    # so does a change to the C kernel that pip compiles at install
+    stamp.touch()
+    time.sleep(0.05)  # past the file system's clock tick (~4 ms): the edit is newer
+    tree.touch("gonio_cli/halftone/_diffuse.c")
     assert tree.plan(stamp=str(stamp)) == {str(stamp)}
