@@ -15,7 +15,7 @@ from typing import Optional
 
 import typer
 
-#: Schema of OUTDIR/index.json.
+#: Schema of OUTDIR/index.json (its fields: gonio_cli.schemas.prefilter_index_spec).
 INDEX_SCHEMA = "gonio.prefilter"
 INDEX_VERSION = 1
 
@@ -56,16 +56,9 @@ def parse_exponents(text: str) -> list[float]:
 
 def read_lobe_exponents(path: Path) -> list[float]:
     """The top-level ``exponents`` list of a ``gonio.lobes`` artifact (schema_version 1)."""
-    from ..artifact import read_artifact
-    from ..errors import ArtifactError
+    from ..schemas import read_lobes
 
-    doc = read_artifact(path, "gonio.lobes", (1,))
-    exps = doc.get("exponents")
-    if not isinstance(exps, list) or not exps or not all(
-            isinstance(e, (int, float)) and not isinstance(e, bool) for e in exps):
-        raise ArtifactError("has no top-level 'exponents' list of numbers", path=path,
-                            fix="pass the lobes file written by gonio lobes")
-    return [float(e) for e in exps]
+    return [float(e) for e in read_lobes(path).exponents]
 
 
 def prefilter(
@@ -160,6 +153,7 @@ def _write(output: Path, envmap_path: Path, lobes, shape, results, names, parame
 
     from ..artifact import folder_error, make_document, make_folder, note_written, write_json
     from ..imageio import write_exr
+    from ..schemas import prefilter_index_spec, validate
 
     parent = make_folder(output.parent)
     try:
@@ -187,6 +181,8 @@ def _write(output: Path, envmap_path: Path, lobes, shape, results, names, parame
             "maps": entries,
         }, inputs=[envmap_path] + ([lobes] if lobes else []), parameters=parameters,
             time_s=time_s)
+        # the reader's definition (gonio_cli.schemas): what is written can be read back
+        validate(doc, prefilter_index_spec(), output / "index.json", "a bug")
         write_json(tmp / "index.json", doc)
         make_folder(output)
         for name in names + ["index.json"]:
