@@ -90,7 +90,8 @@ def run(argv: Sequence[str] | None = None) -> int:
     apply_help_style(app)  # commands registered since import (tests) get the same help
     args = list(argv) if argv is not None else sys.argv[1:]
     try:
-        code = _app_for(args)(args=args, prog_name="gonio", standalone_mode=False)
+        with log.python_warnings(_subject(args)):
+            code = _app_for(args)(args=args, prog_name="gonio", standalone_mode=False)
         code = code if isinstance(code, int) else 0
         # typer turns Ctrl-C inside a command into exit status 130 without a word
         return _interrupted() if code == EXIT_INTERRUPTED else code
@@ -148,6 +149,11 @@ def _app_for(args: Sequence[str]) -> typer.Typer:
     one = copy.copy(app)
     one.registered_commands, one.registered_groups = commands, groups
     return one
+
+
+def _subject(args: Sequence[str]) -> str | None:
+    """The first argument that is an existing file: what a Python warning is about."""
+    return next((a for a in args if not a.startswith("-") and os.path.isfile(a)), None)
 
 
 def _forget_written() -> None:

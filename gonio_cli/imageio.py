@@ -26,7 +26,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from . import __version__
-from .artifact import atomic_path
+from .artifact import atomic_path, check_finite
 from .errors import InputError
 
 #: Prefix of gonio's metadata attributes in image headers.
@@ -205,6 +205,7 @@ def write_png(path: str | os.PathLike, pixels: np.ndarray,
     level = get_compression(compression, "compression").png_zlib_level
     a = np.asarray(pixels)
     if a.dtype != np.uint8:
+        check_finite(a, "the image", path)
         a = np.round(np.clip(a, 0.0, 1.0) * 255.0).astype(np.uint8)
     _write(path, a, "uint8", metadata, {"png:compressionLevel": level})
 
@@ -269,8 +270,12 @@ def write_png_indexed(path: str | os.PathLike, indices: np.ndarray,
 def write_exr(path: str | os.PathLike, pixels: np.ndarray,
               metadata: Mapping[str, Any] | None = None, *,
               compression: str = DEFAULT_COMPRESSION,
-              source_date_epoch: int | None = None) -> None:
+              source_date_epoch: int | None = None, allow_nonfinite: bool = False) -> None:
     """Write float32 EXR atomically (scene-referred linear values, docs/conventions.md).
+
+    A NaN or inf texel (also a value beyond float32) is refused with
+    :class:`~gonio_cli.errors.NumericError` naming the file, unless ``allow_nonfinite``
+    (for a test that makes a broken map on purpose).
 
     ``compression``: a key of :data:`COMPRESSION` (all lossless). The header's
     ``DateTime`` is ``source_date_epoch`` or the ``SOURCE_DATE_EPOCH`` environment variable
@@ -281,4 +286,8 @@ def write_exr(path: str | os.PathLike, pixels: np.ndarray,
     date_time = header_date_time(source_date_epoch)
     if date_time is not None:
         attributes["DateTime"] = date_time
-    _write(path, np.asarray(pixels, dtype=np.float32), "float", metadata, attributes)
+    with np.errstate(over="ignore"):  # a value beyond float32 becomes inf: refused next
+        a = np.asarray(pixels, dtype=np.float32)
+    if not allow_nonfinite:
+        check_finite(a, "the image (float32)", path)
+    _write(path, a, "float", metadata, attributes)

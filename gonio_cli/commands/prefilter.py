@@ -56,9 +56,18 @@ def parse_exponents(text: str) -> list[float]:
 
 def read_lobe_exponents(path: Path) -> list[float]:
     """The top-level ``exponents`` list of a ``gonio.lobes`` artifact (schema_version 1)."""
-    from ..schemas import read_lobes
+    from ..artifact import read_artifact
+    from ..errors import ArtifactError
+    from ..schemas import Lobes
 
-    return [float(e) for e in read_lobes(path).exponents]
+    doc = read_artifact(path, Lobes.SCHEMA, (Lobes.VERSION,))
+    # only this field is used: checked by the lobes' own definition (gonio_cli.schemas)
+    spec, _ = Lobes.spec().fields["exponents"]
+    if "exponents" not in doc:
+        raise ArtifactError("has no top-level 'exponents' list of numbers", path=path,
+                            fix="pass the lobes file written by gonio lobes")
+    return spec.check(doc["exponents"], "exponents", path,
+                      "pass the lobes file written by gonio lobes").tolist()
 
 
 def prefilter(
