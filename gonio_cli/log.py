@@ -101,8 +101,10 @@ def python_warnings(subject: str | None = None) -> Iterator[None]:
         if text in seen:
             return
         seen.add(text)
-        module = filename.replace("\\", "/").rsplit("/site-packages/", 1)[-1]
-        origin = module.split("/", 1)[0].removesuffix(".py")
+        parts = filename.replace("\\", "/").split("/")
+        package = parts[parts.index("site-packages") + 1] if "site-packages" in parts else (
+            "gonio" if "gonio_cli" in parts else parts[-1])
+        origin = package.removesuffix(".py")
         where = f"{subject}: " if subject else ""
         warn(f"{where}{text} ({category.__name__} from {origin}; the result may be less "
              "accurate)")

@@ -132,8 +132,8 @@ def test_bad_exponents(run_gonio, inks, tmp_path, exponents, message):
 @pytest.mark.parametrize("edit,message", [
     (lambda d: d.update(bases=[]), "empty"),
     (lambda d: d["bases"][0].update(exponents=[]), "empty"),
-    (lambda d: d["bases"][0].update(exponents=[-2.0], n_lobes=1), "positive"),
-    (lambda d: d["bases"][0].update(exponents=[0.0], n_lobes=1), "positive"),
+    (lambda d: d["bases"][0].update(exponents=[-2.0], n_lobes=1), "outside [1, "),
+    (lambda d: d["bases"][0].update(exponents=[0.0], n_lobes=1), "outside [1, "),
     (lambda d: d.update(extra=1), "unknown field"),
 ])
 def test_bad_basis_file(run_gonio, inks, tmp_path, edit, message):

@@ -390,8 +390,7 @@ def _render_steps(scene: Scene, stats: Stats, state: dict):
     del meshes
     yield "rasterize"
     t0 = time.perf_counter()
-    rows = shade_rows(gbuffer, surfaces, scene.lights, scene.grid_nm, environment=environment,
-                      spectral=scene.output.spectral, stats=stats, dtype=np.float32)
+    rows = _shade_without_overflow(scene, gbuffer, surfaces, environment, stats)
     stats.time_s.setdefault("shade", time.perf_counter() - t0)
     object_id, pixels = gbuffer.object_id, gbuffer.pixels
     del gbuffer                                               # its rows are no longer needed
@@ -427,6 +426,26 @@ def scene_white(scene: Scene) -> np.ndarray | None:
     from .tonemap import scene_white_xyz
 
     return scene_white_xyz(scene.lights, scene.grid_nm, scene.camera.target)
+
+
+def _shade_without_overflow(scene: Scene, gbuffer, surfaces, environment, stats: Stats):
+    """``shade_rows`` in float32; an overflow (light × reflectance beyond float32's 3.4e38,
+    docs/conventions.md "Numeric ranges") is an error naming the scene, never black or
+    NaN pixels in the images."""
+    from ..errors import NumericError
+    from .shade import shade_rows
+
+    try:
+        with np.errstate(over="raise"):
+            return shade_rows(gbuffer, surfaces, scene.lights, scene.grid_nm,
+                              environment=environment, spectral=scene.output.spectral,
+                              stats=stats, dtype=np.float32)
+    except FloatingPointError:
+        raise NumericError("shading overflowed float32 (a light's irradiance or intensity "
+                           "times a material's reflectance is beyond 3.4e38)",
+                           path=scene.display,
+                           fix="lower the lights' irradiance or intensity; check the "
+                               "materials for huge values") from None
 
 
 def resolve(rows: np.ndarray, pixels: np.ndarray, object_id: np.ndarray, ssaa: int,
