@@ -120,8 +120,8 @@ def test_unknown_material_model(run_gonio, inks, tmp_path):
     assert not out.exists()
 
 
-@pytest.mark.parametrize("exponents,message", [("", "empty"), ("0,10", "positive"),
-                                               ("-3", "positive"), ("a,b", "numbers")])
+@pytest.mark.parametrize("exponents,message", [("", "empty"), ("0,10", "outside [1, "),
+                                               ("-3", "outside [1, "), ("a,b", "numbers")])
 def test_bad_exponents(run_gonio, inks, tmp_path, exponents, message):
     out = tmp_path / "o.json"
     assert_one_line_error(run_gonio("lobes", "fit", inks[0], "--exponents", exponents,

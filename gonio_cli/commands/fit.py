@@ -106,7 +106,7 @@ def fit(
                                           "out in turn", "chosen": result.model,
                              "candidates": [c.to_dict() for c in candidates]}
         else:
-            result = run_fit(data, model, options)
+            result = _named(run_fit, measurement)(data, model, options)
         judgement = judge(data, result, max_error)
     final = result.result
     if not final.success:
@@ -145,6 +145,20 @@ def fit(
         hint = better_model_hint(data, result, judgement, options)
         if hint:
             log.info(hint)
+
+
+def _named(fit, measurement: Path):
+    """``fit`` whose errors about the data (no usable readings …) name the measurement."""
+    from ..errors import GonioError
+
+    def run(*args, **kwargs):
+        try:
+            return fit(*args, **kwargs)
+        except GonioError as exc:
+            if exc.path is None and not exc.message.startswith("--"):
+                exc.path = str(measurement)
+            raise
+    return run
 
 
 def read_weights(path: Path, m) -> "np.ndarray":
