@@ -89,9 +89,11 @@ class PoorFitError(FitError):
     exit_code = EXIT_POOR_FIT
 
 
-class NumericError(GonioError):
+class NumericError(GonioError, ValueError):
     """A number outside the range the maths survives (docs/conventions.md, "Numeric
-    ranges"), or a result that overflowed: refused before anything is written."""
+    ranges"), or a result that overflowed: refused before anything is written. Also a
+    :class:`ValueError`, what ``json.dumps`` raises for NaN, so callers that caught that
+    still do."""
 
 
 class WriteError(GonioError, OSError):

@@ -109,8 +109,7 @@ def python_warnings(subject: str | None = None) -> Iterator[None]:
         warn(f"{where}{text} ({category.__name__} from {origin}; the result may be less "
              "accurate)")
 
-    with warnings.catch_warnings():
-        warnings.simplefilter("default")
+    with warnings.catch_warnings():  # the filters in force (-W, a test's) still apply
         for category in DEVELOPER_WARNINGS:
             warnings.simplefilter("ignore", category)
         warnings.showwarning = show
