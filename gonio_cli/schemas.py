@@ -1,13 +1,22 @@
 """Artifact schemas: what each stage writes and the next reads, in one place.
 
-Each schema is a dataclass with ``to_payload()`` (fields written after the envelope of
-:mod:`gonio_cli.artifact`) and ``from_document(doc, path)`` that validates shapes, finiteness
-and field names (unknown fields are errors, STYLE 7) and names the file in every error.
+Each artifact has ONE definition of its fields (a tree of :class:`Spec`: types, shapes,
+ranges, required or not, unknown fields refused, STYLE 7). It validates every file a stage
+reads, naming the file, the field and the fix in one line, and it generates the JSON
+Schema published in ``docs/schemas/`` (``python -m gonio_cli.schemas docs/schemas``,
+``make schemas``), so users can check their own files with any validator. The dataclasses
+add ``to_payload()`` (fields written after the envelope of :mod:`gonio_cli.artifact`) and
+``from_document(doc, path)``: the definition's checks, then those between fields.
 
-- ``gonio.measurement`` v1, :class:`Measurement` (``gonio ingest``)
-- ``gonio.material`` v1, :class:`Material` (``gonio fit``)
+- ``gonio.measurement`` v1, :class:`Measurement` (``gonio ingest``, ``gonio eval``)
+- ``gonio.material`` v1 and v2, :class:`Material` (``gonio fit``)
+- ``gonio.lobe_basis`` v1, :class:`LobeBasis` (``gonio lobes basis``)
+- ``gonio.lobes`` v1, :class:`Lobes` (``gonio lobes fit``)
+- ``gonio.prefilter`` v1, :func:`prefilter_index_spec` (``gonio prefilter``'s index.json)
+- ``gonio.render-report`` v1, :func:`render_report_spec` (``gonio render --report``)
+
+The ranges are docs/conventions.md's table "Numeric ranges".
 """
-
 from __future__ import annotations
 
 import math
@@ -365,8 +374,6 @@ class Measurement:
 
     SCHEMA = "gonio.measurement"
     VERSION = 1
-    FIELDS = ("wavelength_nm", "theta_i_deg", "theta_o_deg", "brdf", "brdf_std",
-              "n_repeats", "quantity", "summary")
 
     def __post_init__(self):
         self.wavelength_nm = np.asarray(self.wavelength_nm, dtype=float)
@@ -472,8 +479,6 @@ class Material:
     #: Versions read: 1 (status success/failed) and 2 (status good/poor/failed).
     READ_VERSIONS = (1, 2)
     STATUSES = {1: ("success", "failed"), 2: ("good", "poor", "failed")}
-    FIELDS = ("model", "wavelength_nm", "status", "fit")
-
 
     def to_payload(self) -> dict[str, Any]:
         out: dict[str, Any] = {"model": self.model, "status": self.status,
@@ -587,8 +592,6 @@ class LobeBasis:
     VERSION = 1
     FIELDS = ("bases", "materials", "sample_set", "channels", "solver", "exponent_range",
               "view_angle_deg")
-    BASIS_FIELDS = ("n_lobes", "exponents", "error", "max_error", "mean_error",
-                    "per_material", "evaluations", "time_s", "message")
 
     def to_payload(self) -> dict[str, Any]:
         return {k: getattr(self, k) for k in self.FIELDS}

@@ -6,6 +6,7 @@ ingest quantity has its range."""
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -135,3 +136,23 @@ def test_broken_artifacts_fail_the_published_schemas(good, validators, tmp_path,
                                                      change):
     doc = json.loads(broken(good[kind], tmp_path, change).read_text())
     assert list(validators[doc["schema"]].iter_errors(doc))
+
+
+def test_the_envelope_is_artifacts():
+    from gonio_cli.artifact import ENVELOPE_KEYS
+
+    assert tuple(schemas.envelope_fields("gonio.x", (1,))) == ENVELOPE_KEYS
+
+
+@pytest.mark.parametrize("doc,message", [
+    ({"bases": [{"n_lobes": 1, "exponents": [[8.0]]}]}, "has 2 dimensions, expected 1"),
+    ({"bases": [{"n_lobes": 2, "exponents": [8.0, [8.0]]}]}, "not a numeric array"),
+    ({"bases": [{"n_lobes": 1, "exponents": [float("nan")]}]}, "holds NaN or inf"),
+    ({"bases": [{"n_lobes": 1, "exponents": [8.0]}], "exponent_range": [1.0]},
+     "'exponent_range' has 1 values, expected 2"),
+])
+def test_array_messages(doc, message):
+    full = {"schema": "gonio.lobe_basis", "schema_version": 1, "sample_set": "seed001",
+            "channels": "xyz", "solver": "nnls", **doc}
+    with pytest.raises(ArtifactError, match=re.escape(message)):
+        schemas.LobeBasis.from_document(full, path="basis.json")
