@@ -111,3 +111,17 @@ def test_overflowing_shading_is_an_error_not_black_or_nan_texels(good, tmp_path)
                  lambda d: d.__setitem__("rho", [1e29] * len(d["rho"])))
     code, err, outs = _render(tmp_path, material=hot, irradiance="1e29")
     assert_refused(code, err, names=("scene.toml", "overflowed"), outputs=outs)
+
+
+def test_lobes_on_another_grid_name_the_scene_key_and_file(good, tmp_path):
+    def every_other_wavelength(doc):
+        doc["channels"] = doc["channels"][::2]
+        doc["diffuse"] = [row[::2] for row in doc["diffuse"]]
+        for key in ("directional_diffuse", "gloss"):
+            doc[key] = [[row[::2] for row in view] for view in doc[key]]
+
+    bad = broken(good["lobes"], tmp_path, every_other_wavelength)
+    code, err, outs = _render(tmp_path, material=good["material"], lobes=bad,
+                              index=good["index"])
+    assert_refused(code, err, names=("scene.toml", "lobes = red.lobes.json", "21-sample grid"),
+                   outputs=outs)

@@ -101,7 +101,7 @@ def fit(
                        exclude_theta_o_deg=exclude_theta_o, weights=w,
                        use_std=std_weights, path=measurement)
         if model == "auto":
-            result, candidates = fit_auto(data, options)
+            result, candidates = _named(fit_auto, measurement)(data, options)
             extra["auto"] = {"criterion": "mean CIEDE2000 on each angle of incidence left "
                                           "out in turn", "chosen": result.model,
                              "candidates": [c.to_dict() for c in candidates]}

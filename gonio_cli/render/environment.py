@@ -202,7 +202,8 @@ def channel_matrices(weights: np.ndarray, channel_kind: str, wavelength_nm) -> n
     return k[..., None, :] * (x_basis / x_equal)
 
 
-def _check_lobes(lobes: Lobes, wavelength_nm: np.ndarray) -> None:
+def check_lobes(lobes: Lobes, wavelength_nm: np.ndarray) -> None:
+    """Refuse lobe weights whose channels the render cannot use (another spectral grid)."""
     if lobes.channel_kind == "spectral":
         from ..spectra import same_grid
 
@@ -258,7 +259,7 @@ def environment_xyz(environment: Environment, lobes: Lobes, normal: np.ndarray,
     view angle (m' ≤ m remain) are not looked up.
     """
     wl = np.asarray(wavelength_nm, dtype=float)
-    _check_lobes(lobes, wl)
+    check_lobes(lobes, wl)
     normal = np.asarray(normal, dtype=float)
     view = np.asarray(view, dtype=float)
     n = normal.shape[0]

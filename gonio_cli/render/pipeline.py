@@ -206,9 +206,12 @@ def build_surfaces(scene: Scene, stats: Stats) -> list:
             lobes: dict[Path, Any] = {}
 
             def read(p, key):
+                from .environment import check_lobes
+
                 if p not in lobes:
                     with _SceneKey(scene, key, p):
                         lobes[p] = read_lobes(p)
+                        check_lobes(lobes[p], scene.grid_nm)     # its grid, named here
                 return lobes[p]
 
             for o, s in zip(scene.objects, surfaces):
