@@ -114,7 +114,9 @@ class Number(Spec):
             raise self.error(where, f"is {num(value)}, expected an integer", path, fix)
         if not math.isfinite(value):
             raise self.error(where, f"is {num(value)}, not a finite number", path, fix)
-        if self.outside(value):
+        if ((self.lo is not None and (value < self.lo or (self.lo_open and value == self.lo)))
+                or (self.hi is not None
+                    and (value > self.hi or (self.hi_open and value == self.hi)))):
             raise self.error(where, f"is {num(value)}, outside {self.range_text()}", path, fix)
         return value
 
