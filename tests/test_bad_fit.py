@@ -80,3 +80,14 @@ def test_all_zero_data_with_on_failure_write_never_writes_nan(good, tmp_path, mo
     assert material.status == "failed"
     assert all(np.all(np.isfinite(v)) for v in material.params.values())
     json.loads(text)
+
+
+@pytest.mark.parametrize("weight", ["1e300", "-1", "nan"])
+def test_weight_beyond_the_range_is_refused_naming_the_row(good, tmp_path, weight):
+    m = json.loads(good["measurement"].read_text())
+    csv = tmp_path / "weights.csv"
+    csv.write_text(f"theta_i_deg,theta_o_deg,weight\n{m['theta_i_deg'][0]},"
+                   f"{m['theta_o_deg'][0]},{weight}\n")
+    out = tmp_path / "out.material.json"
+    code, err = run("fit", good["measurement"], "-o", out, "--weights", csv)
+    assert_refused(code, err, names=(f"{csv}:2", "weight"), outputs=[out])

@@ -125,3 +125,14 @@ def test_lobes_on_another_grid_name_the_scene_key_and_file(good, tmp_path):
                               index=good["index"])
     assert_refused(code, err, names=("scene.toml", "lobes = red.lobes.json", "21-sample grid"),
                    outputs=outs)
+
+
+@pytest.mark.parametrize("x", ["1e300", "nan"])
+def test_mesh_vertex_beyond_the_range_is_refused(good, tmp_path, x):
+    obj = tmp_path / "tri.obj"
+    obj.write_text(f"v 0 0 0\nv 1 0 0\nv 0 {x} 0\nf 1 2 3\n")
+    path = tmp_path / "scene.toml"
+    path.write_text(scene_text(good["material"]).replace('"builtin:sphere"', '"tri.obj"'))
+    out = tmp_path / "o.png"
+    code, err = run("render", path, "-o", out)
+    assert_refused(code, err, names=("tri.obj", "vertices"), outputs=[out])

@@ -169,6 +169,7 @@ def read_weights(path: Path, m) -> "np.ndarray":
 
     from ..errors import InputError
     from ..ingest import read_table
+    from ..schemas import MAX_MAGNITUDE
     from . import require_files
 
     require_files([path], missing_fix="check the path")
@@ -185,8 +186,9 @@ def read_weights(path: Path, m) -> "np.ndarray":
             raise InputError(f"expected three numbers, got {','.join(row)}", path=path,
                              row=int(line), fix="theta_i_deg,theta_o_deg,weight per line"
                              ) from None
-        if not (np.isfinite(wt) and wt >= 0):
-            raise InputError(f"weight {wt:g} is not a finite number >= 0", path=path,
+        if not (0 <= wt <= MAX_MAGNITUDE):                    # also NaN
+            raise InputError(f"weight {wt:g} is not a finite number in [0, "
+                             f"{MAX_MAGNITUDE:g}]", path=path,
                              row=int(line), column="weight")
         hit = (np.abs(m.theta_i_deg - ti) < 1e-6) & (np.abs(m.theta_o_deg - to) < 1e-6)
         if not hit.any():

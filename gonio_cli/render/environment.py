@@ -38,7 +38,7 @@ import numpy as np
 from .. import log
 from ..envmap import lookup
 from ..errors import ArtifactError, InputError
-from ..schemas import PREFILTER_SCHEMA, PREFILTER_VERSION, Lobes
+from ..schemas import MAX_MAGNITUDE, PREFILTER_SCHEMA, PREFILTER_VERSION, Lobes
 from ..spectra import rgb_spectral_basis
 
 #: Schema and version of a prefiltered environment's ``index.json`` (``gonio prefilter``),
@@ -133,7 +133,7 @@ def _read_map(path: str, shape: tuple[int, int]) -> np.ndarray:
                             f"{shape[1]} × {shape[0]} × 3", path=path,
                             fix="regenerate the folder with gonio prefilter")
     px = np.ascontiguousarray(px[:, :, :3], dtype=np.float32)
-    bad = ~np.isfinite(px) | (px < 0)
+    bad = ~((px >= 0) & (px <= MAX_MAGNITUDE))          # NaN, inf, negative or huge
     if np.any(bad):
         r, c, _ = np.argwhere(bad)[0]
         raise ArtifactError(f"texel (row {r}, col {c}) is {px[r, c].tolist()} "
