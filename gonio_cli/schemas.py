@@ -75,6 +75,12 @@ class Spec:
     def error(self, where: str, message: str, path, fix: str) -> ArtifactError:
         return ArtifactError(f"{_where(where)} {message}", path=path, fix=fix)
 
+    def type_error(self, where: str, message: str, path, fix: str) -> ArtifactError:
+        """A value of the wrong JSON type (for :class:`AnyOf`: try the next option)."""
+        exc = self.error(where, message, path, fix)
+        exc.wrong_type = True
+        return exc
+
 
 def _is_number(value) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool)
@@ -108,7 +114,7 @@ class Number(Spec):
 
     def check(self, value, where, path, fix):
         if not _is_number(value):
-            raise self.error(where, f"is {_kind(value)}, expected "
+            raise self.type_error(where, f"is {_kind(value)}, expected "
                              f"{'an integer' if self.integer else 'a number'}", path, fix)
         if self.integer and not isinstance(value, int):
             raise self.error(where, f"is {num(value)}, expected an integer", path, fix)
@@ -137,7 +143,7 @@ class Text(Spec):
 
     def check(self, value, where, path, fix):
         if not isinstance(value, str):
-            raise self.error(where, f"is {_kind(value)}, expected a string", path, fix)
+            raise self.type_error(where, f"is {_kind(value)}, expected a string", path, fix)
         if self.enum is not None and value not in self.enum:
             raise self.error(where, f"is {value!r}, not one of {', '.join(self.enum)}",
                              path, fix)
@@ -162,13 +168,13 @@ class Array(Spec):
 
     def check(self, value, where, path, fix):
         if not isinstance(value, (list, np.ndarray)):
-            raise self.error(where, f"is {_kind(value)}, expected "
+            raise self.type_error(where, f"is {_kind(value)}, expected "
                              f"{'a list' if self.ndim == 1 else f'a {self.ndim}-deep list'} "
                              "of numbers", path, fix)
         try:
             a = np.asarray(value)
         except ValueError:  # ragged rows
-            raise self.error(where, "is not a numeric array (rows of different lengths)",
+            raise self.type_error(where, "is not a numeric array (rows of different lengths)",
                              path, fix) from None
         if a.size == 0 and self.min_size > 0:
             raise self.error(where, "is empty", path, fix)
@@ -179,7 +185,7 @@ class Array(Spec):
             bad = next((v for v in a.ravel().tolist()
                         if not _is_number(v) or (self.item.integer and not isinstance(v, int))),
                        a.ravel()[0])
-            raise self.error(where, f"is not a numeric array (holds {_kind(bad)}, expected "
+            raise self.type_error(where, f"is not a numeric array (holds {_kind(bad)}, expected "
                              f"{'integers' if self.item.integer else 'numbers'} only)", path,
                              fix)
         if self.size is not None and a.size != self.size:
@@ -221,7 +227,7 @@ class ListOf(Spec):
 
     def check(self, value, where, path, fix):
         if not isinstance(value, list):
-            raise self.error(where, f"is {_kind(value)}, expected a list", path, fix)
+            raise self.type_error(where, f"is {_kind(value)}, expected a list", path, fix)
         if len(value) < self.min_items:
             raise self.error(where, "is empty", path, fix)
         return [self.item.check(v, f"{where}[{k}]", path, fix) for k, v in enumerate(value)]
@@ -248,18 +254,20 @@ class Nullable(Spec):
 
 @dataclass(frozen=True)
 class AnyOf(Spec):
-    """The first of ``options`` that accepts the value (the error is the first one's)."""
+    """The first of ``options`` that accepts the value; else the error of the first option
+    of the value's type (or of the first option)."""
 
     options: tuple[Spec, ...]
 
     def check(self, value, where, path, fix):
-        first = None
+        errors = []
         for option in self.options:
             try:
                 return option.check(value, where, path, fix)
             except ArtifactError as exc:
-                first = first or exc
-        raise first
+                errors.append(exc)
+        # the option of the value's type says what is wrong with it; else the first
+        raise next((e for e in errors if not getattr(e, "wrong_type", False)), errors[0])
 
     def json(self):
         return {"anyOf": [o.json() for o in self.options]}
@@ -274,7 +282,7 @@ class Obj(Spec):
 
     def check(self, value, where, path, fix):
         if not isinstance(value, dict):
-            raise self.error(where, f"is {_kind(value)}, expected an object", path, fix)
+            raise self.type_error(where, f"is {_kind(value)}, expected an object", path, fix)
         if self.fields is None:
             return value
         prefix = f"{where}." if where else ""
