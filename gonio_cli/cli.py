@@ -151,9 +151,16 @@ def _app_for(args: Sequence[str]) -> typer.Typer:
     return one
 
 
+#: Options whose value is a file the command writes (never what a warning is about).
+_OUTPUT_OPTIONS = frozenset({"-o", "--output", "--exr", "--report", "--plot",
+                             "--gamut-warning"})
+
+
 def _subject(args: Sequence[str]) -> str | None:
-    """The first argument that is an existing file: what a Python warning is about."""
-    return next((a for a in args if not a.startswith("-") and os.path.isfile(a)), None)
+    """The first argument that is an existing input file: what a Python warning is about."""
+    return next((a for before, a in zip([""] + list(args), args)
+                 if not a.startswith("-") and before not in _OUTPUT_OPTIONS
+                 and os.path.isfile(a)), None)
 
 
 def _forget_written() -> None:

@@ -191,7 +191,8 @@ def _write(output: Path, envmap_path: Path, lobes, shape, results, names, parame
         }, inputs=[envmap_path] + ([lobes] if lobes else []), parameters=parameters,
             time_s=time_s)
         # the reader's definition (gonio_cli.schemas): what is written can be read back
-        validate(doc, prefilter_index_spec(), output / "index.json", "a bug")
+        validate(doc, prefilter_index_spec(), output / "index.json",
+                 "a bug in gonio prefilter: please report it")
         write_json(tmp / "index.json", doc)
         make_folder(output)
         for name in names + ["index.json"]:
