@@ -1054,6 +1054,11 @@ def _white_option(value: float | str | None, where: str | None) -> float | str:
     return number
 
 
+#: Smallest aperture / distance of a flux-ratio receptor: below it Δω = π w²/(4 d²) is under
+#: 1e-12 sr and a flux ratio divided by it overflows (a real receptor subtends ~1e-4 sr).
+MIN_APERTURE_RATIO = 1e-6
+
+
 def _receptor_options(aperture_mm, distance_mm, where) -> None:
     """flux-ratio needs the receptor's aperture and distance (seed 004 eq. 7)."""
     if aperture_mm is None or distance_mm is None:
@@ -1064,10 +1069,13 @@ def _receptor_options(aperture_mm, distance_mm, where) -> None:
                          "eq. 7)", path=where,
                          fix="e.g. --aperture-mm 4 --distance-mm 400")
     if not (math.isfinite(aperture_mm) and math.isfinite(distance_mm)
-            and 0 < aperture_mm < distance_mm):
+            and MIN_APERTURE_RATIO * distance_mm <= aperture_mm < distance_mm
+            and distance_mm <= MAX_MAGNITUDE):
         raise InputError(f"--aperture-mm {aperture_mm:g} and --distance-mm {distance_mm:g} "
-                         "need 0 < aperture < distance (seed 004 eq. 7 is for a small "
-                         "aperture)", path=where, fix="both in mm, e.g. 4 and 400")
+                         f"need 0 < aperture < distance (seed 004 eq. 7 is for a small "
+                         f"aperture), aperture >= {MIN_APERTURE_RATIO:g} × distance and "
+                         f"distance <= {MAX_MAGNITUDE:g}",
+                         path=where, fix="both in mm, e.g. 4 and 400")
 
 
 def white_spectrum(white: float | str, wavelength_nm: np.ndarray, target: str) -> np.ndarray:

@@ -32,3 +32,19 @@ def test_scale_beyond_the_range_is_refused(tmp_path, scale):
     out = tmp_path / "red.measurement.json"
     code, err = run("ingest", SAMPLE / "ink_red.csv", "-o", out, "--scale", scale)
     assert_refused(code, err, names=("--scale",), outputs=[out])
+
+
+@pytest.mark.parametrize("grid", ["380:780:1e-300", "380:1e300:10", "380:200000:10"])
+def test_grid_beyond_the_range_is_refused_before_allocating(tmp_path, grid):
+    out = tmp_path / "red.measurement.json"
+    code, err = run("ingest", SAMPLE / "ink_red.csv", "-o", out, "--grid-nm", grid)
+    assert_refused(code, err, names=("--grid-nm", "at most 4001 samples"), outputs=[out])
+
+
+@pytest.mark.parametrize("aperture,distance", [("1e-300", "1e300"), ("1e-9", "400"),
+                                               ("4", "1e31")])
+def test_receptor_whose_solid_angle_underflows_is_refused(tmp_path, aperture, distance):
+    out = tmp_path / "red.measurement.json"
+    code, err = run("ingest", SAMPLE / "ink_red.csv", "-o", out, "--quantity", "flux-ratio",
+                    "--aperture-mm", aperture, "--distance-mm", distance)
+    assert_refused(code, err, names=("--aperture-mm", "--distance-mm"), outputs=[out])

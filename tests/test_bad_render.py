@@ -136,3 +136,11 @@ def test_mesh_vertex_beyond_the_range_is_refused(good, tmp_path, x):
     out = tmp_path / "o.png"
     code, err = run("render", path, "-o", out)
     assert_refused(code, err, names=("tri.obj", "vertices"), outputs=[out])
+
+
+def test_grid_with_a_tiny_step_is_refused_before_allocating(good, tmp_path):
+    path = tmp_path / "scene.toml"
+    path.write_text(scene_text(good["material"]))
+    out = tmp_path / "o.png"
+    code, err = run("render", path, "-o", out, "--grid-nm", "380:780:1e-300")
+    assert_refused(code, err, names=("--grid-nm", "at most 4001 samples"), outputs=[out])
