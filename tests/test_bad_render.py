@@ -144,3 +144,19 @@ def test_grid_with_a_tiny_step_is_refused_before_allocating(good, tmp_path):
     out = tmp_path / "o.png"
     code, err = run("render", path, "-o", out, "--grid-nm", "380:780:1e-300")
     assert_refused(code, err, names=("--grid-nm", "at most 4001 samples"), outputs=[out])
+
+
+def test_all_zero_ink_renders_black_without_a_warning(good, tmp_path):
+    """ρ = 0 everywhere: an exact zero table (before, 0/0 in the table's error check grew
+    it to its largest size with a RuntimeWarning)."""
+    import numpy as np
+
+    from gonio_cli.imageio import read_image
+
+    zero = broken(good["material"], tmp_path,
+                  lambda d: d.__setitem__("rho", [0.0] * len(d["rho"])))
+    code, err, outs = _render(tmp_path, material=zero)
+    assert code == 0, err
+    assert "warning" not in err, err
+    exr = read_image(outs[1]).pixels
+    assert np.all(np.isfinite(exr)) and exr.max() == 0.0

@@ -37,3 +37,13 @@ def test_bad_input_is_one_line_and_no_report(good, tmp_path, case):
     code, err = run("report", *sorted([bad, other]), "-o", out, "--quick",
                     "--sections", "table1,sheets")
     assert_refused(code, err, names=(str(bad), field), outputs=[out])
+
+
+def test_all_zero_measurement_fitted_in_memory_is_named(good, tmp_path):
+    import numpy as np
+
+    zero = broken(good["measurement"], tmp_path, lambda d: d.update(
+        brdf=np.zeros(np.shape(d["brdf"])).tolist(), brdf_std=None))
+    out = tmp_path / "report"
+    code, err = run("report", zero, "-o", out, "--quick", "--sections", "table1")
+    assert_refused(code, err, names=(str(zero), "no wavelength"), outputs=[out])
