@@ -44,7 +44,8 @@ from .errors import ArtifactError, num
 #: Largest magnitude of a number that enters arithmetic from a file or an option (a BRDF
 #: value, ρ, a weight, an irradiance, a light's intensity). Products of two such numbers
 #: (1e60) stay finite in float64 (max 1.8e308) and a sum over a frame stays far from it;
-#: a value beyond this is a typo or a unit error, not a measurement.
+#: a value beyond this is a typo or a unit error, not a measurement. (The renderer shades
+#: in float32, where such a product can overflow: that is an error naming the scene.)
 MAX_MAGNITUDE = 1e30
 
 #: Cosine-lobe exponents (seed 001 eq. 2): 1 is the diffuse lobe; above 1e6 the lobe is
@@ -115,7 +116,7 @@ class Number(Spec):
     def check(self, value, where, path, fix):
         if not _is_number(value):
             raise self.type_error(where, f"is {_kind(value)}, expected "
-                             f"{'an integer' if self.integer else 'a number'}", path, fix)
+                                  f"{'an integer' if self.integer else 'a number'}", path, fix)
         if self.integer and not isinstance(value, int):
             raise self.error(where, f"is {num(value)}, expected an integer", path, fix)
         if not math.isfinite(value):
@@ -168,14 +169,14 @@ class Array(Spec):
 
     def check(self, value, where, path, fix):
         if not isinstance(value, (list, np.ndarray)):
-            raise self.type_error(where, f"is {_kind(value)}, expected "
-                             f"{'a list' if self.ndim == 1 else f'a {self.ndim}-deep list'} "
-                             "of numbers", path, fix)
+            kind = "a list" if self.ndim == 1 else f"a {self.ndim}-deep list"
+            raise self.type_error(where, f"is {_kind(value)}, expected {kind} of numbers",
+                                  path, fix)
         try:
             a = np.asarray(value)
         except ValueError:  # ragged rows
-            raise self.type_error(where, "is not a numeric array (rows of different lengths)",
-                             path, fix) from None
+            raise self.type_error(where, "is not a numeric array (rows of different "
+                                  "lengths)", path, fix) from None
         if a.size == 0 and self.min_size > 0:
             raise self.error(where, "is empty", path, fix)
         if a.ndim != self.ndim and a.size:
@@ -185,9 +186,9 @@ class Array(Spec):
             bad = next((v for v in a.ravel().tolist()
                         if not _is_number(v) or (self.item.integer and not isinstance(v, int))),
                        a.ravel()[0])
-            raise self.type_error(where, f"is not a numeric array (holds {_kind(bad)}, expected "
-                             f"{'integers' if self.item.integer else 'numbers'} only)", path,
-                             fix)
+            wanted = "integers" if self.item.integer else "numbers"
+            raise self.type_error(where, f"is not a numeric array (holds {_kind(bad)}, "
+                                  f"expected {wanted} only)", path, fix)
         if self.size is not None and a.size != self.size:
             raise self.error(where, f"has {a.size} values, expected {self.size}", path, fix)
         a = a.astype(int if self.item.integer else float)
