@@ -106,8 +106,7 @@ def python_warnings(subject: str | None = None) -> Iterator[None]:
             "gonio" if "gonio_cli" in parts else parts[-1])
         origin = package.removesuffix(".py")
         where = f"{subject}: " if subject else ""
-        warn(f"{where}{text} ({category.__name__} from {origin}; the result may be less "
-             "accurate)")
+        warn(f"{where}{text} ({category.__name__} from {origin})")
 
     with warnings.catch_warnings():  # the filters in force (-W, a test's) still apply
         for category in DEVELOPER_WARNINGS:
