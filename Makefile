@@ -1,7 +1,8 @@
 # gonio — two commands do all the set-up on a fresh machine with Python 3.11:
 #   make demo   create .venv, install gonio with the pinned dependencies, run the demo pipeline
 #   make test   create .venv, install gonio with the pinned dependencies, run the test suite
-# Others: make bench (error against run time), make clean, make lock (refresh the pins in
+# Others: make bench (error against run time), make clean, make schemas (docs/schemas/ from
+# gonio_cli/schemas.py), make lock (refresh the pins in
 # requirements.lock after changing dependencies in pyproject.toml). One stage: make rgbink,
 # make carpaint, make lobes, make sky, make render, or one file (make out/render/figure5.png).
 # make report: error against run time of every stage and seed 000's Table 1 (quick in the
@@ -29,7 +30,7 @@ UV_VERSION := 0.13.9
 
 export PATH := $(abspath $(BIN)):$(PATH)
 
-.PHONY: demo test bench clean setup lock refresh-references
+.PHONY: demo test bench clean setup lock refresh-references schemas
 .DEFAULT_GOAL := demo
 
 setup: $(STAMP)
@@ -86,6 +87,11 @@ bench: $(STAMP)
 # one or more: make refresh-references NAMES="fit-red-goniochromatic render-print-small"
 refresh-references: $(STAMP)
 	$(BIN)/python tests/regression/refresh.py $(NAMES)
+
+# Regenerate the published JSON Schemas (docs/schemas/) from gonio_cli/schemas.py after
+# changing an artifact's fields; tests/test_schemas.py fails while they differ.
+schemas: $(STAMP)
+	$(BIN)/python -m gonio_cli.schemas docs/schemas
 
 clean:
 	rm -rf $(OUT)

@@ -31,7 +31,7 @@ from typing import Any, Iterable, Iterator, Mapping
 import numpy as np
 
 from . import __version__
-from .errors import ArtifactError, GonioError, WriteError, binary_kind
+from .errors import ArtifactError, GonioError, NumericError, WriteError, binary_kind
 # the record of written files lives with the outputs' transaction (gonio_cli.outputs)
 from .outputs import forget_written, note_written, written_files  # noqa: F401
 
@@ -204,9 +204,54 @@ def make_document(schema: str, schema_version: int, payload: Mapping[str, Any], 
     return _to_jsonable(doc)
 
 
+def check_finite(values, what: str, path=None, fix: str | None = None) -> None:
+    """Refuse an array about to be written (an image, a table) that holds NaN or inf.
+
+    One check for every writer (:func:`write_json`, :mod:`gonio_cli.imageio`): a NaN or
+    inf is never written with exit status 0. ``what`` names the array (``the rendered
+    image``, ``field 'rho'``); the error says how many values and where the first is.
+    """
+    a = np.asarray(values)
+    if a.dtype.kind not in "fc" or a.size == 0:
+        return
+    bad = ~np.isfinite(a)
+    if not bad.any():
+        return
+    k = tuple(int(i) for i in np.argwhere(bad)[0])
+    at = f" at [{', '.join(map(str, k))}]" if k else ""
+    raise NumericError(
+        f"{what} holds {int(bad.sum())} NaN or inf value{'s' if bad.sum() > 1 else ''} "
+        f"(the first, {a[k]}{at}): a number overflowed; nothing written", path=path,
+        fix=fix or "check the inputs for huge values (docs/conventions.md, Numeric ranges)")
+
+
+def _first_nonfinite(obj: Any, where: str = "") -> tuple[str, Any] | None:
+    """Where in a JSON-able document the first NaN or inf is: ("brdf[3][2]", nan)."""
+    if isinstance(obj, float):
+        return None if np.isfinite(obj) else (where, obj)
+    if isinstance(obj, Mapping):
+        items = ((f"{where}.{k}" if where else str(k), v) for k, v in obj.items())
+    elif isinstance(obj, (list, tuple)):
+        items = ((f"{where}[{i}]", v) for i, v in enumerate(obj))
+    else:
+        return None
+    return next((hit for w, v in items if (hit := _first_nonfinite(v, w))), None)
+
+
 def write_json(path: str | os.PathLike, doc: Mapping[str, Any]) -> None:
-    """Write a JSON document atomically. NaN and inf are refused (they are bugs here)."""
-    text = json.dumps(_to_jsonable(doc), indent=1, allow_nan=False)
+    """Write a JSON document atomically. NaN and inf are refused, naming the field
+    (:class:`~gonio_cli.errors.NumericError`): JSON has no such numbers."""
+    plain = _to_jsonable(doc)
+    try:
+        text = json.dumps(plain, indent=1, allow_nan=False)
+    except ValueError:
+        hit = _first_nonfinite(plain)
+        if hit is None:
+            raise
+        raise NumericError(f"field {hit[0]!r} is {hit[1]}, which JSON cannot hold: a number "
+                           "overflowed; nothing written", path=path,
+                           fix="check the inputs for huge or all-zero values (docs/"
+                               "conventions.md, Numeric ranges)") from None
     with atomic_path(path) as tmp:
         tmp.write_text(text + "\n", encoding="utf-8")
 

@@ -90,8 +90,9 @@ def run(argv: Sequence[str] | None = None) -> int:
     apply_help_style(app)  # commands registered since import (tests) get the same help
     args = list(argv) if argv is not None else sys.argv[1:]
     try:
-        # every output is staged and moved into place only when the command succeeds
-        with outputs.transaction() as tx:
+        # every output is staged and moved into place only when the command succeeds;
+        # Python warnings become gonio warning lines naming the input
+        with outputs.transaction() as tx, log.python_warnings(_subject(args)):
             code = _app_for(args)(args=args, prog_name="gonio", standalone_mode=False)
             code = code if isinstance(code, int) else 0
             if code == 0:
@@ -152,6 +153,18 @@ def _app_for(args: Sequence[str]) -> typer.Typer:
     one = copy.copy(app)
     one.registered_commands, one.registered_groups = commands, groups
     return one
+
+
+#: Options whose value is a file the command writes (never what a warning is about).
+_OUTPUT_OPTIONS = frozenset({"-o", "--output", "--exr", "--report", "--plot",
+                             "--gamut-warning"})
+
+
+def _subject(args: Sequence[str]) -> str | None:
+    """The first argument that is an existing input file: what a Python warning is about."""
+    return next((a for before, a in zip([""] + list(args), args)
+                 if not a.startswith("-") and before not in _OUTPUT_OPTIONS
+                 and os.path.isfile(a)), None)
 
 
 def _forget_written() -> None:

@@ -89,6 +89,13 @@ class PoorFitError(FitError):
     exit_code = EXIT_POOR_FIT
 
 
+class NumericError(GonioError, ValueError):
+    """A number outside the range the maths survives (docs/conventions.md, "Numeric
+    ranges"), or a result that overflowed: refused before anything is written. Also a
+    :class:`ValueError`, what ``json.dumps`` raises for NaN, so callers that caught that
+    still do."""
+
+
 class WriteError(GonioError, OSError):
     """An output that cannot be written: its folder is missing, not writable, not a
     folder, or the disk is full. Also an :class:`OSError`, so code that treats a write as

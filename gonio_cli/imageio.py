@@ -26,7 +26,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from . import __version__
-from .artifact import atomic_path
+from .artifact import atomic_path, check_finite
 from .errors import InputError
 
 #: Prefix of gonio's metadata attributes in image headers.
@@ -215,6 +215,7 @@ def write_png(path: str | os.PathLike, pixels: np.ndarray,
     level = get_compression(compression, "compression").png_zlib_level
     a = np.asarray(pixels)
     if a.dtype != np.uint8:
+        check_finite(a, "the image", path)
         a = np.round(np.clip(a, 0.0, 1.0) * 255.0).astype(np.uint8)
     _write(path, a, "uint8", metadata, {"png:compressionLevel": level})
 
@@ -303,8 +304,13 @@ def write_exr(path: str | os.PathLike, pixels: np.ndarray,
               compression: str = DEFAULT_COMPRESSION,
               source_date_epoch: int | None = None,
               chromaticities: Sequence[float] | None = None,
-              channel_names: Sequence[str] | None = None) -> None:
+              channel_names: Sequence[str] | None = None,
+              allow_nonfinite: bool = False) -> None:
     """Write float32 EXR atomically (scene-referred linear values, docs/conventions.md).
+
+    A NaN or inf texel (also a value beyond float32) is refused with
+    :class:`~gonio_cli.errors.NumericError` naming the file, unless ``allow_nonfinite``
+    (for a test that makes a broken map on purpose).
 
     ``compression``: a key of :data:`COMPRESSION` (all lossless). The header's
     ``DateTime`` is ``source_date_epoch`` or the ``SOURCE_DATE_EPOCH`` environment variable
@@ -319,8 +325,11 @@ def write_exr(path: str | os.PathLike, pixels: np.ndarray,
         attributes["DateTime"] = date_time
     if chromaticities is not None:
         attributes["chromaticities"] = [float(v) for v in chromaticities]
-    _write(path, np.asarray(pixels, dtype=np.float32), "float", metadata, attributes,
-           channel_names)
+    with np.errstate(over="ignore"):  # a value beyond float32 becomes inf: refused next
+        a = np.asarray(pixels, dtype=np.float32)
+    if not allow_nonfinite:
+        check_finite(a, "the image (float32)", path)
+    _write(path, a, "float", metadata, attributes, channel_names)
 
 
 #: OpenEXR codec of the spectral EXR: PIZ (lossless wavelet + Huffman, every OpenEXR
@@ -356,7 +365,9 @@ def write_spectral_exr(path: str | os.PathLike, spectra: np.ndarray, wavelength_
 
     from .spectra import rgb_space_chromaticities
 
-    values = np.asarray(spectra, dtype=np.float32)
+    with np.errstate(over="ignore"):  # a value beyond float32 becomes inf: refused next
+        values = np.asarray(spectra, dtype=np.float32)
+    check_finite(values, "the spectral image (float32)", path)
     ours = [Image_Specification_Attribute(META_PREFIX + "gonio_version", __version__)]
     ours += [Image_Specification_Attribute(META_PREFIX + k, _meta_text(v))
              for k, v in (metadata or {}).items()]

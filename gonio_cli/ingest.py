@@ -48,7 +48,7 @@ import numpy as np
 
 from . import log
 from .errors import InputError, binary_kind
-from .schemas import Measurement
+from .schemas import MAX_MAGNITUDE, Measurement
 from .spectra import DEFAULT_GRID_NM, WAVELENGTH_TOL_NM, covers, parse_grid, resample, same_grid
 
 # ------------------------------------------------------------------------- constants --
@@ -520,10 +520,12 @@ def _floats(table: Table, cols: Sequence[int]) -> np.ndarray:
                                  fix="write plain numbers, '.' or (with ';') ',' as decimal "
                                      "mark") from None
         raise InputError("holds a cell numpy cannot read as a number", path=table.path)
-    bad = ~np.isfinite(out)
+    bad = ~(np.abs(out) <= MAX_MAGNITUDE)              # NaN, inf, or beyond any unit error
     if bad.any():
         r, c = np.argwhere(bad)[0]
-        raise InputError(f"value {sub[r, c]} is not finite (NaN or inf)", path=table.path,
+        what = ("is not finite (NaN or inf)" if not np.isfinite(out[r, c]) else
+                f"is beyond ±{MAX_MAGNITUDE:g} (docs/conventions.md, Numeric ranges)")
+        raise InputError(f"value {sub[r, c]} {what}", path=table.path,
                          row=int(table.lines[r]), column=table.header[cols[c]],
                          fix="remove the row or measure the configuration again")
     return out
@@ -1031,8 +1033,9 @@ def resolve_parameters(paths: Sequence[str | os.PathLike], *, quantity: str | No
     grid = grid_nm if grid_nm is not None else DEFAULT_GRID_NM
     parse_grid(grid)  # refuse a bad --grid-nm before reading anything
     scale = 1.0 if scale is None else float(scale)
-    if not (math.isfinite(scale) and scale > 0):
-        raise InputError(f"--scale {scale:g} is not a positive number", path=where,
+    if not (math.isfinite(scale) and 0 < scale <= MAX_MAGNITUDE):
+        raise InputError(f"--scale {scale:g} is not a positive number up to "
+                         f"{MAX_MAGNITUDE:g}", path=where,
                          fix="the factor the values are multiplied by, e.g. --scale 0.01 "
                              "for percent")
     if sample is not None and not str(sample).strip():
@@ -1062,6 +1065,11 @@ def _white_option(value: float | str | None, where: str | None) -> float | str:
     return number
 
 
+#: Smallest aperture / distance of a flux-ratio receptor: below it Δω = π w²/(4 d²) is under
+#: 1e-12 sr and a flux ratio divided by it overflows (a real receptor subtends ~1e-4 sr).
+MIN_APERTURE_RATIO = 1e-6
+
+
 def _receptor_options(aperture_mm, distance_mm, where) -> None:
     """flux-ratio needs the receptor's aperture and distance (seed 004 eq. 7)."""
     if aperture_mm is None or distance_mm is None:
@@ -1072,10 +1080,13 @@ def _receptor_options(aperture_mm, distance_mm, where) -> None:
                          "eq. 7)", path=where,
                          fix="e.g. --aperture-mm 4 --distance-mm 400")
     if not (math.isfinite(aperture_mm) and math.isfinite(distance_mm)
-            and 0 < aperture_mm < distance_mm):
+            and MIN_APERTURE_RATIO * distance_mm <= aperture_mm < distance_mm
+            and distance_mm <= MAX_MAGNITUDE):
         raise InputError(f"--aperture-mm {aperture_mm:g} and --distance-mm {distance_mm:g} "
-                         "need 0 < aperture < distance (seed 004 eq. 7 is for a small "
-                         "aperture)", path=where, fix="both in mm, e.g. 4 and 400")
+                         f"need 0 < aperture < distance (seed 004 eq. 7 is for a small "
+                         f"aperture), aperture >= {MIN_APERTURE_RATIO:g} × distance and "
+                         f"distance <= {MAX_MAGNITUDE:g}",
+                         path=where, fix="both in mm, e.g. 4 and 400")
 
 
 def white_spectrum(white: float | str, wavelength_nm: np.ndarray, target: str) -> np.ndarray:

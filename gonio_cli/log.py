@@ -76,6 +76,45 @@ def progress(items: Iterable[T], description: str, total: int | None = None,
                 bar.advance(task)
 
 
+#: Warning categories that speak to a developer (a library's API is changing), never to
+#: a user: silenced. Every other Python warning becomes a gonio warning line.
+DEVELOPER_WARNINGS = (DeprecationWarning, PendingDeprecationWarning, FutureWarning)
+
+
+@contextlib.contextmanager
+def python_warnings(subject: str | None = None) -> Iterator[None]:
+    """Python warnings inside the block (numpy's RuntimeWarning, scipy's OptimizeWarning,
+    colour-science's ColourWarning …) become one ``gonio: warning: SUBJECT: …`` line each,
+    never Python's two-line ``file.py:12: RuntimeWarning: …`` with a source line.
+
+    ``subject`` is the file the command works on (the CLI passes its first input file); a
+    warning repeated with the same text is shown once. Developer warnings
+    (:data:`DEVELOPER_WARNINGS`) are silenced. ``--quiet`` silences them all, as every
+    warning.
+    """
+    import warnings
+
+    seen: set[str] = set()
+
+    def show(message, category, filename, lineno, file=None, line=None):  # noqa: ARG001
+        text = " ".join(str(message).split())
+        if text in seen:
+            return
+        seen.add(text)
+        parts = filename.replace("\\", "/").split("/")
+        package = parts[parts.index("site-packages") + 1] if "site-packages" in parts else (
+            "gonio" if "gonio_cli" in parts else parts[-1])
+        origin = package.removesuffix(".py")
+        where = f"{subject}: " if subject else ""
+        warn(f"{where}{text} ({category.__name__} from {origin})")
+
+    with warnings.catch_warnings():  # the filters in force (-W, a test's) still apply
+        for category in DEVELOPER_WARNINGS:
+            warnings.simplefilter("ignore", category)
+        warnings.showwarning = show
+        yield
+
+
 @contextlib.contextmanager
 def timer() -> Iterator[dict]:
     """``with timer() as t: ...`` then ``t["time_s"]`` is the wall time in seconds."""

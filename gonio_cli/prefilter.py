@@ -181,7 +181,9 @@ def validate_map(pixels: np.ndarray, *, fix_invalid: bool = False,
         raise InputError(f"a {' × '.join(map(str, a.shape[:2]))} image is not a lat-long "
                          "map (needs at least 1 row and 2 columns)", path=path,
                          fix="pass an equirectangular map, 2:1 (width = 2 × height)")
-    finite = np.isfinite(a)
+    from .schemas import MAX_MAGNITUDE
+
+    finite = np.isfinite(a) & (np.abs(a) <= MAX_MAGNITUDE)   # huge: as inf (Numeric ranges)
     bad_values = ~finite | (np.where(finite, a, 0.0) < 0.0)
     bad = bad_values.any(axis=2)
     count = int(bad.sum())
@@ -191,11 +193,12 @@ def validate_map(pixels: np.ndarray, *, fix_invalid: bool = False,
         row, col = (int(v) for v in np.argwhere(bad)[0])
         value = a[row, col][bad_values[row, col]][0]
         raise InputError(f"texel (row {row}, col {col}) is {num(value)}; {count} texel"
-                         f"{'s are' if count > 1 else ' is'} NaN, inf or negative", path=path,
+                         f"{'s are' if count > 1 else ' is'} NaN, inf or negative (or above "
+                         f"{MAX_MAGNITUDE:g})", path=path,
                          fix="repair the map or pass --fix-invalid to replace them")
     a = a.copy()
     a[finite & (a < 0.0)] = 0.0
-    good = np.isfinite(a)
+    good = np.isfinite(a) & (a <= MAX_MAGNITUDE)
     row_mean = np.where(good, a, 0.0).sum(axis=1) / np.maximum(good.sum(axis=1), 1)
     a = np.where(good, a, row_mean[:, None, :])
     return a, count

@@ -1,38 +1,358 @@
 """Artifact schemas: what each stage writes and the next reads, in one place.
 
-Each schema is a dataclass with ``to_payload()`` (fields written after the envelope of
-:mod:`gonio_cli.artifact`) and ``from_document(doc, path)`` that validates shapes, finiteness
-and field names (unknown fields are errors, STYLE 7) and names the file in every error.
+Each artifact has ONE definition of its fields (a tree of :class:`Spec`: types, shapes,
+ranges, required or not, unknown fields refused, STYLE 7). It validates every file a stage
+reads, naming the file, the field and the fix in one line, and it generates the JSON
+Schema published in ``docs/schemas/`` (``python -m gonio_cli.schemas docs/schemas``,
+``make schemas``), so users can check their own files with any validator. The dataclasses
+add ``to_payload()`` (fields written after the envelope of :mod:`gonio_cli.artifact`) and
+``from_document(doc, path)``: the definition's checks, then those between fields.
 
-- ``gonio.measurement`` v1, :class:`Measurement` (``gonio ingest``)
-- ``gonio.material`` v1, :class:`Material` (``gonio fit``)
+- ``gonio.measurement`` v1, :class:`Measurement` (``gonio ingest``, ``gonio eval``)
+- ``gonio.material`` v1 and v2, :class:`Material` (``gonio fit``)
+- ``gonio.lobe_basis`` v1, :class:`LobeBasis` (``gonio lobes basis``)
+- ``gonio.lobes`` v1, :class:`Lobes` (``gonio lobes fit``)
+- ``gonio.prefilter`` v1, :func:`prefilter_index_spec` (``gonio prefilter``'s index.json)
+- ``gonio.render-report`` v1, :func:`render_report_spec` (``gonio render --report``)
+
+The ranges are docs/conventions.md's table "Numeric ranges".
 """
-
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from .artifact import ENVELOPE_KEYS, check_keys, read_artifact, write_artifact
+from .artifact import check_keys, read_artifact, write_artifact
 from .errors import ArtifactError, num
 
 
-def _array(doc, key, path, ndim, dtype=float) -> np.ndarray:
-    try:
-        a = np.asarray(doc[key], dtype=dtype)
-    except KeyError:
-        raise ArtifactError(f"missing field {key!r}", path=path) from None
-    except (TypeError, ValueError):
-        raise ArtifactError(f"field {key!r} is not a numeric array", path=path) from None
-    if a.ndim != ndim:
-        raise ArtifactError(f"field {key!r} has {a.ndim} dimensions, expected {ndim}",
-                            path=path)
-    if np.issubdtype(a.dtype, np.floating) and not np.all(np.isfinite(a)):
-        raise ArtifactError(f"field {key!r} holds NaN or inf", path=path)
-    return a
+# ------------------------------------------------------------------- field specs --
+#
+# One definition per artifact: a tree of the small specs below says, for every field, its
+# type, shape, range and whether it is required. The same tree validates a document
+# (:meth:`Spec.check`, one :class:`ArtifactError` naming the file, the field and the fix)
+# and produces the published JSON Schema (:meth:`Spec.json`, ``docs/schemas/``, written by
+# ``python -m gonio_cli.schemas docs/schemas``), so the two cannot disagree. Checks between
+# fields (shapes that must agree, the spectral grid of a lobe table) follow in each
+# dataclass's ``from_document``. The ranges are the table "Numeric ranges" of
+# docs/conventions.md.
+
+#: Largest magnitude of a number that enters arithmetic from a file or an option (a BRDF
+#: value, ρ, a weight, an irradiance, a light's intensity). Products of two such numbers
+#: (1e60) stay finite in float64 (max 1.8e308) and a sum over a frame stays far from it;
+#: a value beyond this is a typo or a unit error, not a measurement. (The renderer shades
+#: in float32, where such a product can overflow: that is an error naming the scene.)
+MAX_MAGNITUDE = 1e30
+
+#: Cosine-lobe exponents (seed 001 eq. 2): 1 is the diffuse lobe; above 1e6 the lobe is
+#: ~0.1° wide, below any map's texel (gonio prefilter's MAX_EXPONENT).
+EXPONENT_RANGE = (1.0, 1e6)
+
+#: ``--exposure`` / ``[output] exposure`` in stops: 2^60 ≈ 1e18 still leaves a float32
+#: pixel (max 3.4e38) room for any radiance below 1e20; a real scene needs ±20.
+EXPOSURE_MAX_STOPS = 60.0
+
+#: Wavelengths (nm) an artifact may hold: positive, and below 1e5 nm (100 µm, far infrared).
+WAVELENGTH_MAX_NM = 1e5
+
+
+def _where(where: str) -> str:
+    return f"field {where!r}" if where else "the document"
+
+
+class Spec:
+    """A field's type, shape and range: ``check`` validates, ``json`` is its JSON Schema."""
+
+    def check(self, value, where: str, path, fix: str):  # pragma: no cover (abstract)
+        raise NotImplementedError
+
+    def json(self) -> dict[str, Any]:  # pragma: no cover (abstract)
+        raise NotImplementedError
+
+    def error(self, where: str, message: str, path, fix: str) -> ArtifactError:
+        return ArtifactError(f"{_where(where)} {message}", path=path, fix=fix)
+
+    def type_error(self, where: str, message: str, path, fix: str) -> ArtifactError:
+        """A value of the wrong JSON type (for :class:`AnyOf`: try the next option)."""
+        exc = self.error(where, message, path, fix)
+        exc.wrong_type = True
+        return exc
+
+
+def _is_number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+@dataclass(frozen=True)
+class Number(Spec):
+    """A finite number in [lo, hi] (open ends on request), optionally an integer."""
+
+    lo: float | None = None
+    hi: float | None = None
+    lo_open: bool = False
+    hi_open: bool = False
+    integer: bool = False
+
+    def range_text(self) -> str:
+        lo = "-inf" if self.lo is None else num(self.lo)
+        hi = "inf" if self.hi is None else num(self.hi)
+        return f"{'(' if self.lo_open else '['}{lo}, {hi}{')' if self.hi_open else ']'}"
+
+    def outside(self, x) -> np.ndarray:
+        """True where ``x`` (any shape, float) is NaN, inf or outside the range."""
+        x = np.asarray(x, dtype=float)
+        bad = ~np.isfinite(x)
+        with np.errstate(invalid="ignore"):
+            if self.lo is not None:
+                bad |= (x <= self.lo) if self.lo_open else (x < self.lo)
+            if self.hi is not None:
+                bad |= (x >= self.hi) if self.hi_open else (x > self.hi)
+        return bad
+
+    def check(self, value, where, path, fix):
+        if not _is_number(value):
+            raise self.type_error(where, f"is {_kind(value)}, expected "
+                                  f"{'an integer' if self.integer else 'a number'}", path, fix)
+        if self.integer and not isinstance(value, int):
+            raise self.error(where, f"is {num(value)}, expected an integer", path, fix)
+        if not math.isfinite(value):
+            raise self.error(where, f"is {num(value)}, not a finite number", path, fix)
+        if ((self.lo is not None and (value < self.lo or (self.lo_open and value == self.lo)))
+                or (self.hi is not None
+                    and (value > self.hi or (self.hi_open and value == self.hi)))):
+            raise self.error(where, f"is {num(value)}, outside {self.range_text()}", path, fix)
+        return value
+
+    def json(self):
+        out: dict[str, Any] = {"type": "integer" if self.integer else "number"}
+        if self.lo is not None:
+            out["exclusiveMinimum" if self.lo_open else "minimum"] = self.lo
+        if self.hi is not None:
+            out["exclusiveMaximum" if self.hi_open else "maximum"] = self.hi
+        return out
+
+
+@dataclass(frozen=True)
+class Text(Spec):
+    """A string, one of ``enum`` if given (or exactly ``const``)."""
+
+    enum: tuple[str, ...] | None = None
+
+    def check(self, value, where, path, fix):
+        if not isinstance(value, str):
+            raise self.type_error(where, f"is {_kind(value)}, expected a string", path, fix)
+        if self.enum is not None and value not in self.enum:
+            raise self.error(where, f"is {value!r}, not one of {', '.join(self.enum)}",
+                             path, fix)
+        return value
+
+    def json(self):
+        if self.enum is not None and len(self.enum) == 1:
+            return {"const": self.enum[0]}
+        return {"type": "string", **({"enum": list(self.enum)} if self.enum else {})}
+
+
+@dataclass(frozen=True)
+class Array(Spec):
+    """An ndim-deep nested list of numbers (each within ``item``), every axis non-empty
+    unless ``min_size`` is 0; ``increasing``: strictly (1-D). ``check`` returns the array."""
+
+    ndim: int
+    item: Number = Number(-MAX_MAGNITUDE, MAX_MAGNITUDE)
+    increasing: bool = False
+    min_size: int = 1
+    size: int | None = None
+
+    def check(self, value, where, path, fix):
+        if not isinstance(value, (list, np.ndarray)):
+            kind = "a list" if self.ndim == 1 else f"a {self.ndim}-deep list"
+            raise self.type_error(where, f"is {_kind(value)}, expected {kind} of numbers",
+                                  path, fix)
+        try:
+            a = np.asarray(value)
+        except ValueError:  # ragged rows
+            raise self.type_error(where, "is not a numeric array (rows of different "
+                                  "lengths)", path, fix) from None
+        if a.size == 0 and self.min_size > 0:
+            raise self.error(where, "is empty", path, fix)
+        if a.ndim != self.ndim and a.size:
+            raise self.error(where, f"has {a.ndim} dimensions, expected {self.ndim}", path,
+                             fix)
+        if a.size and a.dtype.kind not in ("iu" if self.item.integer else "iuf"):
+            bad = next((v for v in a.ravel().tolist()
+                        if not _is_number(v) or (self.item.integer and not isinstance(v, int))),
+                       a.ravel()[0])
+            wanted = "integers" if self.item.integer else "numbers"
+            raise self.type_error(where, f"is not a numeric array (holds {_kind(bad)}, "
+                                  f"expected {wanted} only)", path, fix)
+        if self.size is not None and a.size != self.size:
+            raise self.error(where, f"has {a.size} values, expected {self.size}", path, fix)
+        a = a.astype(int if self.item.integer else float)
+        bad = self.item.outside(a)
+        if np.any(bad):
+            k = tuple(int(i) for i in np.argwhere(bad)[0])
+            at = "[" + ", ".join(map(str, k)) + "]"
+            if not np.isfinite(a[k]):
+                raise self.error(where, f"holds NaN or inf ({num(a[k])} at {at})", path, fix)
+            raise self.error(where, f"holds {num(a[k])} at {at}, outside "
+                             f"{self.item.range_text()}", path, fix)
+        if self.increasing and a.size > 1 and not np.all(np.diff(a) > 0):
+            k = int(np.flatnonzero(np.diff(a) <= 0)[0])
+            raise self.error(where, f"is not strictly increasing ({num(a[k])} then "
+                             f"{num(a[k + 1])} at [{k}], [{k + 1}])", path, fix)
+        return a
+
+    def json(self):
+        out: dict[str, Any] = self.item.json()
+        for depth in range(self.ndim):
+            out = {"type": "array", "items": out}
+            if self.min_size:
+                out["minItems"] = 1
+            if depth == 0 and self.size is not None and self.ndim == 1:
+                out["minItems"] = out["maxItems"] = self.size
+        if self.increasing:  # not expressible in JSON Schema: said in the description
+            out["description"] = "strictly increasing"
+        return out
+
+
+@dataclass(frozen=True)
+class ListOf(Spec):
+    """A list whose items all follow ``item``; at least ``min_items``."""
+
+    item: Spec
+    min_items: int = 0
+
+    def check(self, value, where, path, fix):
+        if not isinstance(value, list):
+            raise self.type_error(where, f"is {_kind(value)}, expected a list", path, fix)
+        if len(value) < self.min_items:
+            raise self.error(where, "is empty", path, fix)
+        return [self.item.check(v, f"{where}[{k}]", path, fix) for k, v in enumerate(value)]
+
+    def json(self):
+        out = {"type": "array", "items": self.item.json()}
+        if self.min_items:
+            out["minItems"] = self.min_items
+        return out
+
+
+@dataclass(frozen=True)
+class Nullable(Spec):
+    """``inner`` or JSON null."""
+
+    inner: Spec
+
+    def check(self, value, where, path, fix):
+        return None if value is None else self.inner.check(value, where, path, fix)
+
+    def json(self):
+        return {"anyOf": [self.inner.json(), {"type": "null"}]}
+
+
+@dataclass(frozen=True)
+class AnyOf(Spec):
+    """The first of ``options`` that accepts the value; else the error of the first option
+    of the value's type (or of the first option)."""
+
+    options: tuple[Spec, ...]
+
+    def check(self, value, where, path, fix):
+        errors = []
+        for option in self.options:
+            try:
+                return option.check(value, where, path, fix)
+            except ArtifactError as exc:
+                errors.append(exc)
+        # the option of the value's type says what is wrong with it; else the first
+        raise next((e for e in errors if not getattr(e, "wrong_type", False)), errors[0])
+
+    def json(self):
+        return {"anyOf": [o.json() for o in self.options]}
+
+
+@dataclass(frozen=True)
+class Obj(Spec):
+    """A JSON object: ``fields`` name → (spec, required). Unknown keys are errors
+    (STYLE 7) unless ``fields`` is None (a free-form record, such as ``parameters``)."""
+
+    fields: dict[str, tuple[Spec, bool]] | None = None
+
+    def check(self, value, where, path, fix):
+        if not isinstance(value, dict):
+            raise self.type_error(where, f"is {_kind(value)}, expected an object", path, fix)
+        if self.fields is None:
+            return value
+        prefix = f"{where}." if where else ""
+        check_keys(value, self.fields, path=path, where=prefix)
+        out = {}
+        for name, (spec, required) in self.fields.items():
+            if name in value:
+                out[name] = spec.check(value[name], prefix + name, path, fix)
+            elif required:
+                raise ArtifactError(f"missing field {prefix + name!r}", path=path, fix=fix)
+        return out
+
+    def json(self):
+        if self.fields is None:
+            return {"type": "object"}
+        return {"type": "object",
+                "properties": {k: s.json() for k, (s, _) in self.fields.items()},
+                "required": [k for k, (_, r) in self.fields.items() if r],
+                "additionalProperties": False}
+
+
+def _kind(value) -> str:
+    """What a JSON value is, for messages: 'a string ('abc')', 'the number 3'."""
+    if value is None:
+        return "null"
+    if isinstance(value, bool):
+        return f"the boolean {str(value).lower()}"
+    if _is_number(value):
+        return f"the number {num(value)}"
+    if isinstance(value, str):
+        return f"the string {value[:40]!r}"
+    if isinstance(value, list):
+        return f"a list of {len(value)}"
+    if isinstance(value, dict):
+        return "an object"
+    return type(value).__name__
+
+
+def _req(spec: Spec) -> tuple[Spec, bool]:
+    return (spec, True)
+
+
+def _opt(spec: Spec) -> tuple[Spec, bool]:
+    return (spec, False)
+
+
+NON_NEGATIVE = Number(0.0, MAX_MAGNITUDE)
+COUNT = Number(0, None, integer=True)
+POSITIVE_COUNT = Number(1, None, integer=True)
+SECONDS = Number(0.0, None)
+FREE = Obj(None)
+WAVELENGTHS = Array(1, Number(0.0, WAVELENGTH_MAX_NM, lo_open=True), increasing=True)
+EXPONENTS = Array(1, Number(*EXPONENT_RANGE))
+
+
+def envelope_fields(schema: str, versions: tuple[int, ...]) -> dict[str, tuple[Spec, bool]]:
+    """The fields every artifact starts with (:data:`gonio_cli.artifact.ENVELOPE_KEYS`)."""
+    return {"schema": _req(Text((schema,))),
+            "schema_version": _req(Number(min(versions), max(versions), integer=True)),
+            "gonio_version": _opt(Text()),
+            "created_utc": _opt(Text()),
+            "inputs": _opt(ListOf(Obj({"path": _req(Text()), "sha256": _opt(Text())}))),
+            "parameters": _opt(FREE),
+            "time_s": _opt(SECONDS)}
+
+
+def validate(doc: dict[str, Any], spec: Obj, path, fix: str) -> dict[str, Any]:
+    """Check ``doc`` against ``spec``: the checked fields (arrays as numpy arrays)."""
+    return spec.check(doc, "", path, fix)
 
 
 # -------------------------------------------------------------------------- measurement --
@@ -65,8 +385,6 @@ class Measurement:
 
     SCHEMA = "gonio.measurement"
     VERSION = 1
-    FIELDS = ("wavelength_nm", "theta_i_deg", "theta_o_deg", "brdf", "brdf_std",
-              "n_repeats", "quantity", "summary")
 
     def __post_init__(self):
         self.wavelength_nm = np.asarray(self.wavelength_nm, dtype=float)
@@ -95,35 +413,38 @@ class Measurement:
             "summary": self.summary,
         }
 
+    #: What ingest reports (the keys of :data:`gonio_cli.ingest.QUANTITIES`; a test checks).
+    QUANTITIES = ("brdf", "ratio-to-white", "reflectance-factor", "flux-ratio")
+    FIX = "regenerate it with gonio ingest"
+
+    @classmethod
+    def spec(cls) -> Obj:
+        """The one definition of a ``gonio.measurement`` document (docs/schemas/)."""
+        return Obj({**envelope_fields(cls.SCHEMA, (cls.VERSION,)),
+                    "wavelength_nm": _req(WAVELENGTHS),
+                    "theta_i_deg": _req(Array(1, Number(0.0, 90.0, hi_open=True))),
+                    "theta_o_deg": _req(Array(1, Number(-90.0, 90.0, True, True))),
+                    "brdf": _req(Array(2)),
+                    "brdf_std": _opt(Nullable(Array(2, NON_NEGATIVE))),
+                    "n_repeats": _opt(Array(1, POSITIVE_COUNT)),
+                    "quantity": _opt(Text(cls.QUANTITIES)),
+                    "summary": _opt(FREE)})
+
     @classmethod
     def from_document(cls, doc: dict[str, Any], path=None) -> "Measurement":
-        check_keys(doc, ENVELOPE_KEYS + cls.FIELDS, path=path)
-        wl = _array(doc, "wavelength_nm", path, 1)
-        ti = _array(doc, "theta_i_deg", path, 1)
-        to = _array(doc, "theta_o_deg", path, 1)
-        brdf = _array(doc, "brdf", path, 2)
-        std = _array(doc, "brdf_std", path, 2) if doc.get("brdf_std") is not None else None
-        reps = _array(doc, "n_repeats", path, 1, dtype=int) if "n_repeats" in doc else None
+        f = validate(doc, cls.spec(), path, cls.FIX)
+        wl, ti, to, brdf = f["wavelength_nm"], f["theta_i_deg"], f["theta_o_deg"], f["brdf"]
+        std, reps = f.get("brdf_std"), f.get("n_repeats")
         n, nl = ti.size, wl.size
         if to.size != n or brdf.shape != (n, nl) or (std is not None and std.shape != (n, nl)) \
                 or (reps is not None and reps.size != n):
             raise ArtifactError(f"inconsistent shapes: {n} theta_i_deg, {to.size} theta_o_deg, "
-                                f"brdf {brdf.shape}, {nl} wavelengths", path=path,
-                                fix="regenerate it with gonio ingest")
-        if n == 0:
-            raise ArtifactError("holds no configurations", path=path)
-        if wl.size > 1 and not np.all(np.diff(wl) > 0):
-            raise ArtifactError("wavelength_nm is not increasing", path=path)
-        if np.any((ti < 0) | (ti >= 90)) or np.any(np.abs(to) >= 90):
-            raise ArtifactError("theta_i_deg outside [0, 90) or theta_o_deg outside (-90, 90)",
-                                path=path)
-        if reps is not None and np.any(reps < 1):
-            raise ArtifactError("n_repeats below 1", path=path)
-        summary = doc.get("summary") or {}
-        if not isinstance(summary, dict) or not isinstance(doc.get("quantity", "brdf"), str):
-            raise ArtifactError("field 'summary' is not an object or 'quantity' not a string",
-                                path=path)
-        return cls(wl, ti, to, brdf, std, reps, doc.get("quantity", "brdf"), dict(summary))
+                                f"brdf {brdf.shape}, {nl} wavelengths"
+                                + (f", brdf_std {std.shape}" if std is not None else "")
+                                + (f", {reps.size} n_repeats" if reps is not None else ""),
+                                path=path, fix=cls.FIX)
+        return cls(wl, ti, to, brdf, std, reps, f.get("quantity", "brdf"),
+                   dict(f.get("summary") or {}))
 
 
 def read_measurement(path: str | os.PathLike) -> Measurement:
@@ -169,8 +490,6 @@ class Material:
     #: Versions read: 1 (status success/failed) and 2 (status good/poor/failed).
     READ_VERSIONS = (1, 2)
     STATUSES = {1: ("success", "failed"), 2: ("good", "poor", "failed")}
-    FIELDS = ("model", "wavelength_nm", "status", "fit")
-
 
     def to_payload(self) -> dict[str, Any]:
         out: dict[str, Any] = {"model": self.model, "status": self.status,
@@ -185,36 +504,62 @@ class Material:
 
         return evaluate(self.model, cos, self.params)
 
+    FIX = "regenerate it with gonio fit"
+
+    @classmethod
+    def spec(cls, model: str, version: int = VERSION) -> Obj:
+        """The one definition of a ``gonio.material`` document of ``model`` (docs/schemas/)."""
+        from .brdf import MODELS
+
+        m = MODELS[model]
+        return Obj({**envelope_fields(cls.SCHEMA, (version,)),
+                    "model": _req(Text((model,))),
+                    "status": _opt(Text(cls.STATUSES[version])),
+                    "wavelength_nm": _req(WAVELENGTHS),
+                    **{k: _req(PARAM_RANGES[k]) for k in m.scalar_params},
+                    **{k: _req(Array(1, PARAM_RANGES[k])) for k in m.spectral_params},
+                    "fit": _opt(FREE)})
+
     @classmethod
     def from_document(cls, doc: dict[str, Any], path=None) -> "Material":
         from .brdf import MODELS
 
         model = doc.get("model")
-        if model not in MODELS:
-            raise ArtifactError(f"model {model!r} is unknown", path=path,
-                                fix=f"one of {', '.join(MODELS)}")
+        if not isinstance(model, str) or model not in MODELS:
+            raise ArtifactError(f"field 'model' is {_kind(model)}, not a known model",
+                                path=path, fix=f"one of {', '.join(MODELS)}")
+        version = doc.get("schema_version", cls.VERSION)
+        f = validate(doc, cls.spec(model, version if version in cls.STATUSES else cls.VERSION),
+                     path, cls.FIX)
+        wl = f["wavelength_nm"]
         spec = MODELS[model]
-        check_keys(doc, ENVELOPE_KEYS + cls.FIELDS + spec.scalar_params
-                   + spec.spectral_params, path=path)
-        wl = _array(doc, "wavelength_nm", path, 1)
-        params: dict[str, Any] = {}
-        for name in spec.scalar_params:
-            params[name] = float(_array(doc, name, path, 0))
+        params: dict[str, Any] = {k: float(f[k]) for k in spec.scalar_params}
         for name in spec.spectral_params:
-            params[name] = _array(doc, name, path, 1)
+            params[name] = f[name]
             if params[name].shape != wl.shape:
                 raise ArtifactError(f"field {name!r} has {params[name].size} values for "
-                                    f"{wl.size} wavelengths", path=path)
-        version = doc.get("schema_version", cls.VERSION)
-        status = doc.get("status", cls.STATUSES.get(version, ("good",))[0])
-        if status not in cls.STATUSES.get(version, ()):
-            raise ArtifactError(f"field 'status' is {status!r}", path=path,
-                                fix=f"version {version} uses one of "
-                                    f"{', '.join(cls.STATUSES.get(version, ()))}")
-        fit = doc.get("fit") or {}
-        if not isinstance(fit, dict):
-            raise ArtifactError("field 'fit' is not an object", path=path)
-        return cls(model, wl, params, str(status), dict(fit))
+                                    f"{wl.size} wavelengths", path=path, fix=cls.FIX)
+        status = f.get("status", cls.STATUSES[version][0])
+        return cls(model, wl, params, status, dict(f.get("fit") or {}))
+
+
+#: Bound of |c(λ)| in seed 000 eq. 5's exp(c x), x in [0, 1]: e^100 ≈ 3e43, so ρ e^{c x}
+#: stays finite in float64 for any ρ ≤ MAX_MAGNITUDE; gonio fit searches |c| ≤ 60
+#: (fit.common.C_LIMIT), so nothing it writes is refused.
+C_MAX = 100.0
+
+#: The range of every material parameter (brdf.MODELS), by name: α of GGX in (0, 1]
+#: (seed 000 eq. 3, fit.common.ALPHA_MAX); Beckmann m in (0, 1] (seed 004 eq. 9,
+#: fit.cook_torrance.M_MAX); Fresnel F0 in [0, 1]; scales and albedos in
+#: [0, MAX_MAGNITUDE]. A test checks that every model parameter is listed.
+PARAM_RANGES: dict[str, Number] = {
+    **{k: Number(0.0, 1.0, lo_open=True) for k in ("alpha", "alpha_coat")},
+    **{k: Number(0.0, 1.0, lo_open=True) for k in ("m", "m_1", "m_2", "m_3")},
+    **{k: Number(0.0, 1.0) for k in ("f0", "f0_coat")},
+    **{k: NON_NEGATIVE for k in ("rho", "rho_d", "kd", "ks", "ks_1", "ks_2", "ks_3",
+                                 "k_coat")},
+    "c": Number(-C_MAX, C_MAX),
+}
 
 
 def read_material(path: str | os.PathLike) -> Material:
@@ -230,22 +575,6 @@ def write_material(path: str | os.PathLike, m: Material, **envelope) -> dict:
 
 
 # ------------------------------------------------------------------------ lobe basis --
-
-def _exponent_list(values, path, where: str) -> np.ndarray:
-    """Exponents (m,) of a basis: at least one, finite, > 0 (seed 001 eq. 2)."""
-    try:
-        e = np.asarray(values, dtype=float)
-    except (TypeError, ValueError):
-        raise ArtifactError(f"{where} is not a list of numbers", path=path) from None
-    if e.ndim != 1 or e.size == 0:
-        raise ArtifactError(f"{where} is empty", path=path,
-                            fix="choose a basis with gonio lobes basis")
-    bad = e[~(np.isfinite(e) & (e > 0))]
-    if bad.size:
-        raise ArtifactError(f"{where} holds the exponent {num(bad[0])}, not a positive number",
-                            path=path, fix="every cosine-lobe exponent must be > 0")
-    return e
-
 
 @dataclass
 class LobeBasis:
@@ -274,8 +603,6 @@ class LobeBasis:
     VERSION = 1
     FIELDS = ("bases", "materials", "sample_set", "channels", "solver", "exponent_range",
               "view_angle_deg")
-    BASIS_FIELDS = ("n_lobes", "exponents", "error", "max_error", "mean_error",
-                    "per_material", "evaluations", "time_s", "message")
 
     def to_payload(self) -> dict[str, Any]:
         return {k: getattr(self, k) for k in self.FIELDS}
@@ -292,27 +619,43 @@ class LobeBasis:
                              path=path, fix=f"choose one of {', '.join(map(str, counts))}")
         return np.asarray(self.bases[counts.index(n_lobes)]["exponents"], dtype=float)
 
+    FIX = "choose a basis with gonio lobes basis"
+
+    @classmethod
+    def spec(cls) -> Obj:
+        """The one definition of a ``gonio.lobe_basis`` document (docs/schemas/)."""
+        basis = Obj({"n_lobes": _req(POSITIVE_COUNT), "exponents": _req(EXPONENTS),
+                     "error": _opt(Nullable(Number(0.0, None))),
+                     "max_error": _opt(Nullable(Number(0.0, None))),
+                     "mean_error": _opt(Nullable(Number(0.0, None))),
+                     "per_material": _opt(Array(1, Number(0.0, None), min_size=0)),
+                     "evaluations": _opt(COUNT), "time_s": _opt(SECONDS),
+                     "message": _opt(Text())})
+        return Obj({**envelope_fields(cls.SCHEMA, (cls.VERSION,)),
+                    "bases": _req(ListOf(basis, min_items=1)),
+                    "materials": _opt(ListOf(Obj({"path": _req(Text()),
+                                                  "model": _opt(Text())}))),
+                    "sample_set": _req(Text()), "channels": _req(Text(LOBE_CHANNELS)),
+                    "solver": _req(Text()),
+                    "exponent_range": _opt(Array(1, Number(*EXPONENT_RANGE), size=2)),
+                    "view_angle_deg": _opt(Array(1, Number(0.0, 90.0), min_size=0))})
+
     @classmethod
     def from_document(cls, doc: dict[str, Any], path=None) -> "LobeBasis":
-        check_keys(doc, ENVELOPE_KEYS + cls.FIELDS, path=path)
-        bases = doc.get("bases")
-        if not isinstance(bases, list) or not bases:
-            raise ArtifactError("field 'bases' is missing or empty (an empty basis)",
-                                path=path, fix="choose a basis with gonio lobes basis")
-        for k, b in enumerate(bases):
-            if not isinstance(b, dict):
-                raise ArtifactError(f"bases[{k}] is not an object", path=path)
-            check_keys(b, cls.BASIS_FIELDS, path=path, where=f"bases[{k}].")
-            e = _exponent_list(b.get("exponents"), path, f"bases[{k}].exponents")
-            if b.get("n_lobes") != e.size:
-                raise ArtifactError(f"bases[{k}].n_lobes={b.get('n_lobes')!r} but it holds "
-                                    f"{e.size} exponents", path=path)
-        for key in ("sample_set", "channels", "solver"):
-            if not isinstance(doc.get(key), str):
-                raise ArtifactError(f"field {key!r} is missing or not a string", path=path)
-        return cls(list(bases), list(doc.get("materials") or []), doc["sample_set"],
-                   doc["channels"], doc["solver"], list(doc.get("exponent_range") or []),
+        f = validate(doc, cls.spec(), path, cls.FIX)
+        bases = [dict(doc["bases"][k]) for k in range(len(f["bases"]))]
+        for k, b in enumerate(f["bases"]):
+            if b["n_lobes"] != b["exponents"].size:
+                raise ArtifactError(f"field 'bases[{k}].n_lobes' is {b['n_lobes']} but "
+                                    f"'bases[{k}].exponents' holds {b['exponents'].size}",
+                                    path=path, fix=cls.FIX)
+        return cls(bases, list(doc.get("materials") or []), f["sample_set"], f["channels"],
+                   f["solver"], list(doc.get("exponent_range") or []),
                    list(doc.get("view_angle_deg") or []))
+
+
+#: Channel kinds of lobe weights: per wavelength, or CIE XYZ.
+LOBE_CHANNELS = ("spectral", "xyz")
 
 
 def _read_as(cls, path):
@@ -374,29 +717,46 @@ class Lobes:
     def to_payload(self) -> dict[str, Any]:
         return {k: getattr(self, k) for k in self.FIELDS}
 
+    FIX = "regenerate it with gonio lobes fit"
+
+    @classmethod
+    def spec(cls) -> Obj:
+        """The one definition of a ``gonio.lobes`` document (docs/schemas/)."""
+        weights = Array(1, NON_NEGATIVE)
+        return Obj({**envelope_fields(cls.SCHEMA, (cls.VERSION,)),
+                    "exponents": _req(EXPONENTS),
+                    "channel_kind": _req(Text(LOBE_CHANNELS)),
+                    "channels": _req(AnyOf((WAVELENGTHS,
+                                            ListOf(Text(("X", "Y", "Z")), min_items=3)))),
+                    "view_angle_deg": _req(Array(1, Number(0.0, 90.0), increasing=True)),
+                    "diffuse": _req(Array(2, weights.item)),
+                    "directional_diffuse": _req(Array(3, weights.item)),
+                    "gloss": _req(Array(3, weights.item)),
+                    "errors": _opt(FREE), "solver": _opt(Text()), "sample_set": _opt(Text()),
+                    "n_samples": _opt(ListOf(COUNT))})
+
     @classmethod
     def from_document(cls, doc: dict[str, Any], path=None) -> "Lobes":
-        check_keys(doc, ENVELOPE_KEYS + cls.FIELDS, path=path)
-        e = _exponent_list(doc.get("exponents"), path, "field 'exponents'")
-        views = _array(doc, "view_angle_deg", path, 1)
-        kd = _array(doc, "diffuse", path, 2)
-        kdd = _array(doc, "directional_diffuse", path, 3)
-        kg = _array(doc, "gloss", path, 3)
-        channels = doc.get("channels")
-        if doc.get("channel_kind") not in ("spectral", "xyz") or not isinstance(channels, list):
-            raise ArtifactError("field 'channel_kind' is not spectral or xyz, or 'channels' "
-                                "is not a list", path=path)
+        f = validate(doc, cls.spec(), path, cls.FIX)
+        e, views = f["exponents"], f["view_angle_deg"]
+        kd, kdd, kg = f["diffuse"], f["directional_diffuse"], f["gloss"]
+        channels = list(doc["channels"])
+        spectral = f["channel_kind"] == "spectral"
+        if spectral != isinstance(f["channels"], np.ndarray):
+            raise ArtifactError(f"field 'channels' does not fit channel_kind "
+                                f"{f['channel_kind']!r}", path=path,
+                                fix="spectral weights list wavelength_nm, xyz ones X, Y, Z")
         V, m, C = views.size, e.size, len(channels)
-        if kd.shape != (V, C) or kdd.shape != (V, m, C) or kg.shape != (V, m, C):
+        if kd.shape != (V, C) or kdd.shape != (V, m, C) or kg.shape != (V, m, C) or (
+                "n_samples" in f and len(f["n_samples"]) != V):
             raise ArtifactError(f"inconsistent shapes: {V} view angles, {m} exponents, {C} "
                                 f"channels but diffuse {kd.shape}, directional_diffuse "
-                                f"{kdd.shape}, gloss {kg.shape}", path=path,
-                                fix="regenerate it with gonio lobes fit")
-        if min(kd.min(), kdd.min(), kg.min()) < 0:
-            raise ArtifactError("holds a negative weight", path=path)
-        return cls(e, doc["channel_kind"], channels, views, kd, kdd, kg,
-                   dict(doc.get("errors") or {}), str(doc.get("solver", "")),
-                   str(doc.get("sample_set", "")), list(doc.get("n_samples") or []))
+                                f"{kdd.shape}, gloss {kg.shape}"
+                                + (f", {len(f['n_samples'])} n_samples" if "n_samples" in f
+                                   else ""), path=path, fix=cls.FIX)
+        return cls(e, f["channel_kind"], channels, views, kd, kdd, kg,
+                   dict(f.get("errors") or {}), f.get("solver", ""),
+                   f.get("sample_set", ""), list(f.get("n_samples") or []))
 
 
 def read_lobes(path: str | os.PathLike) -> Lobes:
@@ -407,3 +767,129 @@ def read_lobes(path: str | os.PathLike) -> Lobes:
 def write_lobes(path: str | os.PathLike, lobes: Lobes, **envelope) -> dict:
     """Write lobe weights atomically with provenance."""
     return _write_as(path, lobes, **envelope)
+
+
+# ------------------------------------------------------------------ prefilter index --
+
+#: Schema and version of a prefiltered environment's ``index.json`` (``gonio prefilter``
+#: writes it, :func:`gonio_cli.render.environment.load_environment` reads it).
+PREFILTER_SCHEMA = "gonio.prefilter"
+PREFILTER_VERSION = 1
+PREFILTER_FIX = "regenerate the folder with gonio prefilter"
+
+
+def prefilter_index_spec() -> Obj:
+    """The one definition of a ``gonio.prefilter`` ``index.json`` (docs/schemas/)."""
+    entry = Obj({"exponent": _req(Number(*EXPONENT_RANGE)), "path": _req(Text()),
+                 "width": _req(POSITIVE_COUNT), "height": _req(POSITIVE_COUNT),
+                 "method": _opt(Text()), "error_estimate": _opt(Nullable(Number(0.0, None))),
+                 "checked_texels": _opt(COUNT), "working_width": _opt(POSITIVE_COUNT),
+                 "working_height": _opt(POSITIVE_COUNT), "time_s": _opt(SECONDS)})
+    source = Obj({"width": _req(POSITIVE_COUNT), "height": _req(POSITIVE_COUNT),
+                  "channels": _req(POSITIVE_COUNT), "invalid_texels_replaced": _opt(COUNT)})
+    return Obj({**envelope_fields(PREFILTER_SCHEMA, (PREFILTER_VERSION,)),
+                "source": _opt(source), "diffuse": _opt(Text()),
+                "maps": _req(ListOf(entry, min_items=1))})
+
+
+def read_prefilter_index(path: str | os.PathLike) -> dict[str, Any]:
+    """Read and validate a prefiltered environment's ``index.json`` (checked fields)."""
+    doc = read_artifact(path, PREFILTER_SCHEMA, (PREFILTER_VERSION,))
+    return validate(doc, prefilter_index_spec(), path, PREFILTER_FIX)
+
+
+# --------------------------------------------------------------------- render report --
+
+#: ``gonio render --report`` (:func:`gonio_cli.render.pipeline.write_report`).
+RENDER_REPORT_SCHEMA = "gonio.render-report"
+RENDER_REPORT_VERSION = 1
+
+
+def render_report_spec() -> Obj:
+    """The one definition of a ``gonio.render-report`` document (docs/schemas/)."""
+    stage = Obj({"stage": _req(Text()), "time_s": _req(SECONDS)})
+    return Obj({**envelope_fields(RENDER_REPORT_SCHEMA, (RENDER_REPORT_VERSION,)),
+                "stages": _req(ListOf(stage)), "substages": _opt(ListOf(stage)),
+                "frame_time_s": _req(SECONDS), "frame_stages": _opt(ListOf(Text())),
+                "outputs": _req(Obj({"png": _req(Text()), "exr": _opt(Nullable(Text())),
+                                     "gamut_warning": _opt(Nullable(Text()))})),
+                "image": _req(Obj({"width": _req(POSITIVE_COUNT),
+                                   "height": _req(POSITIVE_COUNT)})),
+                "counts": _opt(FREE)})
+
+
+def read_render_report(path: str | os.PathLike) -> dict[str, Any]:
+    """Read and validate a render report (checked fields)."""
+    doc = read_artifact(path, RENDER_REPORT_SCHEMA, (RENDER_REPORT_VERSION,))
+    return validate(doc, render_report_spec(), path, "regenerate it with gonio render --report")
+
+
+# -------------------------------------------------------------- published JSON Schema --
+
+#: JSON Schema dialect of the files in docs/schemas/.
+JSON_SCHEMA_DIALECT = "https://json-schema.org/draft/2020-12/schema"
+
+
+def _material_json() -> dict[str, Any]:
+    """Every model and version of a material: one branch per (model, version)."""
+    from .brdf import MODELS
+
+    return {"oneOf": [Material.spec(model, version).json() for model in MODELS
+                      for version in Material.READ_VERSIONS]}
+
+
+#: Artifact → (file name in docs/schemas/, title, the JSON Schema of its one definition).
+PUBLISHED: dict[str, tuple[str, str, Any]] = {
+    Measurement.SCHEMA: ("measurement.schema.json", "gonio measurement (gonio ingest)",
+                         lambda: Measurement.spec().json()),
+    Material.SCHEMA: ("material.schema.json", "gonio material (gonio fit), versions 1 and 2",
+                      _material_json),
+    LobeBasis.SCHEMA: ("lobe_basis.schema.json", "gonio lobe basis (gonio lobes basis)",
+                       lambda: LobeBasis.spec().json()),
+    Lobes.SCHEMA: ("lobes.schema.json", "gonio lobe weights (gonio lobes fit)",
+                   lambda: Lobes.spec().json()),
+    PREFILTER_SCHEMA: ("prefilter.schema.json",
+                       "gonio prefiltered environment index.json (gonio prefilter)",
+                       lambda: prefilter_index_spec().json()),
+    RENDER_REPORT_SCHEMA: ("render_report.schema.json", "gonio render report (gonio render "
+                           "--report)", lambda: render_report_spec().json()),
+}
+
+
+def json_schema(schema: str) -> dict[str, Any]:
+    """The published JSON Schema of an artifact, generated from its one definition."""
+    name, title, make = PUBLISHED[schema]
+    return {"$schema": JSON_SCHEMA_DIALECT,
+            "$id": f"https://gonio.invalid/schemas/{name}",
+            "title": title,
+            "description": "Generated by python -m gonio_cli.schemas from gonio_cli/schemas.py; "
+                           "ranges: docs/conventions.md, Numeric ranges. Checks between "
+                           "fields (shapes, strictly increasing lists) are made by gonio "
+                           "itself.",
+            **make()}
+
+
+def schema_files() -> dict[str, str]:
+    """File name → text of every published schema (what docs/schemas/ must hold)."""
+    import json
+
+    return {PUBLISHED[s][0]: json.dumps(json_schema(s), indent=1, ensure_ascii=False) + "\n"
+            for s in PUBLISHED}
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m gonio_cli.schemas DIR``: write the JSON Schema files into DIR."""
+    import sys
+    from pathlib import Path
+
+    args = sys.argv[1:] if argv is None else argv
+    folder = Path(args[0] if args else "docs/schemas")
+    folder.mkdir(parents=True, exist_ok=True)
+    for name, text in schema_files().items():
+        (folder / name).write_text(text, encoding="utf-8")
+        print(folder / name)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -111,6 +111,12 @@ SEGMENTATION_RULES: dict[str, tuple[Callable, str, float]] = {
 }
 
 
+#: The range of each rule's parameter: k ≥ 0 standard deviations above the median (above
+#: 1000 no pixel of an 8- or 16-bit photo qualifies); p in (0, 100] percent.
+RULE_PARAMETER_RANGES: dict[str, tuple[float, float]] = {"mad": (0.0, 1e3),
+                                                         "percentile": (0.0, 100.0)}
+
+
 def get_rule(name: str):
     if name not in SEGMENTATION_RULES:
         raise InputError(f"segmentation rule {name!r} is unknown",
@@ -190,6 +196,12 @@ def build_texture(photos: Sequence[np.ndarray], theta_i_deg: Sequence[float],
     """
     fn, _, default = get_rule(rule)
     parameter = default if parameter is None else float(parameter)
+    lo, hi = RULE_PARAMETER_RANGES[rule]
+    if not (lo <= parameter <= hi) or (rule == "percentile" and parameter == 0.0):
+        raise InputError(f"--parameter {parameter:g} is outside the range of rule {rule!r} "
+                         f"({'(' if rule == 'percentile' else '['}{lo:g}, {hi:g}])",
+                         fix=f"give {SEGMENTATION_RULES[rule][1]} within it (default "
+                             f"{default:g})")
     if len(photos) != len(theta_i_deg):
         raise InputError(f"{len(photos)} photos but {len(theta_i_deg)} angles of incidence",
                          fix="give one angle per photo, in the same order")

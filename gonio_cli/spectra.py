@@ -16,11 +16,18 @@ import functools
 import numpy as np
 
 from .errors import InputError
+from .schemas import WAVELENGTH_MAX_NM
 
 DEFAULT_GRID_NM = "380:780:10"
 
 #: Two wavelengths closer than this (nm) are the same sample (float noise in CSV headers).
 WAVELENGTH_TOL_NM = 1e-6
+
+
+#: Most samples a working grid may have: 0.1 nm steps over 380–780 nm. Every table of a
+#: render and every fit scale with it; beyond, a typo (a step of 1e-300) would ask for
+#: more memory than any machine has.
+MAX_GRID_SAMPLES = 4001
 
 
 def parse_grid(spec: str = DEFAULT_GRID_NM) -> np.ndarray:
@@ -39,6 +46,11 @@ def parse_grid(spec: str = DEFAULT_GRID_NM) -> np.ndarray:
         raise InputError(f"--grid-nm {spec!r} needs 0 < START < STOP and STEP > 0",
                          fix="e.g. --grid-nm 380:780:10")
     n = (stop - start) / step
+    if stop > WAVELENGTH_MAX_NM or n + 1 > MAX_GRID_SAMPLES:
+        raise InputError(f"--grid-nm {spec!r} has {n + 1:.3g} samples up to {stop:g} nm",
+                         fix=f"at most {MAX_GRID_SAMPLES} samples up to {WAVELENGTH_MAX_NM:g} "
+                             "nm (docs/conventions.md, Numeric ranges), e.g. --grid-nm "
+                             "380:780:10")
     if abs(n - round(n)) > 1e-6:
         raise InputError(f"--grid-nm {spec!r}: STOP - START is not a multiple of STEP",
                          fix="e.g. --grid-nm 380:780:10")

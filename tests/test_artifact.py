@@ -244,7 +244,7 @@ BAD_MEASUREMENTS = {
     "wavelength-text": (lambda d: {"wavelength_nm": ["red"] * 5}, "not a numeric array"),
     "ragged": (lambda d: {"brdf": [[1.0], [1.0, 2.0]]}, "not a numeric array"),
     "empty": (lambda d: {"theta_i_deg": [], "theta_o_deg": [], "brdf": np.zeros((0, 5)),
-                         "brdf_std": None, "n_repeats": []}, "no configurations"),
+                         "brdf_std": None, "n_repeats": []}, "'theta_i_deg' is empty"),
     "unknown-key": (lambda d: {"brdf_per_sr": 1}, "unknown field brdf_per_sr"),
 }
 

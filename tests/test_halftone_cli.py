@@ -219,7 +219,7 @@ def test_nan_exr_is_refused(run_gonio, tmp_path):
     src = tmp_path / "nan.exr"
     a = np.full((4, 4, 3), 0.2, dtype=np.float32)
     a[1, 2, 0] = np.nan
-    write_exr(src, a)
+    write_exr(src, a, allow_nonfinite=True)
     r = run_gonio("halftone", src, "-o", tmp_path / "m.png")
     assert r.exit_code == 2 and "1 pixels with NaN" in r.stderr
     assert not (tmp_path / "m.png").exists()

@@ -120,8 +120,8 @@ def test_unknown_material_model(run_gonio, inks, tmp_path):
     assert not out.exists()
 
 
-@pytest.mark.parametrize("exponents,message", [("", "empty"), ("0,10", "positive"),
-                                               ("-3", "positive"), ("a,b", "numbers")])
+@pytest.mark.parametrize("exponents,message", [("", "empty"), ("0,10", "outside [1, "),
+                                               ("-3", "outside [1, "), ("a,b", "numbers")])
 def test_bad_exponents(run_gonio, inks, tmp_path, exponents, message):
     out = tmp_path / "o.json"
     assert_one_line_error(run_gonio("lobes", "fit", inks[0], "--exponents", exponents,
@@ -132,8 +132,8 @@ def test_bad_exponents(run_gonio, inks, tmp_path, exponents, message):
 @pytest.mark.parametrize("edit,message", [
     (lambda d: d.update(bases=[]), "empty"),
     (lambda d: d["bases"][0].update(exponents=[]), "empty"),
-    (lambda d: d["bases"][0].update(exponents=[-2.0], n_lobes=1), "positive"),
-    (lambda d: d["bases"][0].update(exponents=[0.0], n_lobes=1), "positive"),
+    (lambda d: d["bases"][0].update(exponents=[-2.0], n_lobes=1), "outside [1, "),
+    (lambda d: d["bases"][0].update(exponents=[0.0], n_lobes=1), "outside [1, "),
     (lambda d: d.update(extra=1), "unknown field"),
 ])
 def test_bad_basis_file(run_gonio, inks, tmp_path, edit, message):

@@ -82,7 +82,7 @@ def test_fix_invalid_replaces_and_says_so(run_gonio, tmp_path):
     img = np.ones((16, 32, 3), np.float32)
     img[2, 3, 0] = np.nan
     path = tmp_path / "nan.exr"
-    write_exr(path, img)
+    write_exr(path, img, allow_nonfinite=True)
     out = tmp_path / "pre"
     r = run_gonio("prefilter", path, "-e", "8", "-o", out, "--fix-invalid")
     assert r.exit_code == 0
@@ -93,7 +93,7 @@ def bad_cases(tmp_path, sky):
     nan = tmp_path / "nan.exr"
     img = np.ones((16, 32, 3), np.float32)
     img[2, 3, 0], img[4, 4, 1] = np.nan, -2.0
-    write_exr(nan, img)
+    write_exr(nan, img, allow_nonfinite=True)
     png = tmp_path / "ldr.png"
     write_png(png, np.zeros((8, 16, 3), np.uint8))
     one = tmp_path / "one.exr"

@@ -103,12 +103,12 @@ def fit(
                        exclude_theta_o_deg=exclude_theta_o, weights=w,
                        use_std=std_weights, path=measurement)
         if model == "auto":
-            result, candidates = fit_auto(data, options)
+            result, candidates = _named(fit_auto, measurement)(data, options)
             extra["auto"] = {"criterion": "mean CIEDE2000 on each angle of incidence left "
                                           "out in turn", "chosen": result.model,
                              "candidates": [c.to_dict() for c in candidates]}
         else:
-            result = run_fit(data, model, options)
+            result = _named(run_fit, measurement)(data, model, options)
         judgement = judge(data, result, max_error)
     final = result.result
     if not final.success:
@@ -149,6 +149,20 @@ def fit(
             log.info(hint)
 
 
+def _named(fit, measurement: Path):
+    """``fit`` whose errors about the data (no usable readings …) name the measurement."""
+    from ..errors import GonioError
+
+    def run(*args, **kwargs):
+        try:
+            return fit(*args, **kwargs)
+        except GonioError as exc:
+            if exc.path is None and not exc.message.startswith("--"):
+                exc.path = str(measurement)
+            raise
+    return run
+
+
 def read_weights(path: Path, m) -> "np.ndarray":
     """Per-configuration weights (N,) from a CSV theta_i_deg,theta_o_deg,weight; 1 for the
     configurations it does not list. Every row must name a measured configuration. Split
@@ -157,6 +171,7 @@ def read_weights(path: Path, m) -> "np.ndarray":
 
     from ..errors import InputError
     from ..ingest import read_table
+    from ..schemas import MAX_MAGNITUDE
     from . import require_files
 
     require_files([path], missing_fix="check the path")
@@ -173,8 +188,9 @@ def read_weights(path: Path, m) -> "np.ndarray":
             raise InputError(f"expected three numbers, got {','.join(row)}", path=path,
                              row=int(line), fix="theta_i_deg,theta_o_deg,weight per line"
                              ) from None
-        if not (np.isfinite(wt) and wt >= 0):
-            raise InputError(f"weight {wt:g} is not a finite number >= 0", path=path,
+        if not (0 <= wt <= MAX_MAGNITUDE):                    # also NaN
+            raise InputError(f"weight {wt:g} is not a finite number in [0, "
+                             f"{MAX_MAGNITUDE:g}]", path=path,
                              row=int(line), column="weight")
         hit = (np.abs(m.theta_i_deg - ti) < 1e-6) & (np.abs(m.theta_o_deg - to) < 1e-6)
         if not hit.any():

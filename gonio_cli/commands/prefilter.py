@@ -16,7 +16,7 @@ from typing import Optional
 
 import typer
 
-#: Schema of OUTDIR/index.json.
+#: Schema of OUTDIR/index.json (its fields: gonio_cli.schemas.prefilter_index_spec).
 INDEX_SCHEMA = "gonio.prefilter"
 INDEX_VERSION = 1
 
@@ -59,14 +59,16 @@ def read_lobe_exponents(path: Path) -> list[float]:
     """The top-level ``exponents`` list of a ``gonio.lobes`` artifact (schema_version 1)."""
     from ..artifact import read_artifact
     from ..errors import ArtifactError
+    from ..schemas import Lobes
 
-    doc = read_artifact(path, "gonio.lobes", (1,))
-    exps = doc.get("exponents")
-    if not isinstance(exps, list) or not exps or not all(
-            isinstance(e, (int, float)) and not isinstance(e, bool) for e in exps):
+    doc = read_artifact(path, Lobes.SCHEMA, (Lobes.VERSION,))
+    # only this field is used: checked by the lobes' own definition (gonio_cli.schemas)
+    spec, _ = Lobes.spec().fields["exponents"]
+    if "exponents" not in doc:
         raise ArtifactError("has no top-level 'exponents' list of numbers", path=path,
                             fix="pass the lobes file written by gonio lobes")
-    return [float(e) for e in exps]
+    return spec.check(doc["exponents"], "exponents", path,
+                      "pass the lobes file written by gonio lobes").tolist()
 
 
 def prefilter(
@@ -166,6 +168,7 @@ def _write(output: Path, envmap_path: Path, lobes, shape, results, names, parame
     from ..artifact import make_document, write_json
     from ..imageio import write_exr
     from ..outputs import folder_output
+    from ..schemas import prefilter_index_spec, validate
 
     # staged as a whole, moved into OUTDIR when the command succeeds, index.json last
     with folder_output(output, merge=True) as tmp:
@@ -189,6 +192,9 @@ def _write(output: Path, envmap_path: Path, lobes, shape, results, names, parame
             "maps": entries,
         }, inputs=[envmap_path] + ([lobes] if lobes else []), parameters=parameters,
             time_s=time_s)
+        # the reader's definition (gonio_cli.schemas): what is written can be read back
+        validate(doc, prefilter_index_spec(), output / "index.json",
+                 "a bug in gonio prefilter: please report it")
         write_json(tmp / "index.json", doc)
 
 

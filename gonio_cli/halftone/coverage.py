@@ -15,6 +15,7 @@ import re
 import numpy as np
 
 from ..errors import InputError
+from ..schemas import MAX_MAGNITUDE
 from ..spectra import srgb_decode
 
 #: A pixel counts as out of gamut if r + g + b exceeds 1 by more than this: float32
@@ -70,7 +71,8 @@ def _transparent(path) -> InputError:
 
 
 def _non_finite(count: int, path) -> InputError:
-    return InputError(f"has {count} pixels with NaN or infinite values", path=path,
+    return InputError(f"has {count} pixels with NaN or infinite values (or beyond "
+                      f"±{MAX_MAGNITUDE:g}, docs/conventions.md Numeric ranges)", path=path,
                       fix="fix or clamp them in the source image")
 
 
@@ -136,7 +138,7 @@ def to_coverage(pixels: np.ndarray, encoding: str, is_float: bool, gamut: str, p
             rgb = table[band]
         else:
             rgb = np.asarray(band, dtype=np.float32)
-            finite = np.isfinite(rgb).all(axis=2)
+            finite = (np.abs(rgb) <= MAX_MAGNITUDE).all(axis=2)   # False for NaN too
             if not finite.all():
                 bad += int(finite.size - np.count_nonzero(finite))
                 continue
@@ -175,7 +177,7 @@ def linear_rgb(pixels: np.ndarray, encoding: str, is_float: bool, path=None
         if not np.all(px[:, :, 3] == 1.0):
             raise _transparent(path)
         px = px[:, :, :3]
-    bad = ~np.isfinite(px)
+    bad = ~(np.abs(px) <= MAX_MAGNITUDE)
     if bad.any():
         raise _non_finite(int(bad.any(axis=2).sum()), path)
     return (srgb_decode(px) if used == "srgb" else np.ascontiguousarray(px)), used
@@ -270,9 +272,15 @@ def size_from_dpi(dpi: float, print_width_mm: float, shape: tuple[int, int]
         raise InputError(f"--dpi {dpi} must be a positive number")
     if not (math.isfinite(print_width_mm) and print_width_mm > 0):
         raise InputError(f"--print-width-mm {print_width_mm} must be a positive number")
-    width = int(round(print_width_mm / MM_PER_INCH * dpi))
+    what = f"--dpi {dpi:g} --print-width-mm {print_width_mm:g}"
+    width_px = print_width_mm / MM_PER_INCH * dpi
+    if not width_px * max(1.0, shape[0] / shape[1]) <= MAX_PIXELS:  # also inf: no int()
+        raise InputError(f"{what}: a print {width_px:.3g} pixels wide is more than "
+                         f"{MAX_PIXELS} pixels", fix="halftone in tiles or at a lower "
+                                                      "resolution")
+    width = int(round(width_px))
     height = int(round(width * shape[0] / shape[1]))
-    return check_size(width, height, f"--dpi {dpi:g} --print-width-mm {print_width_mm:g}")
+    return check_size(width, height, what)
 
 
 def resample(coverage: np.ndarray, width: int, height: int) -> np.ndarray:

@@ -132,15 +132,20 @@ def split_weights(x: np.ndarray, n_lobes: int) -> dict[str, np.ndarray]:
 
 
 def check_exponents(exponents, where: str = "basis") -> np.ndarray:
-    """Validate exponents (m,): at least one, finite, > 0. Raises InputError naming them."""
+    """Validate exponents (m,): at least one, each in schemas.EXPONENT_RANGE [1, 1e6].
+    Raises InputError naming them."""
     e = np.asarray(exponents, dtype=float).ravel()
     if e.size == 0:
         raise InputError(f"{where}: the basis is empty (no exponents)",
                          fix="choose one with gonio lobes basis or pass --exponents 1,10,100")
-    bad = e[~(np.isfinite(e) & (e > 0))]
+    from ..schemas import EXPONENT_RANGE
+
+    lo, hi = EXPONENT_RANGE
+    bad = e[~(np.isfinite(e) & (e >= lo) & (e <= hi))]
     if bad.size:
-        raise InputError(f"{where}: exponent {bad[0]:g} is not a positive finite number",
-                         fix="every cosine-lobe exponent E must be > 0 (seed 001 eq. 2)")
+        raise InputError(f"{where}: exponent {bad[0]:g} is outside [{lo:g}, {hi:g}]",
+                         fix="a cosine-lobe exponent E is at least 1 (the diffuse lobe, "
+                             "seed 001 eq. 2) and at most 1e6")
     return e
 
 

@@ -38,12 +38,12 @@ import numpy as np
 from .. import log
 from ..envmap import lookup
 from ..errors import ArtifactError, InputError
-from ..schemas import Lobes
+from ..schemas import MAX_MAGNITUDE, PREFILTER_SCHEMA, PREFILTER_VERSION, Lobes
 from ..spectra import rgb_spectral_basis
 
-#: Schema and version of a prefiltered environment's ``index.json`` (``gonio prefilter``).
-INDEX_SCHEMA = "gonio.prefilter"
-INDEX_VERSION = 1
+#: Schema and version of a prefiltered environment's ``index.json`` (``gonio prefilter``),
+#: defined with its fields in :mod:`gonio_cli.schemas`.
+INDEX_SCHEMA, INDEX_VERSION = PREFILTER_SCHEMA, PREFILTER_VERSION
 
 #: Pixels per block of :func:`environment_xyz`, so the lookups' temporaries (4 corners ×
 #: 3 channels × lobes) stay in cache: 0.43 s instead of 0.9 s at 512² (8 lobes).
@@ -133,7 +133,7 @@ def _read_map(path: str, shape: tuple[int, int]) -> np.ndarray:
                             f"{shape[1]} × {shape[0]} × 3", path=path,
                             fix="regenerate the folder with gonio prefilter")
     px = np.ascontiguousarray(px[:, :, :3], dtype=np.float32)
-    bad = ~np.isfinite(px) | (px < 0)
+    bad = ~((px >= 0) & (px <= MAX_MAGNITUDE))          # NaN, inf, negative or huge
     if np.any(bad):
         r, c, _ = np.argwhere(bad)[0]
         raise ArtifactError(f"texel (row {r}, col {c}) is {px[r, c].tolist()} "
@@ -149,36 +149,25 @@ def load_environment(index_json_path: str | os.PathLike) -> Environment:
     object uses cost nothing. Missing files, a missing diffuse map (E = 1), duplicate or
     non-positive exponents are refused here, naming the file.
     """
-    from ..artifact import read_artifact
+    from ..schemas import PREFILTER_FIX, read_prefilter_index
 
     path = Path(index_json_path)
-    doc = read_artifact(path, INDEX_SCHEMA, (INDEX_VERSION,))
-    maps = doc.get("maps")
-    if not isinstance(maps, list) or not maps:
-        raise ArtifactError("field 'maps' is missing or empty", path=path,
-                            fix="regenerate it with gonio prefilter")
+    index = read_prefilter_index(path)  # types, ranges and unknown keys (docs/schemas/)
     exps, files, shapes = [], [], []
-    for k, entry in enumerate(maps):
-        try:
-            e = float(entry["exponent"])
-            shape = (int(entry["height"]), int(entry["width"]))
-            name = str(entry["path"])
-        except (KeyError, TypeError, ValueError):
-            raise ArtifactError(f"maps[{k}] lacks a numeric exponent, width, height or a "
-                                "path", path=path) from None
-        if not (np.isfinite(e) and e > 0):
-            raise ArtifactError(f"maps[{k}].exponent={e!r} is not a positive number", path=path)
+    for k, entry in enumerate(index["maps"]):
+        name = entry["path"]
         f = path.parent / name
         if not f.is_file():
-            raise ArtifactError(f"maps[{k}]: {name} does not exist", path=path,
-                                fix="regenerate the folder with gonio prefilter")
-        exps.append(e)
+            raise ArtifactError(f"field 'maps[{k}].path': {name} does not exist", path=path,
+                                fix=PREFILTER_FIX)
+        exps.append(float(entry["exponent"]))
         files.append(os.fspath(f))
-        shapes.append(shape)
+        shapes.append((entry["height"], entry["width"]))
     order = np.argsort(exps)
     e = np.asarray(exps)[order]
     if np.any(np.diff(e) <= EXPONENT_RTOL * e[1:]):
-        raise ArtifactError("lists an exponent twice", path=path)
+        raise ArtifactError("field 'maps' lists an exponent twice", path=path,
+                            fix=PREFILTER_FIX)
     env = Environment(os.fspath(path), e, [files[i] for i in order], [shapes[i] for i in order])
     if not env.has(1.0):
         raise ArtifactError("has no diffuse map (exponent 1)", path=path,
@@ -219,7 +208,8 @@ def channel_matrices(weights: np.ndarray, channel_kind: str, wavelength_nm,
     return k[..., None, :] * (x_basis / x_equal)
 
 
-def _check_lobes(lobes: Lobes, wavelength_nm: np.ndarray) -> None:
+def check_lobes(lobes: Lobes, wavelength_nm: np.ndarray) -> None:
+    """Refuse lobe weights whose channels the render cannot use (another spectral grid)."""
     if lobes.channel_kind == "spectral":
         from ..spectra import same_grid
 
@@ -278,7 +268,7 @@ def environment_xyz(environment: Environment, lobes: Lobes, normal: np.ndarray,
     view angle (m' ≤ m remain) are not looked up.
     """
     wl = np.asarray(wavelength_nm, dtype=float)
-    _check_lobes(lobes, wl)
+    check_lobes(lobes, wl)
     normal = np.asarray(normal, dtype=float)
     view = np.asarray(view, dtype=float)
     n = normal.shape[0]

@@ -295,9 +295,12 @@ def validate(mesh: Mesh, source: str | None = None) -> Mesh:
     """
     where = source or mesh.name
     v = np.asarray(mesh.vertices, np.float64)
-    bad = ~np.isfinite(v).all(axis=-1)
+    from ..schemas import MAX_MAGNITUDE
+
+    bad = ~(np.abs(v) <= MAX_MAGNITUDE).all(axis=-1)    # NaN, inf or beyond Numeric ranges
     if bad.any():
-        raise InputError(f"{int(bad.sum())} of {len(v)} vertices are not finite (NaN or inf), "
+        raise InputError(f"{int(bad.sum())} of {len(v)} vertices are not finite (NaN or inf) "
+                         f"or beyond ±{MAX_MAGNITUDE:g}, "
                          f"the first is vertex {int(np.argmax(bad)) + 1}", path=where,
                          fix="repair or re-export the mesh")
     if mesh.uvs is not None and not np.isfinite(mesh.uvs).all():

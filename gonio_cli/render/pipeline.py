@@ -210,9 +210,12 @@ def build_surfaces(scene: Scene, stats: Stats) -> list:
             lobes: dict[Path, Any] = {}
 
             def read(p, key):
+                from .environment import check_lobes
+
                 if p not in lobes:
                     with _SceneKey(scene, key, p):
                         lobes[p] = read_lobes(p)
+                        check_lobes(lobes[p], scene.grid_nm)     # its grid, named here
                 return lobes[p]
 
             for o, s in zip(scene.objects, surfaces):
@@ -447,8 +450,7 @@ def _render_steps(scene: Scene, stats: Stats, state: dict, spectra: bool = False
     del meshes
     yield "rasterize"
     t0 = time.perf_counter()
-    rows = shade_rows(gbuffer, surfaces, scene.lights, scene.grid_nm, environment=environment,
-                      spectral=scene.output.spectral, stats=stats, dtype=np.float32)
+    rows = _shade_without_overflow(scene, gbuffer, surfaces, environment, stats)
     stats.time_s.setdefault("shade", time.perf_counter() - t0)
     yield "shade"
     radiance = None
@@ -543,6 +545,26 @@ def scene_white(scene: Scene) -> np.ndarray | None:
     from .tonemap import scene_white_xyz
 
     return scene_white_xyz(scene.lights, scene.grid_nm, scene.camera.target)
+
+
+def _shade_without_overflow(scene: Scene, gbuffer, surfaces, environment, stats: Stats):
+    """``shade_rows`` in float32; an overflow (light × reflectance beyond float32's 3.4e38,
+    docs/conventions.md "Numeric ranges") is an error naming the scene, never black or
+    NaN pixels in the images."""
+    from ..errors import NumericError
+    from .shade import shade_rows
+
+    try:
+        with np.errstate(over="raise"):
+            return shade_rows(gbuffer, surfaces, scene.lights, scene.grid_nm,
+                              environment=environment, spectral=scene.output.spectral,
+                              stats=stats, dtype=np.float32)
+    except FloatingPointError:
+        raise NumericError("shading overflowed float32 (a light's irradiance or intensity "
+                           "times a material's reflectance is beyond 3.4e38)",
+                           path=scene.display,
+                           fix="lower the lights' irradiance or intensity; check the "
+                               "materials for huge values") from None
 
 
 def resolve(rows: np.ndarray, pixels: np.ndarray, object_id: np.ndarray, ssaa: int,

@@ -50,6 +50,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from ..errors import InputError
+from ..schemas import EXPONENT_RANGE, EXPOSURE_MAX_STOPS, MAX_MAGNITUDE
 from ..spectra import grid_spec
 from . import Camera, Light
 
@@ -242,7 +243,8 @@ class _Checker:
     def vector(self, value, where: str, n: int = 3, *, nonzero=False) -> np.ndarray:
         if not isinstance(value, list) or len(value) != n:
             raise self.error(where, f"{value!r} is not a list of {n} numbers")
-        v = np.array([self.number(x, where) for x in value], dtype=float)
+        v = np.array([self.number(x, where, lo=-MAX_MAGNITUDE, hi=MAX_MAGNITUDE)
+                      for x in value], dtype=float)
         if nonzero and np.linalg.norm(v) < MIN_VECTOR_NORM:
             raise self.error(where, f"{value!r} has no direction (zero length)")
         return v
@@ -444,7 +446,8 @@ def _output(chk: _Checker, doc, overrides) -> Output:
     label = (lambda k: f"--{k.replace('_', '-')}" if k in overrides  # noqa: E731
              else f"{where} {k}")
     return Output(
-        exposure=chk.number(src.get("exposure", d.exposure), label("exposure")),
+        exposure=chk.number(src.get("exposure", d.exposure), label("exposure"),
+                            lo=-EXPOSURE_MAX_STOPS, hi=EXPOSURE_MAX_STOPS),
         tonemap=chk.choice(src.get("tonemap", d.tonemap), label("tonemap"), tuple(TONEMAPS)),
         adapt=chk.choice(src.get("adapt", d.adapt), label("adapt"), tuple(ADAPTATIONS)),
         ssaa=chk.integer(src.get("ssaa", d.ssaa), label("ssaa"), lo=1, hi=MAX_SSAA),
@@ -470,7 +473,8 @@ def _object(chk: _Checker, raw, number: int) -> SceneObject:
     if isinstance(scale, list):
         scale = chk.vector(scale, f"{where} scale")
     else:
-        scale = np.full(3, chk.number(scale, f"{where} scale"))
+        scale = np.full(3, chk.number(scale, f"{where} scale", lo=-MAX_MAGNITUDE,
+                                      hi=MAX_MAGNITUDE))
     if np.any(scale == 0.0):
         raise chk.error(f"{where} scale", "is zero: the object would be flat or a point")
     obj = SceneObject(
@@ -500,7 +504,8 @@ def _object(chk: _Checker, raw, number: int) -> SceneObject:
         obj.substrate = Substrate(
             chk.number(sub.get("kd", 0.0), f"{where} substrate.kd", lo=0.0, hi=1.0),
             chk.number(sub.get("ks", 0.0), f"{where} substrate.ks", lo=0.0, hi=1.0),
-            chk.number(sub.get("shininess", 1.0), f"{where} substrate.shininess", lo=0.0))
+            chk.number(sub.get("shininess", 1.0), f"{where} substrate.shininess", lo=0.0,
+                       hi=EXPONENT_RANGE[1]))
         from .texture import DEFAULT_WRAP, WRAP_MODES
 
         obj.wrap = chk.choice(o.get("wrap", DEFAULT_WRAP), f"{where} wrap", tuple(WRAP_MODES))
@@ -529,9 +534,10 @@ def _object(chk: _Checker, raw, number: int) -> SceneObject:
                 raise chk.error(f"{where} sparkle_color",
                                 f"{obj.sparkle_color.tolist()} has a negative channel")
         obj.sparkle_exponent = chk.number(o.get("sparkle_exponent", 24.0),
-                                          f"{where} sparkle_exponent", lo=0.0, lo_open=True)
+                                          f"{where} sparkle_exponent", lo=0.0, lo_open=True,
+                                          hi=EXPONENT_RANGE[1])
         obj.sparkle_scale = chk.number(o.get("sparkle_scale", 1.0), f"{where} sparkle_scale",
-                                       lo=0.0, lo_open=True)
+                                       lo=0.0, lo_open=True, hi=MAX_MAGNITUDE)
     else:
         for key in SPARKLE_KEYS:
             if key in o:
@@ -556,11 +562,13 @@ def _light(chk: _Checker, raw, number: int, grid: np.ndarray) -> Light:
         d = chk.vector(chk.required(l, "direction", where), f"{where} direction", nonzero=True)
         return Light("directional", spectrum, direction=d / np.linalg.norm(d),
                      irradiance=chk.number(chk.required(l, "irradiance", where),
-                                           f"{where} irradiance", lo=0.0), name=name)
+                                           f"{where} irradiance", lo=0.0, hi=MAX_MAGNITUDE),
+                     name=name)
     return Light("point", spectrum,
                  position=chk.vector(chk.required(l, "position", where), f"{where} position"),
                  intensity=chk.number(chk.required(l, "intensity", where),
-                                      f"{where} intensity", lo=0.0), name=name)
+                                      f"{where} intensity", lo=0.0, hi=MAX_MAGNITUDE),
+                 name=name)
 
 
 def light_spectrum(chk: _Checker, value, where: str, grid: np.ndarray) -> np.ndarray:
@@ -590,8 +598,8 @@ def light_spectrum(chk: _Checker, value, where: str, grid: np.ndarray) -> np.nda
         raise chk.error(where, f"{s}: holds a non-numeric, NaN or inf value")
     if w.size < 2 or not np.all(np.diff(w) > 0):
         raise chk.error(where, f"{s}: wavelength_nm must increase, with at least 2 rows")
-    if np.any(v < 0):
-        raise chk.error(where, f"{s}: holds a negative value")
+    if np.any(v < 0) or np.any(v > MAX_MAGNITUDE):
+        raise chk.error(where, f"{s}: holds a value outside [0, {MAX_MAGNITUDE:g}]")
     if not covers(w, grid):
         raise chk.error(where, f"{s}: covers {w.min():g}-{w.max():g} nm, not the working "
                         f"grid {grid[0]:g}-{grid[-1]:g} nm",

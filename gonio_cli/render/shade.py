@@ -257,6 +257,8 @@ def goniochromatic_table(rho: np.ndarray, c: np.ndarray, weights: np.ndarray,
         table, mid = values[0::2], values[1::2]
         interp = 0.5 * (table[:-1] + table[1:])
         scale = np.maximum(np.abs(mid), np.abs(table).max(axis=0) * 1e-12)
+        # an all-zero ink (ρ = 0) is exact at any size: 0/0 would grow the table to its cap
+        scale = np.maximum(scale, np.finfo(float).tiny)
         if np.max(np.abs(interp - mid) / scale) <= rel_tol or n >= TABLE_MAX_SIZE:
             return table
         n = 2 * n - 1

@@ -170,7 +170,7 @@ def inputs_from_files(paths: list[Path]) -> Inputs:
     ``NAME.torrance-sparrow.material.json`` among the given files (fitted in memory when
     not given) and goes into Table 1; every material gets a sheet.
     """
-    from ..errors import InputError
+    from ..errors import GonioError, InputError
     from ..schemas import read_material, read_measurement
 
     measurements, materials = {}, {}
@@ -188,7 +188,13 @@ def inputs_from_files(paths: list[Path]) -> Inputs:
         gc, ts = materials.get(f"{name}.material"), materials.get(
             f"{name}.torrance-sparrow.material")
         if gc is None or ts is None:
-            fits = fit_models(m)
+            try:
+                fits = fit_models(m)
+            except GonioError as exc:  # about this measurement's data: name it
+                if exc.path is None:
+                    exc.path = str(next(p for p in paths
+                                        if p.name == f"{name}.measurement.json"))
+                raise
         inks.append(Ink(name, m, {"goniochromatic": gc or fits["goniochromatic"],
                                   "torrance-sparrow": ts or fits["torrance-sparrow"]}))
     sheets = [(name.removesuffix(".material"), mat) for name, mat in materials.items()]
