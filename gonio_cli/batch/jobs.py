@@ -160,6 +160,19 @@ def run_preview(job: Job, warnings: list[str]) -> str | None:  # noqa: ARG001
 RUNNERS: dict[str, Callable[[Job, list[str]], str | None]] = {"gonio": run_gonio, "preview": run_preview}
 
 
+def make_thumbnails(outdir: str, outputs) -> None:
+    """The contact sheet's small copies of a job's PNG images, made here in the worker
+    (in parallel with other jobs) rather than one after another when the sheet is
+    written; the sheet reuses them (:func:`gonio_cli.batch.sheet.thumbnail`). A copy
+    that cannot be made is made (or reported) by the sheet instead."""
+    from .sheet import thumbnail
+
+    for path in outputs:
+        if str(path).lower().endswith(".png"):
+            with contextlib.suppress(OSError, ValueError):
+                thumbnail(outdir, path)
+
+
 def execute(job: Job, outdir: str, previous: Mapping[str, Any] | None,
             *upstream: Mapping[str, Any]) -> dict[str, Any]:
     """Run one job in a worker and return its manifest record.
@@ -191,6 +204,8 @@ def execute(job: Job, outdir: str, previous: Mapping[str, Any] | None,
     if error is None and any(o["sha256"] is None for o in outputs):
         missing = next(o["path"] for o in outputs if o["sha256"] is None)
         error = f"{missing}: the command did not write it"
+    if error is None:
+        make_thumbnails(outdir, job.outputs)
     return record(job, "failed" if error else "ok", inputs=inputs,
                   outputs=outputs if not error else [], time_s=time_s,
                   worker=worker_name(), attempts=attempts, error=error, warnings=warnings)
