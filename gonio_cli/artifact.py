@@ -316,6 +316,23 @@ def read_artifact(path: str | os.PathLike, schema: str,
     return doc
 
 
+def read_toml(path: str | os.PathLike, what: str, error: type[GonioError],
+              display: str | None = None) -> dict[str, Any]:
+    """A TOML file (``what``: "scene", "plan") as a dict; a missing file, bad TOML or a
+    file that is not UTF-8 is one ``error`` naming ``display`` (default: the path)."""
+    import tomllib
+
+    display = display if display is not None else os.fspath(path)
+    if not os.path.isfile(path):
+        raise error(f"no such {what} file", path=display, fix="check the path")
+    try:
+        return tomllib.loads(Path(path).read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise error(f"not valid TOML: {exc}", path=display) from None
+    except UnicodeDecodeError:
+        raise error("not a UTF-8 text file", path=display) from None
+
+
 def check_keys(doc: Mapping[str, Any], allowed: Iterable[str], *, path=None,
                where: str = "") -> None:
     """Refuse unknown keys (STYLE 7): a typo is an error, never silently ignored."""

@@ -31,7 +31,6 @@ from __future__ import annotations
 import itertools
 import os
 import re
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
@@ -214,15 +213,10 @@ def read_plan(path: str | os.PathLike, outdir: str | os.PathLike) -> Plan:
     PlanError : one line naming the plan file, the table or job, and the fix.
     """
     display = os.fspath(path)
+    from ..artifact import read_toml
+
     p = Path(path)
-    if not p.is_file():
-        raise PlanError("no such plan file", path=display, fix="check the path")
-    try:
-        doc = tomllib.loads(p.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise PlanError(f"not valid TOML: {exc}", path=display) from None
-    except UnicodeDecodeError:
-        raise PlanError("not a UTF-8 text file", path=display) from None
+    doc = read_toml(p, "plan", PlanError, display)
     r = _Reader(Path(display), Path(os.path.abspath(outdir)))
     r.base = p.resolve().parent
     r.keys(doc, TOP_KEYS, "")

@@ -319,3 +319,16 @@ def require_files(paths: Iterable[str | os.PathLike], *, what: str = "file",
                              fix="check the folder and the pattern (a pattern that matches "
                                  "nothing reaches gonio as it is)")
         raise InputError(f"no such {what}", path=text, fix=missing_fix)
+
+
+def parse_vars(items: Iterable[str]) -> dict[str, str]:
+    """``--var NAME=VALUE`` options as a dict (scene variables: render, export)."""
+    from ..errors import InputError
+
+    variables = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        if not sep or not name:
+            raise InputError(f"--var {item!r} is not NAME=VALUE", fix="e.g. --var ink=green")
+        variables[name] = value
+    return variables

@@ -40,18 +40,13 @@ def export(
     from ..errors import InputError
     from ..export import get_target
     from ..schemas import read_material
-    from . import require_files
+    from . import parse_vars, require_files
 
     target = get_target(to)
     require_files([material], missing_fix="check the path or make it with gonio fit")
     if scene is not None:
         require_files([scene], missing_fix="check the path of the scene file")
-    variables = {}
-    for item in var:
-        name, eq, value = item.partition("=")
-        if not eq or not name:
-            raise InputError(f"--var {item!r} is not NAME=VALUE", fix="e.g. --var out=/data")
-        variables[name] = value
+    variables = parse_vars(var)
     if variables and scene is None:
         raise InputError("--var needs --scene", fix="name the scene the variables are for")
     mat = read_material(material)

@@ -90,13 +90,9 @@ def render(
     from ..render import Stats
     from ..render.pipeline import frame_time, render_scene, write_outputs, write_report
     from ..render.scene import load_scene
+    from . import parse_vars
 
-    variables = {}
-    for item in var:
-        name, sep, value = item.partition("=")
-        if not sep or not name:
-            raise InputError(f"--var {item!r} is not NAME=VALUE", fix="e.g. --var ink=green")
-        variables[name] = value
+    variables = parse_vars(var)
     for path, flag in ((output, "-o"), (exr, "--exr"), (report, "--report"),
                        (gamut_warning, "--gamut-warning"), (spectral_exr, "--spectral-exr")):
         if path is not None and path.exists() and path.is_dir():

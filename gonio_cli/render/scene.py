@@ -42,13 +42,13 @@ import json
 import math
 import os
 import re
-import tomllib
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
 
+from ..artifact import read_toml
 from ..errors import InputError
 from ..schemas import EXPONENT_RANGE, EXPOSURE_MAX_STOPS, MAX_MAGNITUDE
 from ..spectra import grid_spec
@@ -324,14 +324,7 @@ def load_scene(path: str | os.PathLike, *, variables: Mapping[str, str] | None =
     display = os.fspath(path)
     path = Path(path)
     chk = _Checker(path.resolve(), display)
-    if not path.is_file():
-        raise InputError("no such scene file", path=display, fix="check the path")
-    try:
-        doc = tomllib.loads(path.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"not valid TOML: {exc}", path=display) from None
-    except UnicodeDecodeError:
-        raise InputError("not a UTF-8 text file", path=display) from None
+    doc = read_toml(path, "scene", InputError, display)
     chk.keys(doc, TOP_KEYS, "")
 
     defaults = chk.table(doc.get("vars", {}), "[vars]")
