@@ -96,6 +96,10 @@ def runs(tmp_path_factory):
     with (plan.parent.parent / "ink_red.csv").open("a", encoding="utf-8") as fh:
         fh.write("# a note added after the first run\n")
     steps["red changed"] = (_batch(plan, out, "--workers", "2"), _manifest(out))
+    blue = plan.parent.parent / "ink_blue_a.csv"
+    later = blue.stat().st_mtime_ns + 10**9
+    os.utime(blue, ns=(later, later))  # `touch`: the same bytes, a newer time
+    steps["blue touched"] = (_batch(plan, out, "--workers", "2"), _manifest(out))
     (plan.parent.parent / "ink_green.csv").write_text("this is,not\na goniometer,file\n")
     steps["green garbage"] = (_batch(plan, out, "--workers", "2"), _manifest(out))
     steps["plan"], steps["out"] = plan, out
@@ -141,6 +145,16 @@ def test_changed_csv_reruns_only_its_ink(runs):
     previews = {f"preview/red/{s}" for s in SCENES}
     assert _ran(records) == _chain("red") - previews and len(_chain("red") - previews) == 10
     assert all(records[k]["status"] == "skipped" for k in previews)
+    assert "ran 10 of 36 jobs" in done.stderr
+
+
+def test_touched_csv_reruns_its_ink_as_make_would(runs):
+    """A user's file with a new modification time reruns what reads it (as make does);
+    the ingest's new measurement then reruns the fit and the renders by its hash."""
+    done, records = runs["blue touched"]
+    assert done.returncode == 0, done.stderr
+    previews = {f"preview/blue/{s}" for s in SCENES}
+    assert _ran(records) == _chain("blue") - previews
     assert "ran 10 of 36 jobs" in done.stderr
 
 

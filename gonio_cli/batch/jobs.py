@@ -62,19 +62,31 @@ def stamp(job: Job) -> str:
     return hashlib.sha256(text.encode()).hexdigest()
 
 
-def files(paths) -> list[dict[str, Any]]:
-    return [{"path": p, "sha256": sha256(p)} for p in paths]
+def mtime_ns(path: str) -> int | None:
+    try:
+        return os.stat(path).st_mtime_ns
+    except OSError:
+        return None
+
+
+def files(paths, sources=()) -> list[dict[str, Any]]:
+    """Records of files: path and sha256, and for ``sources`` (the user's own files) the
+    modification time too."""
+    return [{"path": p, "sha256": sha256(p), **({"mtime_ns": mtime_ns(p)} if p in sources
+                                                else {})} for p in paths]
 
 
 def up_to_date(job: Job, previous: Mapping[str, Any] | None) -> list[dict] | None:
     """The job's input records if ``previous`` (its record of an earlier run) still
-    stands: same stamp, same input hashes, every output there with its recorded hash;
-    else None."""
+    stands: same stamp, same input hashes and, for the user's own files
+    (``job.sources``), the same modification times (``touch`` reruns, as with make; a
+    file another job rewrites with the same bytes does not), every output there with its
+    recorded hash; else None."""
     if not previous or previous.get("status") not in GOOD or previous.get("stamp") != stamp(job):
         return None
-    inputs = files(job.inputs)
-    if [(i["path"], i["sha256"]) for i in inputs] != \
-            [(i["path"], i["sha256"]) for i in previous.get("inputs", [])]:
+    inputs = files(job.inputs, job.sources)
+    if [(i["path"], i["sha256"], i.get("mtime_ns")) for i in inputs] != \
+            [(i["path"], i["sha256"], i.get("mtime_ns")) for i in previous.get("inputs", [])]:
         return None
     outputs = previous.get("outputs", [])
     if [o["path"] for o in outputs] != list(job.outputs) or any(
@@ -189,7 +201,7 @@ def execute(job: Job, outdir: str, previous: Mapping[str, Any] | None,
     kept = up_to_date(job, previous)
     if kept is not None:
         return {**previous, "status": "skipped", "attempts": attempts, "labels": dict(job.labels)}
-    inputs = files(job.inputs)
+    inputs = files(job.inputs, job.sources)
     start = time.perf_counter()
     warnings: list[str] = []
     try:

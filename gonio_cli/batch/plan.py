@@ -31,7 +31,7 @@ from __future__ import annotations
 import itertools
 import os
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -73,6 +73,9 @@ class Job:
     inputs: tuple[str, ...]
     outputs: tuple[str, ...]
     labels: Mapping[str, Any] = field(default_factory=dict)
+    #: the inputs no job of the plan makes (the user's files): a change of their
+    #: modification time reruns the job, as ``make`` would (:func:`..jobs.up_to_date`)
+    sources: tuple[str, ...] = ()
 
     @property
     def runner(self) -> str:
@@ -227,7 +230,9 @@ def read_plan(path: str | os.PathLike, outdir: str | os.PathLike) -> Plan:
         _plain_job(r, raw, f"[[job]] {k + 1}")
     if not r.jobs:
         raise r.error("", "has no jobs", fix="add [[material]] with a [matrix], or [[job]]")
-    plan = Plan(r.path, r.outdir, r.jobs, list(materials))
+    made = {o for j in r.jobs for o in j.outputs}
+    jobs = [replace(j, sources=tuple(i for i in j.inputs if i not in made)) for j in r.jobs]
+    plan = Plan(r.path, r.outdir, jobs, list(materials))
     check_graph(plan)
     return plan
 
