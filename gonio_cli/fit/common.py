@@ -585,10 +585,11 @@ def minimize_log_alpha(cost: Callable[[float], float], optimizer: str = DEFAULT_
         code = opt.last_optimize_result()
         message = _NLOPT_MESSAGES.get(code, f"nlopt result {code}")
         success = code > 0
-    except Exception as exc:  # nlopt raises on round-off-limited stops (e.g. LBFGS near a
-        # zero cost); what it reached is still the best point it evaluated
+    except nlopt.RoundoffLimited:  # a round-off-limited stop (e.g. LBFGS near a zero
+        # cost): what it reached is still the best point it evaluated. Anything else (an
+        # error in the cost function, nlopt's invalid-argument or failure) surfaces.
         x, best = seen["x"], seen["f"]
-        message = f"nlopt stopped ({exc.__class__.__name__}); kept the best alpha it evaluated"
+        message = "nlopt stopped (round-off limited); kept the best alpha it evaluated"
         success = True
     if best > seen["f"]:  # never worse than any point evaluated (the scan's best included)
         x, best = seen["x"], seen["f"]

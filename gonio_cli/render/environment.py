@@ -240,6 +240,14 @@ def view_interpolation(cos_theta_v: np.ndarray, view_angle_deg: np.ndarray
     return i0, i0 + 1, pos - i0
 
 
+def _mirror_of_view(view: np.ndarray, normal: np.ndarray, cos_v: np.ndarray) -> np.ndarray:
+    """R (n, 3), the mirror of V about N (:func:`gonio_cli.geometry.reflect`) where N faces
+    V, and −V where it does not (``cos_v`` = clamped N·V = 0: a smooth mesh's shading
+    normal turned away at its silhouette, where no mirror direction lies above the
+    surface; the clamped cosine of the view interpolation agrees)."""
+    return np.where((cos_v > 0.0)[:, None], reflect(view, normal), -view)
+
+
 def environment_xyz(environment: Environment, lobes: Lobes, normal: np.ndarray,
                     view: np.ndarray, wavelength_nm,
                     observer: np.ndarray | None = None) -> np.ndarray:
@@ -305,7 +313,7 @@ def environment_xyz(environment: Environment, lobes: Lobes, normal: np.ndarray,
         nb, vb = normal[b], view[b]
         cos_v = np.clip(np.einsum("ij,ij->i", nb, vb), 0.0, 1.0)
         i0, _, t = view_interpolation(cos_v, lobes.view_angle_deg)
-        reflected = reflect(vb, nb)                              # R, mirror of V about N
+        reflected = _mirror_of_view(vb, nb, cos_v)               # R, mirror of V about N
         columns = [lookup(diffuse, nb)]                          # P_1(N), eq. 9
         for stack in stacks:
             p = lookup(stack, reflected)                         # P_E(R) of every lobe
