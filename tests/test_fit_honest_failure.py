@@ -27,17 +27,21 @@ def test_a_cost_function_that_raises_surfaces():
         minimize_log_alpha(cost, costs=parabola)
 
 
-def test_a_round_off_limited_stop_keeps_the_best_point():
+@pytest.mark.parametrize("stop, words", [
+    (lambda: nlopt.RoundoffLimited(), "round-off"),
+    (lambda: nlopt.runtime_error("nlopt failure"), "NLOPT_FAILURE"),
+])
+def test_an_early_stop_of_the_search_keeps_the_best_point(stop, words):
     calls = []
 
-    def cost(log_alpha):          # a few good evaluations, then nlopt gives up at round-off
+    def cost(log_alpha):          # a few good evaluations, then nlopt gives up
         calls.append(log_alpha)
         if len(calls) > 3:
-            raise nlopt.RoundoffLimited()
+            raise stop()
         return float(parabola([log_alpha])[0])
 
     search = minimize_log_alpha(cost, costs=parabola)
-    assert search.success and "round-off" in search.message
+    assert search.success and words in search.message
     best = min(calls[:3] + [float(g) for g in np.linspace(np.log(1e-3), 0.0, 5)],
                key=lambda g: parabola([g])[0])
     # never worse than the best point evaluated (the scan's included)
