@@ -33,6 +33,15 @@ LOG_MAX = 700.0
 COS_EPS = 1e-7
 
 
+#: The ¼ of seed 000 eq. (5), f = D/4 · E: the microfacet denominator 4 cos θi cos θo with
+#: the paper's implicit G = cos θi cos θo. Every form of eq. (5) takes it from here
+#: (:func:`log_goniochromatic_d4`, :func:`goniochromatic_d4`, :func:`goniochromatic_d4_into`).
+EQ5_QUARTER = 0.25
+
+#: log 4 = −log :data:`EQ5_QUARTER`, subtracted in the log form of eq. (5).
+LOG4 = float(np.log(4.0))
+
+
 def _col(x) -> np.ndarray:
     """Geometry (...,) → (..., 1) so it broadcasts against spectra (..., n_λ)."""
     return np.asarray(x, dtype=float)[..., None]
@@ -118,12 +127,34 @@ def goniochromatic_exponent_arg_into(cos_theta_i, cos_theta_o, scratch) -> np.nd
     return p
 
 
+def log_goniochromatic_d4(cos_theta_h, alpha) -> np.ndarray:
+    """log(D(θh; α)/4), the part of log f of seed 000 eq. (5) that depends on α and not on
+    λ: log f = this + log ρ(λ) + c(λ) x. ``cos_theta_h`` (...,), ``alpha`` broadcastable
+    against it (the fits pass (G, 1) trial values). Returns (...,), finite for α > 0."""
+    return log_ggx_d(cos_theta_h, alpha) - LOG4
+
+
+def goniochromatic_d4(cos_theta_h, alpha) -> np.ndarray:
+    """D(θh; α)/4 of seed 000 eq. (5) (sr⁻¹, (...,)), capped at exp(:data:`LOG_MAX`):
+    f = this · ρ(λ) exp(c(λ) x), linear in ρ (the layered fit's column)."""
+    return np.exp(np.minimum(log_goniochromatic_d4(cos_theta_h, alpha), LOG_MAX))
+
+
+def goniochromatic_d4_into(cos_theta_h, alpha: float, scratch) -> np.ndarray:
+    """:func:`goniochromatic_d4` in the input's dtype, into a buffer of ``scratch`` (the
+    renderer's float32 hot path): :func:`ggx_d_into` times :data:`EQ5_QUARTER`. The
+    conditions of :func:`ggx_d_into` apply (α ≥ 0.05 in float32: no cap needed)."""
+    d = ggx_d_into(cos_theta_h, alpha, scratch)
+    d *= d.dtype.type(EQ5_QUARTER)
+    return d
+
+
 def log_goniochromatic(cos: Cosines, alpha, rho, c) -> np.ndarray:
     """log f of seed 000 eq. (5); −inf where ρ = 0. Shape (..., n_λ)."""
     x = _col(goniochromatic_exponent_arg(cos.cos_theta_i, cos.cos_theta_o))
     with np.errstate(divide="ignore"):
         log_rho = np.log(np.asarray(rho, dtype=float))
-    return (_col(log_ggx_d(cos.cos_theta_h, alpha)) - np.log(4.0) + log_rho
+    return (_col(log_goniochromatic_d4(cos.cos_theta_h, alpha)) + log_rho
             + np.asarray(c, dtype=float) * x)
 
 

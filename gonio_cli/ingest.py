@@ -310,7 +310,8 @@ def _header_index(content: Sequence[tuple[int, str]]) -> int | None:
     return fallback
 
 
-def read_table(path: str | os.PathLike, *, find_header: bool = False) -> Table:
+def read_table(path: str | os.PathLike, *, find_header: bool = False,
+               allow_empty: bool = False) -> Table:
     """Split a delimited file into a :class:`Table`.
 
     The delimiter is the first of tab, ``;``, ``,`` found in the header line; with ``;``
@@ -321,6 +322,7 @@ def read_table(path: str | os.PathLike, *, find_header: bool = False) -> Table:
     The header is the first line with content, or with ``find_header`` the first that is
     the header of one of the :data:`LAYOUTS` (:func:`_header_index`); the lines before it
     are a preamble (``QC JOB:,Job …`` of an instrument export), counted and skipped.
+    A header without data rows is an error, or with ``allow_empty`` a table of no rows.
     """
     path = os.fspath(path)
     raw = _read_lines(path)
@@ -350,7 +352,7 @@ def read_table(path: str | os.PathLike, *, find_header: bool = False) -> Table:
     plain = None if decimal_comma and labels else _plain_rows(texts, delim)
     if plain is not None:
         return _plain_table(path, plain, [n for n, _ in content], delim, decimal_comma,
-                            comments, preamble)
+                            comments, preamble, allow_empty)
     rows = [[c.strip() for c in r]
             for r in csv.reader(texts, delimiter=delim, skipinitialspace=True)]
     if decimal_comma and labels:  # decimal commas in the numbers, not in the labels
@@ -366,7 +368,7 @@ def read_table(path: str | os.PathLike, *, find_header: bool = False) -> Table:
     empty = keep.count(False)
     data = [r for r, k in zip(data, keep) if k]
     lines = [n for n, k in zip(lines, keep) if k]
-    if not data:
+    if not data and not allow_empty:
         raise InputError("has a header but no data rows", path=path, row=header_line,
                          fix="export the measurement again")
     for r, n in zip(data, lines):
@@ -376,7 +378,7 @@ def read_table(path: str | os.PathLike, *, find_header: bool = False) -> Table:
                              fix="every row needs one cell per column"
                              + ("; with decimal commas, separate columns with ';'"
                                 if delim == "," else ""))
-    cells = np.array([r[:width] for r in data], dtype=str)
+    cells = np.array([r[:width] for r in data], dtype=str).reshape(len(data), width)
     return Table(path, header, header_line, cells, np.asarray(lines, dtype=int), delim,
                  decimal_comma, comments, empty, preamble)
 
@@ -404,7 +406,8 @@ def _plain_rows(texts: list[str], delim: str) -> tuple[list[str], np.ndarray] | 
 
 
 def _plain_table(path: str, plain: tuple[list[str], np.ndarray], lines: list[int],
-                 delim: str, decimal_comma: bool, comments: int, preamble: int) -> Table:
+                 delim: str, decimal_comma: bool, comments: int, preamble: int,
+                 allow_empty: bool = False) -> Table:
     """:func:`read_table`'s checks and :class:`Table` for the cells of :func:`_plain_rows`
     (``lines``: the 1-based line of the header and of each row), vectorised."""
     header, data = plain
@@ -414,7 +417,7 @@ def _plain_table(path: str, plain: tuple[list[str], np.ndarray], lines: list[int
     keep = (data != "").any(axis=1)
     rows = np.asarray(lines[1:], dtype=int)[keep]
     data = data[keep]
-    if not len(data):
+    if not len(data) and not allow_empty:
         raise InputError("has a header but no data rows", path=path, row=lines[0],
                          fix="export the measurement again")
     extra = np.flatnonzero((data[:, width:] != "").any(axis=1))
@@ -548,19 +551,27 @@ def _wavelength_columns(table: Table) -> tuple[list[int], np.ndarray]:
     return idx, wl
 
 
-def _check_wavelengths(wl: np.ndarray, names: Sequence[str], path: str, line: int) -> None:
-    """Wavelengths (nm) must be positive, strictly increasing and unique."""
+def _check_wavelengths(wl: np.ndarray, names: Sequence[str], path: str, line,
+                       column: str | None = None) -> None:
+    """Wavelengths (nm) must be positive, strictly increasing and unique.
+
+    ``line``: the header's line (wavelengths in the header, ``names`` their cells), or
+    (n,) the line of each wavelength (a column of them, named ``column``)."""
+    def where(k: int) -> dict:
+        row = line if np.ndim(line) == 0 else int(line[k])
+        return {"path": path, "row": row, "column": column or names[k]}
+
     if wl.size and wl[0] <= 0:
-        raise InputError(f"wavelength {names[0]} nm is not positive", path=path, row=line,
-                         column=names[0], fix="wavelengths are in nm, e.g. 380")
+        raise InputError(f"wavelength {names[0]} nm is not positive", **where(0),
+                         fix="wavelengths are in nm, e.g. 380")
     step = np.diff(wl)
     bad = np.flatnonzero(step <= WAVELENGTH_TOL_NM)
     if bad.size:
         k = int(bad[0]) + 1
         what = "repeats" if abs(step[k - 1]) <= WAVELENGTH_TOL_NM else "decreases"
         raise InputError(f"wavelength {names[k]} nm {what} (after {names[k - 1]} nm)",
-                         path=path, row=line, column=names[k],
-                         fix="wavelength columns must be strictly increasing and unique")
+                         **where(k),
+                         fix="wavelengths must be strictly increasing and unique")
 
 
 def _check_header(table: Table, layout: Layout) -> None:
@@ -779,20 +790,39 @@ def read_spectra(path: str | os.PathLike, sample: str | None = None) -> Spectra:
     return spectra
 
 
+def read_columns(path: str | os.PathLike, columns: Sequence[str], what: str, *,
+                 allow_empty: bool = False) -> tuple[np.ndarray, Table]:
+    """Read a small CSV whose header is exactly ``columns`` (any case, any order refused).
+
+    The one reader of gonio's auxiliary CSV files (a white standard, a dark, a light's
+    spectrum, a sample set): the delimiters, decimal commas, BOM, ``#`` comments and blank
+    rows of :func:`read_table`, every cell a finite number (:func:`_floats`), and every
+    error an :class:`InputError` naming the file, the line and the column. ``what`` names
+    the file in messages (``"the white standard spectrum"``). Returns the values
+    (n_rows, len(columns)) and the :class:`Table` (its ``lines`` give each row's line);
+    ``allow_empty`` accepts a header without rows (then n_rows = 0).
+    """
+    table = read_table(path, allow_empty=allow_empty)
+    if [h.lower() for h in table.header] != [c.lower() for c in columns]:
+        raise InputError(f"{what} has columns {','.join(table.header)}",
+                         path=table.path, row=table.header_line,
+                         fix=f"its header is {','.join(columns)}")
+    return _floats(table, range(len(columns))), table
+
+
 def read_spectrum(path: str | os.PathLike, role: str) -> tuple[np.ndarray, np.ndarray, Table]:
     """Read a single spectrum CSV with columns ``wavelength_nm,value``.
 
-    ``role`` names it in messages (``"white standard"``, ``"dark"``). Returns the
-    wavelengths (n,) nm, strictly increasing, the values (n,) and the :class:`Table`.
+    ``role`` names it in messages (``"white standard"``, ``"dark"``, ``"light"``). Returns
+    the wavelengths (n,) nm, positive and strictly increasing (an error names the row that
+    is not), the values (n,) and the :class:`Table`. Read by :func:`read_columns`, so a
+    file ``gonio ingest`` accepts as a white standard is accepted as a light by
+    ``gonio render`` too.
     """
-    table = read_table(path)
-    names = [h.lower() for h in table.header]
-    if names != [WAVELENGTH, VALUE]:
-        raise InputError(f"the {role} spectrum has columns {','.join(table.header)}",
-                         path=table.path, row=table.header_line,
-                         fix="a spectrum CSV has the header wavelength_nm,value")
-    wl, v = _floats(table, [0, 1]).T
-    _check_wavelengths(wl, [f"{w:g}" for w in wl], table.path, table.header_line)
+    values, table = read_columns(path, (WAVELENGTH, VALUE), f"the {role} spectrum")
+    wl, v = values.T
+    _check_wavelengths(wl, [f"{w:g}" for w in wl], table.path, table.lines,
+                       column=table.header[0])
     return wl, v, table
 
 

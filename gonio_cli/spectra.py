@@ -196,10 +196,30 @@ def cmfs(grid_nm, observer: int = 2) -> np.ndarray:
     return _cmfs_cached(tuple(float(x) for x in np.asarray(grid_nm)), observer).copy()
 
 
+def cmf_weights(grid_nm, observer: int = 2) -> np.ndarray:
+    """cmf / Σλ ȳ (n_λ, 3): the XYZ of a spectrum L (..., n_λ) on the grid is L @ this
+    (docs/conventions.md), so an equal-energy spectrum of 1 has Y = 1. The one place the
+    colour-matching functions are normalised; ``observer`` as in :func:`cmfs`."""
+    cm = cmfs(grid_nm, observer)
+    return cm / cm[:, 1].sum()
+
+
 def spectrum_to_xyz(radiance, grid_nm) -> np.ndarray:
     """XYZ of spectra (..., n_λ): Σλ L cmf / Σλ ȳ (docs/conventions.md). Returns (..., 3)."""
-    cm = cmfs(grid_nm)
-    return np.asarray(radiance, dtype=float) @ cm / cm[:, 1].sum()
+    return np.asarray(radiance, dtype=float) @ cmf_weights(grid_nm)
+
+
+def luminance(spectrum, grid_nm, observer: int = 2) -> np.ndarray:
+    """Y = Σλ S ȳ / Σλ ȳ of spectra (..., n_λ) → (...): the ȳ-weighted mean of S."""
+    return np.asarray(spectrum, dtype=float) @ cmf_weights(grid_nm, observer)[:, 1]
+
+
+def unit_luminance(spectrum, grid_nm, observer: int = 2) -> np.ndarray:
+    """A light's spectrum S (..., n_λ) scaled so that Σ S ȳ / Σ ȳ = 1 (docs/conventions.md:
+    every light and illuminant is normalised so). S must have Y > 0 (:func:`luminance`;
+    a caller that reads S from a user's file checks it first)."""
+    s = np.asarray(spectrum, dtype=float)
+    return s / luminance(s, grid_nm, observer)[..., None]
 
 
 def reflectance_to_xyz(reflectance, grid_nm, illuminant_name: str = "D65",
@@ -211,9 +231,8 @@ def reflectance_to_xyz(reflectance, grid_nm, illuminant_name: str = "D65",
     A reflectance factor is R = π f for a BRDF f (docs/conventions.md).
     """
     g = np.asarray(grid_nm, dtype=float)
-    cm = cmfs(g, observer)
-    s = illuminant(illuminant_name, g)   # scaled, but the scale cancels in the ratio
-    return (np.asarray(reflectance, dtype=float) * s) @ cm / (s @ cm[:, 1])
+    s = unit_luminance(illuminant(illuminant_name, g), g, observer)   # Y = 1 for this observer
+    return (np.asarray(reflectance, dtype=float) * s) @ cmf_weights(g, observer)
 
 
 #: CIE 1976 L*a*b*: the cube root's linear segment below (6/29)³ (CIE 15:2004 §8.2.1).
@@ -373,8 +392,7 @@ def illuminant(name: str, grid_nm) -> np.ndarray:
     k = names.index(name)
     s = np.interp(np.asarray(grid_nm, dtype=float), t[f"illuminant{k}_wl"],
                   t[f"illuminant{k}_values"])
-    ybar = cmfs(grid_nm)[:, 1]
-    return s * ybar.sum() / (s @ ybar)
+    return unit_luminance(s, grid_nm)
 
 
 def rgb_spectral_basis(grid_nm) -> np.ndarray:

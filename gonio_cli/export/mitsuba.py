@@ -161,11 +161,10 @@ def rgb_weights(grid_nm) -> np.ndarray:
     """(3, n_λ): linear sRGB of a spectral reflectance r(λ) under D65 is ``W @ r``:
     W = M_XYZ→sRGB · cmf(λ) S_D65(λ) / Σ S_D65 ȳ (docs/conventions.md's matrix and CMFs).
     What the plugin's RGB variants sum f over the grid with."""
-    from ..spectra import cmfs, illuminant, xyz_to_linear_srgb_matrix
+    from ..spectra import cmf_weights, illuminant, xyz_to_linear_srgb_matrix
 
-    cm = cmfs(grid_nm)
-    s = illuminant("D65", grid_nm)
-    return xyz_to_linear_srgb_matrix() @ (cm * s[:, None]).T / float(s @ cm[:, 1])
+    s = illuminant("D65", grid_nm)                       # Σ S ȳ / Σ ȳ = 1
+    return xyz_to_linear_srgb_matrix() @ (cmf_weights(grid_nm) * s[:, None]).T
 
 
 # ----------------------------------------------------------------------------- files --

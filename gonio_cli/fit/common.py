@@ -556,6 +556,7 @@ def minimize_log_alpha(cost: Callable[[float], float], optimizer: str = DEFAULT_
     a, b = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
     import nlopt
 
+    NLOPT_STOPS = nlopt_stops()
     algorithm = nlopt.LD_LBFGS if optimizer == "nlopt-lbfgs" else nlopt.LN_BOBYQA
     counter = {"n": 0}
     seen = {"x": float(grid[i]), "f": float(values[i])}   # best point nlopt evaluated
@@ -585,10 +586,13 @@ def minimize_log_alpha(cost: Callable[[float], float], optimizer: str = DEFAULT_
         code = opt.last_optimize_result()
         message = _NLOPT_MESSAGES.get(code, f"nlopt result {code}")
         success = code > 0
-    except Exception as exc:  # nlopt raises on round-off-limited stops (e.g. LBFGS near a
-        # zero cost); what it reached is still the best point it evaluated
+    except tuple(NLOPT_STOPS) as exc:  # an early stop of the search itself, not of the cost:
+        # what it reached is still the best point it evaluated (and never worse than the
+        # scan's). Anything else (an error in the cost function, nlopt's invalid argument,
+        # out of memory) surfaces.
         x, best = seen["x"], seen["f"]
-        message = f"nlopt stopped ({exc.__class__.__name__}); kept the best alpha it evaluated"
+        message = (f"nlopt stopped ({NLOPT_STOPS[type(exc)]}); kept the best alpha it "
+                   "evaluated")
         success = True
     if best > seen["f"]:  # never worse than any point evaluated (the scan's best included)
         x, best = seen["x"], seen["f"]
@@ -598,6 +602,19 @@ def minimize_log_alpha(cost: Callable[[float], float], optimizer: str = DEFAULT_
         success, message = False, "no α in the admissible range gives a finite cost"
     return AlphaSearch(float(np.exp(x)), float(best), evaluations, optimizer, success,
                        message, at_bound)
+
+
+def nlopt_stops() -> dict[type, str]:
+    """The exceptions of an nlopt search that end it early but leave its best point valid,
+    with what each means (nlopt's C++ wrapper turns result codes into them): the
+    round-off-limited stop (NLOPT_ROUNDOFF_LIMITED, e.g. LBFGS near a zero cost) and
+    LBFGS's generic failure (NLOPT_FAILURE, ``nlopt.runtime_error``: its line search finds
+    no descent along a central-difference gradient at the minimum). The search's caller
+    catches exactly these; an error raised by the cost function is not among them."""
+    import nlopt
+
+    return {nlopt.RoundoffLimited: "round-off limited",
+            nlopt.runtime_error: "no descent found, NLOPT_FAILURE"}
 
 
 _NLOPT_MESSAGES = {1: "converged", 2: "stopped at stopval", 3: "converged (ftol)",

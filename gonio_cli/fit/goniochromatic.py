@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 
 from ..brdf import (LOG_MAX, dlog_ggx_d_dlog_alpha, goniochromatic,
-                    goniochromatic_exponent_arg, log_ggx_d)
+                    goniochromatic_exponent_arg, log_ggx_d, log_goniochromatic_d4)
 from ..errors import FitError
 from .common import (ALPHA_MAX, ALPHA_MIN, C_LIMIT, FitData, FitOptions, FitReport,
                      LinearProfile, ModelFit, Stopwatch, WARM_ALPHA_FACTOR,
@@ -42,16 +42,15 @@ from .common import (ALPHA_MAX, ALPHA_MIN, C_LIMIT, FitData, FitOptions, FitRepo
 #: configurations (2 parameters, scale and α, plus one degree of freedom).
 STEP1_MIN_CONFIGURATIONS = 3
 
-LOG4 = np.log(4.0)
-
 STEP2_MODES = ("mirror", "all")
 
 
 # ------------------------------------------------------------------------ step 2 core --
 
 def _offset(data: FitData, alpha: float) -> np.ndarray:
-    """log D(θh; α) − log 4 per configuration (N,): the α-dependent part of log f."""
-    return log_ggx_d(data.cos.cos_theta_h, alpha) - LOG4
+    """log D(θh; α) − log 4 per configuration (N,): the α-dependent part of log f
+    (:func:`gonio_cli.brdf.log_goniochromatic_d4`)."""
+    return log_goniochromatic_d4(data.cos.cos_theta_h, alpha)
 
 
 def _x(data: FitData) -> np.ndarray:
@@ -79,7 +78,7 @@ class Step2:
     def offsets(self, log_alphas) -> np.ndarray:
         """log D − log 4 for each trial α: (G, N)."""
         a = np.exp(np.asarray(log_alphas, dtype=float))[:, None]
-        return log_ggx_d(self.data.cos.cos_theta_h[None, :], a) - LOG4
+        return log_goniochromatic_d4(self.data.cos.cos_theta_h[None, :], a)
 
     def costs(self, log_alphas) -> np.ndarray:
         """Profile cost for each log α (G,)."""

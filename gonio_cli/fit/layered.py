@@ -26,8 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..brdf import (LOG_MAX, evaluate, goniochromatic_exponent_arg, log_ggx_d,
-                    torrance_sparrow)
+from ..brdf import evaluate, goniochromatic_d4, goniochromatic_exponent_arg, torrance_sparrow
 from ..errors import FitError
 from .common import (ALPHA_MAX, ALPHA_MIN, C_LIMIT, FitData, FitOptions, FitReport,
                      ModelFit, Stopwatch, error_figures, minimize_log_alpha, nm_list,
@@ -86,7 +85,7 @@ class Layered:
             t = d.y - self.coat_term(alpha_coat, k_coat, f0_coat)[:, None]
             params.update(alpha_coat=float(alpha_coat), k_coat=float(k_coat),
                           f0_coat=float(f0_coat))
-        g = np.exp(np.minimum(log_ggx_d(d.cos.cos_theta_h, alpha), LOG_MAX)) / 4.0
+        g = goniochromatic_d4(d.cos.cos_theta_h, alpha)
         rho_d, rho, c, cost = profile_c(self.x, g, t, self.w, diffuse=True)
         ok = self.signal & np.isfinite(cost) & (np.abs(c) < C_LIMIT * (1 - 1e-6))
         params.update(rho=np.where(ok, rho, 0.0), c=np.where(ok, c, 0.0),

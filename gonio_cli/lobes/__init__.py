@@ -105,6 +105,26 @@ def cosine_lobe(cos_rv, exponents) -> np.ndarray:
     return np.where(c > 0.0, value, np.where(np.isnan(c), np.nan, 0.0))
 
 
+def lobe_integral(exponents) -> np.ndarray:
+    """∫ over the sphere of max(0, r·ω)^E dω = 2π/(E+1) (sr), the factor that turns a
+    normalised prefiltered map P_E back into the lobe's integral (module docstring;
+    seed 001 eqs. 7-8). ``exponents`` (...) → (...)."""
+    return 2.0 * np.pi / (np.asarray(exponents, dtype=float) + 1.0)
+
+
+def phong_normalisation(shininess) -> np.ndarray:
+    """(n + 2)/(2π) (sr⁻¹): the factor of the normalised Phong lobe (seed 000 ref. 27), so
+    that f = (n+2)/(2π) max(0, R·V)^n reflects all light at normal incidence."""
+    return (np.asarray(shininess, dtype=float) + 2.0) / (2.0 * np.pi)
+
+
+def phong_lobe(cos_rv, shininess: float) -> np.ndarray:
+    """The normalised Phong lobe (n+2)/(2π) max(0, R·V)^n (sr⁻¹, no cos θi factor),
+    (...,) for R·V (...,): :func:`cosine_lobe` (its clamp and underflow guard) times
+    :func:`phong_normalisation`. The dim substrate of seed 000 Figure 8."""
+    return phong_normalisation(shininess) * cosine_lobe(cos_rv, [shininess])[..., 0]
+
+
 def design_matrix(cos_theta_i, cos_rv, exponents) -> np.ndarray:
     """Columns of seed 001 eqs. 1-3 (and eq. 6) for weights [K_D, K_DD,1..m, K_G,1..m].
 
@@ -293,33 +313,13 @@ def read_sample_csv(path) -> tuple[np.ndarray, np.ndarray]:
     """A custom sample set: CSV with header ``theta_i_deg,theta_o_deg`` (one row each).
 
     θi is the light's signed angle φ (the conventions' θi when ≥ 0; < 0 on the detector's
-    side), θo the detector. Returns (φ, θo) in degrees, (N,) each.
+    side), θo the detector. Returns (φ, θo) in degrees, (N,) each (N = 0 for a header
+    alone). Read by :func:`gonio_cli.ingest.read_columns`, the reader of every small CSV.
     """
-    import csv
+    from ..ingest import THETA_I, THETA_O, read_columns
 
-    try:
-        with open(path, newline="", encoding="utf-8") as fh:
-            rows = list(csv.reader(fh))
-    except OSError as exc:
-        raise InputError(f"cannot read the sample set ({exc.strerror})", path=path) from None
-    header = [h.strip() for h in rows[0]] if rows else []
-    if header[:2] != ["theta_i_deg", "theta_o_deg"]:
-        raise InputError(f"header is {','.join(header)!r}", path=path, row=1,
-                         fix="a sample-set CSV starts with theta_i_deg,theta_o_deg")
-    light, view = [], []
-    for k, row in enumerate(rows[1:], start=2):
-        if not any(cell.strip() for cell in row):
-            continue
-        try:
-            a, b = float(row[0]), float(row[1])
-        except (ValueError, IndexError):
-            raise InputError(f"{row!r} is not two numbers", path=path, row=k) from None
-        if not (np.isfinite(a) and np.isfinite(b)):
-            raise InputError(f"theta_i_deg={a:g}, theta_o_deg={b:g} is not finite",
-                             path=path, row=k)
-        light.append(a)
-        view.append(b)
-    return np.array(light, float), np.array(view, float)
+    angles, _ = read_columns(path, (THETA_I, THETA_O), "the sample set", allow_empty=True)
+    return angles[:, 0].copy(), angles[:, 1].copy()
 
 
 def sample_set(name: str, view_angle_deg: Sequence[float] | None = None) -> Samples:

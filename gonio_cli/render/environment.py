@@ -38,6 +38,8 @@ import numpy as np
 from .. import log
 from ..envmap import lookup
 from ..errors import ArtifactError, InputError
+from ..geometry import reflect
+from ..lobes import lobe_integral, phong_normalisation
 from ..schemas import MAX_MAGNITUDE, PREFILTER_SCHEMA, PREFILTER_VERSION, Lobes
 from ..spectra import rgb_spectral_basis
 
@@ -191,9 +193,9 @@ def channel_matrices(weights: np.ndarray, channel_kind: str, wavelength_nm,
     docstring). ``observer`` (n_λ, C) replaces cmf / Σ ȳ (spectral weights only:
     :func:`gonio_cli.render.shade.xyz_weights`): the last axis then has C channels.
     """
-    from .shade import default_observer
+    from ..spectra import cmf_weights
 
-    cm = default_observer(wavelength_nm) if observer is None else observer   # (n_λ, C)
+    cm = cmf_weights(wavelength_nm) if observer is None else observer   # (n_λ, C)
     basis = rgb_basis(wavelength_nm)                         # (3, n_λ)
     k = np.asarray(weights, dtype=float)
     if channel_kind == "spectral":
@@ -236,6 +238,14 @@ def view_interpolation(cos_theta_v: np.ndarray, view_angle_deg: np.ndarray
     pos = np.interp(theta, views, np.arange(views.size, dtype=float))
     i0 = np.minimum(pos.astype(np.intp), views.size - 2)
     return i0, i0 + 1, pos - i0
+
+
+def _mirror_of_view(view: np.ndarray, normal: np.ndarray, cos_v: np.ndarray) -> np.ndarray:
+    """R (n, 3), the mirror of V about N (:func:`gonio_cli.geometry.reflect`) where N faces
+    V, and −V where it does not (``cos_v`` = clamped N·V = 0: a smooth mesh's shading
+    normal turned away at its silhouette, where no mirror direction lies above the
+    surface; the clamped cosine of the view interpolation agrees)."""
+    return np.where((cos_v > 0.0)[:, None], reflect(view, normal), -view)
 
 
 def environment_xyz(environment: Environment, lobes: Lobes, normal: np.ndarray,
@@ -289,7 +299,7 @@ def environment_xyz(environment: Environment, lobes: Lobes, normal: np.ndarray,
     groups = environment.groups(exps, where="lobes: ") if used else []
     for group in groups:
         idx = [used[exps.index(e)] for e in group]
-        s = (2.0 * np.pi / (np.asarray(group) + 1.0))[None, :, None, None]
+        s = lobe_integral(group)[None, :, None, None]
         matrices += [(s * channel_matrices_(lobes.gloss[:, idx])).reshape(v, -1, channels),
                      (s * channel_matrices_(lobes.directional_diffuse[:, idx])
                       ).reshape(v, -1, channels)]                # eqs. 8 and 7
@@ -303,7 +313,7 @@ def environment_xyz(environment: Environment, lobes: Lobes, normal: np.ndarray,
         nb, vb = normal[b], view[b]
         cos_v = np.clip(np.einsum("ij,ij->i", nb, vb), 0.0, 1.0)
         i0, _, t = view_interpolation(cos_v, lobes.view_angle_deg)
-        reflected = 2.0 * cos_v[:, None] * nb - vb               # R, mirror of V about N
+        reflected = _mirror_of_view(vb, nb, cos_v)               # R, mirror of V about N
         columns = [lookup(diffuse, nb)]                          # P_1(N), eq. 9
         for stack in stacks:
             p = lookup(stack, reflected)                         # P_E(R) of every lobe
@@ -337,9 +347,9 @@ def substrate_environment_xyz(environment: Environment, substrate: dict, normal:
     if ks > 0:
         if environment.has(n):
             cos_v = np.clip(np.einsum("ij,ij->i", normal, view), 0.0, 1.0)
-            reflected = 2.0 * cos_v[:, None] * normal - view
-            k = ks * (n + 2.0) / (2.0 * np.pi) * 2.0 * np.pi / (n + 1.0)
-            out += (k * cos_v)[:, None] * (lookup(environment.map(n), reflected) @ m)
+            k = ks * phong_normalisation(n) * lobe_integral(n)
+            out += (k * cos_v)[:, None] * (lookup(environment.map(n), reflect(view, normal))
+                                           @ m)
         else:
             log.warn(f"{environment.path}: no map of exponent {n:g}, the substrate's Phong "
                      "highlight is left out of the environment light")

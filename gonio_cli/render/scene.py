@@ -565,9 +565,14 @@ def _light(chk: _Checker, raw, number: int, grid: np.ndarray) -> Light:
 
 
 def light_spectrum(chk: _Checker, value, where: str, grid: np.ndarray) -> np.ndarray:
-    """A light spectrum S (n_λ,) on ``grid``, Σ S ȳ / Σ ȳ = 1: a CIE illuminant name or a
-    CSV ``wavelength_nm,value`` (relative to the scene file)."""
-    from ..spectra import cmfs, covers, illuminant, illuminant_names, resample, same_grid
+    """A light spectrum S (n_λ,) on ``grid``, Σ S ȳ / Σ ȳ = 1 (:func:`gonio_cli.spectra.
+    unit_luminance`): a CIE illuminant name or a CSV ``wavelength_nm,value`` (relative to
+    the scene file), read by :func:`gonio_cli.ingest.read_spectrum` (the reader of
+    ``gonio ingest``'s white standard and dark: the same delimiters, comments and errors
+    naming the CSV's line)."""
+    from ..ingest import read_spectrum
+    from ..spectra import (covers, illuminant, illuminant_names, luminance, resample,
+                           same_grid, unit_luminance)
 
     s = chk.string(value, where)
     if not s.lower().endswith(".csv"):
@@ -577,22 +582,16 @@ def light_spectrum(chk: _Checker, value, where: str, grid: np.ndarray) -> np.nda
                                 "wavelength_nm,value")
         return illuminant(s, grid)
     path = chk.file(s, where)
-    try:
-        data = np.genfromtxt(path, delimiter=",", names=True, dtype=float)
-    except ValueError as exc:
-        raise chk.error(where, f"{s}: cannot read it as CSV ({exc})") from None
-    names = data.dtype.names or ()
-    if names != ("wavelength_nm", "value"):
-        raise chk.error(where, f"{s}: header is {','.join(names)!r}, expected "
-                        "'wavelength_nm,value'")
-    w = np.atleast_1d(data["wavelength_nm"])
-    v = np.atleast_1d(data["value"])
-    if not (np.all(np.isfinite(w)) and np.all(np.isfinite(v))):
-        raise chk.error(where, f"{s}: holds a non-numeric, NaN or inf value")
-    if w.size < 2 or not np.all(np.diff(w) > 0):
-        raise chk.error(where, f"{s}: wavelength_nm must increase, with at least 2 rows")
-    if np.any(v < 0) or np.any(v > MAX_MAGNITUDE):
-        raise chk.error(where, f"{s}: holds a value outside [0, {MAX_MAGNITUDE:g}]")
+    w, v, table = read_spectrum(path, "light")
+    if w.size < 2:
+        raise chk.error(where, f"{s}: has {w.size} row; a spectrum needs at least 2",
+                        fix="give the light's power at two or more wavelengths")
+    negative = np.flatnonzero(v < 0)
+    if negative.size:
+        k = int(negative[0])
+        raise InputError(f"value {v[k]:g} at {w[k]:g} nm is negative", path=table.path,
+                         row=int(table.lines[k]), column=table.header[1],
+                         fix="a light's spectrum is a power, 0 or more at every wavelength")
     if not covers(w, grid):
         raise chk.error(where, f"{s}: covers {w.min():g}-{w.max():g} nm, not the working "
                         f"grid {grid[0]:g}-{grid[-1]:g} nm",
@@ -603,11 +602,9 @@ def light_spectrum(chk: _Checker, value, where: str, grid: np.ndarray) -> np.nda
         log.warn(f"{path}: light spectrum resampled from {w.size} wavelengths onto the "
                  f"working grid ({grid.size} samples)")
     spec = resample(w, v, grid)
-    ybar = cmfs(grid)[:, 1]
-    y = float(spec @ ybar)
-    if not y > 0:
+    if not float(luminance(spec, grid)) > 0:
         raise chk.error(where, f"{s}: has no visible power (Σ S ȳ = 0)")
-    return spec * ybar.sum() / y
+    return unit_luminance(spec, grid)
 
 
 # ------------------------------------------------------------------------ spectral grid --

@@ -79,7 +79,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from ..brdf import (cook_torrance_specular_geometry, ggx_d_into,
+from ..brdf import (cook_torrance_specular_geometry, goniochromatic_d4_into,
                     goniochromatic_exponent_arg_into, schlick_fresnel, torrance_sparrow)
 from ..errors import InputError
 from ..geometry import Cosines, cosines_from_dots, cosines_from_dots_into, reflect
@@ -222,16 +222,10 @@ def xyz_weights(spectrum: np.ndarray, wavelength_nm: np.ndarray,
     and returns C channels, so columns of the identity give the radiance at C
     wavelengths (the spectral image, :func:`gonio_cli.render.pipeline.spectral_radiance`)."""
     if observer is None:
-        observer = default_observer(wavelength_nm)
+        from ..spectra import cmf_weights
+
+        observer = cmf_weights(wavelength_nm)
     return np.asarray(spectrum, dtype=float)[:, None] * np.asarray(observer, dtype=float)
-
-
-def default_observer(wavelength_nm: np.ndarray) -> np.ndarray:
-    """cmf / Σ ȳ (n_λ, 3): XYZ = Σλ L(λ) · this (docs/conventions.md)."""
-    from ..spectra import cmfs
-
-    cm = cmfs(wavelength_nm)
-    return cm / cm[:, 1].sum()
 
 
 def goniochromatic_table(rho: np.ndarray, c: np.ndarray, weights: np.ndarray,
@@ -350,8 +344,7 @@ def _goniochromatic_kernel(material: Material, weights: np.ndarray) -> Kernel:
     def accumulate(cos, scale, out, scratch):
         """out (3, m) += XYZ of the m pixels (cos_theta_d is not read)."""
         x = goniochromatic_exponent_arg_into(cos.cos_theta_i, cos.cos_theta_o, scratch)
-        g = ggx_d_into(cos.cos_theta_h, alpha, scratch)
-        g *= g.dtype.type(0.25)
+        g = goniochromatic_d4_into(cos.cos_theta_h, alpha, scratch)
         g *= scale
         lookup.accumulate(x, g, out, scratch)
 
@@ -441,7 +434,10 @@ def make_kernel(material, weights: np.ndarray, spectral: str = "table") -> Kerne
 
 
 def _substrate_kernel(substrate: dict, weights: np.ndarray) -> Kernel:
-    """The dim Phong substrate of seed 000 Figure 8 (normalised Phong, ref. 27)."""
+    """The dim Phong substrate of seed 000 Figure 8 (normalised Phong, ref. 27:
+    :func:`gonio_cli.lobes.phong_lobe`)."""
+    from ..lobes import phong_lobe
+
     spectrum = np.asarray(substrate.get("spectrum", 1.0), dtype=float)
     xyz = np.broadcast_to(spectrum, weights.shape[:1]) @ weights
     kd = float(substrate.get("kd", 0.0))
@@ -452,8 +448,8 @@ def _substrate_kernel(substrate: dict, weights: np.ndarray) -> Kernel:
         f = np.full(scale.shape, kd / np.pi)
         if ks > 0:
             wi, wo, normal = directions()
-            cos_rv = np.clip(np.einsum("ij,ij->i", reflect(wi, normal), wo), 0.0, 1.0)
-            f = f + ks * (n + 2.0) / (2.0 * np.pi) * cos_rv ** n
+            cos_rv = np.einsum("ij,ij->i", reflect(wi, normal), wo)
+            f = f + ks * phong_lobe(cos_rv, n)
         return (f * scale)[:, None] * xyz
 
     kernel.cheap = ks == 0
@@ -818,7 +814,7 @@ def _dot_rows(a: np.ndarray, b: np.ndarray, out: np.ndarray, scratch) -> np.ndar
 def mirror_peak(material, wavelength_nm: np.ndarray) -> float:
     """f_mirror: the ȳ-weighted mean over λ of ``material``'s BRDF (sr⁻¹) at the mirror
     configuration at normal incidence (θi = θo = 0), the scale of the sparkle lobe."""
-    from ..spectra import cmfs
+    from ..spectra import luminance
 
     if isinstance(material, Material):
         one = np.ones(1)
@@ -826,8 +822,8 @@ def mirror_peak(material, wavelength_nm: np.ndarray) -> float:
     else:
         n = np.array([[0.0, 0.0, 1.0]])
         f = material.evaluate_directions(n, n, n)
-    ybar = cmfs(wavelength_nm)[:, 1]
-    value = float(np.asarray(f, dtype=float).reshape(-1, ybar.size)[0] @ ybar / ybar.sum())
+    value = float(luminance(np.asarray(f, dtype=float).reshape(-1, np.size(wavelength_nm))[0],
+                            wavelength_nm))
     return value if np.isfinite(value) and value > 0 else 0.0
 
 
