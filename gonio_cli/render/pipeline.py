@@ -34,14 +34,15 @@ import numpy as np
 
 from .. import log
 from ..errors import ArtifactError, GonioError, InputError
+# the run report's schema and version (its fields: schemas.render_report_spec)
+from ..schemas import RENDER_REPORT_SCHEMA as REPORT_SCHEMA
+from ..schemas import RENDER_REPORT_VERSION as REPORT_VERSION
 from . import Stats
 from .scene import Scene
 
 #: Stages whose sum is the frame time (acceptance: rasterize, shade, tone map).
 FRAME_STAGES = ("rasterize", "shade", "downsample", "tonemap")
 
-REPORT_SCHEMA = "gonio.render-report"
-REPORT_VERSION = 1
 #: Schema of the rendered images' metadata (``gonio:schema`` of the PNG and the EXR).
 IMAGE_SCHEMA = "gonio.render"
 IMAGE_SCHEMA_VERSION = 1
