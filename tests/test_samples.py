@@ -67,3 +67,12 @@ def test_an_unknown_ink_is_one_line_exit_2():
                        capture_output=True, text=True, timeout=60)
     assert r.returncode == 2 and "red, green, blue" in r.stderr
     assert r.stderr.count("\n") == 1
+
+
+def test_report_without_the_sample_data_is_one_line_exit_2(run_gonio, monkeypatch, tmp_path):
+    monkeypatch.setenv(samples.SAMPLE_DATA_ENV, str(tmp_path / "nowhere"))
+    out = tmp_path / "report"
+    r = run_gonio("report", "--quick", "--sections", "fit", "-o", out)
+    assert r.exit_code == 2 and not out.exists()
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and samples.INKS_FILE in lines[0] and "nowhere" in lines[0]
