@@ -33,7 +33,7 @@ import numpy as np
 from . import __version__
 from .errors import ArtifactError, GonioError, NumericError, WriteError, binary_kind
 # the record of written files lives with the outputs' transaction (gonio_cli.outputs)
-from .outputs import forget_written, note_written, written_files  # noqa: F401
+from .outputs import forget_written, note_written, umask, written_files  # noqa: F401
 
 #: Keys every artifact carries besides its payload.
 ENVELOPE_KEYS = ("schema", "schema_version", "gonio_version", "created_utc", "inputs",
@@ -56,11 +56,27 @@ def input_records(paths: Iterable[str | os.PathLike]) -> list[dict[str, str]]:
     return [{"path": os.fspath(p), "sha256": sha256_file(p)} for p in paths]
 
 
-def _umask() -> int:
-    """The process umask (read by setting and restoring it)."""
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
+def image_metadata(schema: str, schema_version: int, *,
+                   inputs: Iterable[str | os.PathLike] | None = (),
+                   parameters: Mapping[str, Any] | None = None,
+                   **fields: Any) -> dict[str, Any]:
+    """The gonio metadata of an image file (PNG text chunks, EXR header attributes):
+    ``schema``, ``schema_version``, ``gonio_version``, the ``inputs`` with their SHA-256,
+    the ``parameters``, then ``fields``. No time stamp, so the same pixels and settings
+    give the same bytes (:mod:`gonio_cli.imageio`). ``inputs=None`` leaves the inputs out,
+    for an image whose bytes must not change when only its inputs' provenance did (the
+    caller says why)."""
+    clash = set(fields) & {"schema", "schema_version", "gonio_version", "inputs", "parameters"}
+    if clash:
+        raise ValueError(f"image metadata fields may not use the keys {sorted(clash)}")
+    meta: dict[str, Any] = {"schema": schema, "schema_version": int(schema_version),
+                            "gonio_version": __version__}
+    if inputs is not None:
+        meta["inputs"] = input_records(inputs)
+    if parameters is not None:
+        meta["parameters"] = dict(parameters)
+    meta.update(fields)
+    return _to_jsonable(meta)
 
 
 def folder_error(folder: str | os.PathLike, exc: OSError) -> WriteError:
@@ -134,7 +150,7 @@ def atomic_path(path: str | os.PathLike, *, immediate: bool = False) -> Iterator
         os.close(fd)
         yield tmp_path
         # mkstemp creates the file 0600; give the result the permissions of a normal file
-        os.chmod(tmp_path, 0o666 & ~_umask())
+        os.chmod(tmp_path, 0o666 & ~umask())
         if tx is None:
             os.replace(tmp_path, path)
     except BaseException as exc:  # KeyboardInterrupt too: never leave the temporary file

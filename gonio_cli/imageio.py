@@ -168,6 +168,12 @@ def read_image(path: str | os.PathLike, *, keep_integers: bool = False) -> Image
         inp.close()
 
 
+def _with_version(metadata: Mapping[str, Any] | None) -> dict[str, Any]:
+    """The metadata to write: ``gonio_version`` first (once, whether or not the caller's
+    :func:`gonio_cli.artifact.image_metadata` has it), then the caller's keys."""
+    return {"gonio_version": __version__, **(metadata or {})}
+
+
 def _meta_text(value: Any) -> str:
     return value if isinstance(value, str) else json.dumps(value, allow_nan=False)
 
@@ -193,8 +199,7 @@ def _write(path: str | os.PathLike, pixels: np.ndarray, fmt: str,
             spec.attribute(key, oiio.TypeDesc(TYPED_ATTRIBUTES[key]), tuple(value))
         else:
             spec.attribute(key, value)
-    spec.attribute(META_PREFIX + "gonio_version", __version__)
-    for key, value in (metadata or {}).items():
+    for key, value in _with_version(metadata).items():
         spec.attribute(META_PREFIX + key, _meta_text(value))
     with atomic_path(path) as tmp:
         out = oiio.ImageOutput.create(str(tmp))
@@ -228,8 +233,7 @@ def _write_pillow_png(path: str | os.PathLike, image, metadata: Mapping[str, Any
 
     level = get_compression(compression, "compression").png_zlib_level
     info = PngInfo()
-    info.add_text(META_PREFIX + "gonio_version", __version__)
-    for key, value in (metadata or {}).items():
+    for key, value in _with_version(metadata).items():
         info.add_text(META_PREFIX + key, _meta_text(value))
     with atomic_path(path) as tmp:
         image.save(tmp, format="PNG", pnginfo=info, compress_level=level, optimize=False)
@@ -249,8 +253,7 @@ def write_apng(path: str | os.PathLike, frames: Sequence[str | os.PathLike], *,
         with PILImage.open(readable(f)) as im:
             images.append(im.convert("RGBA" if "A" in im.getbands() else "RGB"))
     info = PngInfo()
-    info.add_text(META_PREFIX + "gonio_version", __version__)
-    for key, value in (metadata or {}).items():
+    for key, value in _with_version(metadata).items():
         info.add_text(META_PREFIX + key, _meta_text(value))
     with atomic_path(path) as tmp:
         images[0].save(tmp, format="PNG", save_all=True, append_images=images[1:],

@@ -433,7 +433,7 @@ class Transaction:
     def _move_folder(tmp: Path, final: Path, merge: bool, moved: list[Path]) -> None:
         import shutil
 
-        os.chmod(tmp, 0o777 & ~_umask())
+        os.chmod(tmp, 0o777 & ~umask())
         if not final.exists():
             os.replace(tmp, final)
             moved.append(final)
@@ -452,7 +452,9 @@ class Transaction:
         shutil.rmtree(old, ignore_errors=True)
 
 
-def _umask() -> int:
+def umask() -> int:
+    """The process umask (read by setting and restoring it): staged files and folders get
+    the permissions a plain ``open``/``mkdir`` would give them."""
     mask = os.umask(0)
     os.umask(mask)
     return mask

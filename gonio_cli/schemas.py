@@ -12,7 +12,7 @@ add ``to_payload()`` (fields written after the envelope of :mod:`gonio_cli.artif
 - ``gonio.material`` v1 and v2, :class:`Material` (``gonio fit``)
 - ``gonio.lobe_basis`` v1, :class:`LobeBasis` (``gonio lobes basis``)
 - ``gonio.lobes`` v1, :class:`Lobes` (``gonio lobes fit``)
-- ``gonio.prefilter`` v1, :func:`prefilter_index_spec` (``gonio prefilter``'s index.json)
+- ``gonio.prefilter`` v1, :class:`PrefilterIndex` (``gonio prefilter``'s index.json)
 - ``gonio.render-report`` v1, :func:`render_report_spec` (``gonio render --report``)
 
 The ranges are docs/conventions.md's table "Numeric ranges".
@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from .artifact import check_keys, read_artifact, write_artifact
+from .artifact import check_keys, make_document, read_artifact, write_artifact, write_json
 from .errors import ArtifactError, num
 
 
@@ -769,33 +769,86 @@ def write_lobes(path: str | os.PathLike, lobes: Lobes, **envelope) -> dict:
     return _write_as(path, lobes, **envelope)
 
 
+def read_lobe_exponents(path: str | os.PathLike) -> list[float]:
+    """Only the top-level ``exponents`` of a ``gonio.lobes`` artifact (what ``gonio
+    prefilter --lobes`` needs), checked by the field's definition in :meth:`Lobes.spec`;
+    the other fields are neither needed nor checked."""
+    doc = read_artifact(path, Lobes.SCHEMA, (Lobes.VERSION,))
+    if "exponents" not in doc:
+        raise ArtifactError("has no top-level 'exponents' list of numbers", path=path,
+                            fix="pass the lobes file written by gonio lobes")
+    spec, _ = Lobes.spec().fields["exponents"]
+    return spec.check(doc["exponents"], "exponents", path,
+                      "pass the lobes file written by gonio lobes").tolist()
+
+
 # ------------------------------------------------------------------ prefilter index --
 
-#: Schema and version of a prefiltered environment's ``index.json`` (``gonio prefilter``
-#: writes it, :func:`gonio_cli.render.environment.load_environment` reads it).
-PREFILTER_SCHEMA = "gonio.prefilter"
-PREFILTER_VERSION = 1
-PREFILTER_FIX = "regenerate the folder with gonio prefilter"
+@dataclass
+class PrefilterIndex:
+    """The ``index.json`` of a prefiltered environment (``gonio.prefilter`` v1): written by
+    ``gonio prefilter`` (:func:`write_prefilter_index`), read by
+    :func:`gonio_cli.render.environment.load_environment` (:func:`read_prefilter_index`).
+
+    Attributes
+    ----------
+    maps : one dict per map: ``exponent``, ``path`` (beside index.json), ``width``,
+        ``height`` (px), and how it was made (``method``, ``error_estimate``,
+        ``checked_texels``, ``working_width``, ``working_height``, ``time_s``).
+    source : the input map's ``width``, ``height``, ``channels``,
+        ``invalid_texels_replaced`` ; diffuse : the file name of the E = 1 map.
+    """
+
+    maps: list[dict[str, Any]]
+    source: dict[str, Any] | None = None
+    diffuse: str | None = None
+
+    SCHEMA = "gonio.prefilter"
+    VERSION = 1
+    FIX = "regenerate the folder with gonio prefilter"
+
+    def to_payload(self) -> dict[str, Any]:
+        out: dict[str, Any] = {}
+        if self.source is not None:
+            out["source"] = self.source
+        if self.diffuse is not None:
+            out["diffuse"] = self.diffuse
+        out["maps"] = self.maps
+        return out
+
+    @classmethod
+    def spec(cls) -> Obj:
+        """The one definition of a ``gonio.prefilter`` ``index.json`` (docs/schemas/)."""
+        entry = Obj({"exponent": _req(Number(*EXPONENT_RANGE)), "path": _req(Text()),
+                     "width": _req(POSITIVE_COUNT), "height": _req(POSITIVE_COUNT),
+                     "method": _opt(Text()),
+                     "error_estimate": _opt(Nullable(Number(0.0, None))),
+                     "checked_texels": _opt(COUNT), "working_width": _opt(POSITIVE_COUNT),
+                     "working_height": _opt(POSITIVE_COUNT), "time_s": _opt(SECONDS)})
+        source = Obj({"width": _req(POSITIVE_COUNT), "height": _req(POSITIVE_COUNT),
+                      "channels": _req(POSITIVE_COUNT), "invalid_texels_replaced": _opt(COUNT)})
+        return Obj({**envelope_fields(cls.SCHEMA, (cls.VERSION,)),
+                    "source": _opt(source), "diffuse": _opt(Text()),
+                    "maps": _req(ListOf(entry, min_items=1))})
+
+    @classmethod
+    def from_document(cls, doc: dict[str, Any], path=None) -> "PrefilterIndex":
+        f = validate(doc, cls.spec(), path, cls.FIX)
+        return cls([dict(m) for m in f["maps"]], f.get("source"), f.get("diffuse"))
 
 
-def prefilter_index_spec() -> Obj:
-    """The one definition of a ``gonio.prefilter`` ``index.json`` (docs/schemas/)."""
-    entry = Obj({"exponent": _req(Number(*EXPONENT_RANGE)), "path": _req(Text()),
-                 "width": _req(POSITIVE_COUNT), "height": _req(POSITIVE_COUNT),
-                 "method": _opt(Text()), "error_estimate": _opt(Nullable(Number(0.0, None))),
-                 "checked_texels": _opt(COUNT), "working_width": _opt(POSITIVE_COUNT),
-                 "working_height": _opt(POSITIVE_COUNT), "time_s": _opt(SECONDS)})
-    source = Obj({"width": _req(POSITIVE_COUNT), "height": _req(POSITIVE_COUNT),
-                  "channels": _req(POSITIVE_COUNT), "invalid_texels_replaced": _opt(COUNT)})
-    return Obj({**envelope_fields(PREFILTER_SCHEMA, (PREFILTER_VERSION,)),
-                "source": _opt(source), "diffuse": _opt(Text()),
-                "maps": _req(ListOf(entry, min_items=1))})
+def read_prefilter_index(path: str | os.PathLike) -> PrefilterIndex:
+    """Read and validate a prefiltered environment's ``index.json``."""
+    return _read_as(PrefilterIndex, path)
 
 
-def read_prefilter_index(path: str | os.PathLike) -> dict[str, Any]:
-    """Read and validate a prefiltered environment's ``index.json`` (checked fields)."""
-    doc = read_artifact(path, PREFILTER_SCHEMA, (PREFILTER_VERSION,))
-    return validate(doc, prefilter_index_spec(), path, PREFILTER_FIX)
+def write_prefilter_index(path: str | os.PathLike, index: PrefilterIndex, **envelope) -> dict:
+    """Write ``index.json`` atomically with provenance, after checking the document against
+    the reader's definition (a failure there is a bug in the writer, nothing is written)."""
+    doc = make_document(index.SCHEMA, index.VERSION, index.to_payload(), **envelope)
+    validate(doc, index.spec(), path, "a bug in gonio prefilter: please report it")
+    write_json(path, doc)
+    return doc
 
 
 # --------------------------------------------------------------------- render report --
@@ -848,9 +901,9 @@ PUBLISHED: dict[str, tuple[str, str, Any]] = {
                        lambda: LobeBasis.spec().json()),
     Lobes.SCHEMA: ("lobes.schema.json", "gonio lobe weights (gonio lobes fit)",
                    lambda: Lobes.spec().json()),
-    PREFILTER_SCHEMA: ("prefilter.schema.json",
-                       "gonio prefiltered environment index.json (gonio prefilter)",
-                       lambda: prefilter_index_spec().json()),
+    PrefilterIndex.SCHEMA: ("prefilter.schema.json",
+                            "gonio prefiltered environment index.json (gonio prefilter)",
+                            lambda: PrefilterIndex.spec().json()),
     RENDER_REPORT_SCHEMA: ("render_report.schema.json", "gonio render report (gonio render "
                            "--report)", lambda: render_report_spec().json()),
 }

@@ -55,6 +55,7 @@ N_BITS = 8
 SEED_THETA_I_DEG = (70.0, 60.0, 50.0, 40.0, 30.0, 20.0, 10.0)
 #: Schema of the texture's PNG metadata (``gonio:schema``), written by ``gonio sparkle``.
 TEXTURE_SCHEMA = "gonio.sparkle-texture"
+TEXTURE_VERSION = 1
 #: The seed's sparkle exponent e of eq. 17.
 DEFAULT_EXPONENT = 24.0
 #: k of the "mad" rule: 5 σ of Gaussian noise is exceeded by 3e-7 of background pixels

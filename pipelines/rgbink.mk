@@ -9,8 +9,12 @@
 
 RGBINK     := $(OUT)/rgbink
 INKS       := red green blue
-# Seed 000 leaves out the unreliable 70° row.
-RGBINK_FIT := --exclude-theta-i 70
+# How the demo ingests and fits each ink is said once, in sample_data/inks.toml (read by
+# gonio report and the tests too): its options as flags, read when a recipe runs (the
+# fit's once per make run).
+RGBINK_INKS_TOML := sample_data/inks.toml
+rgbink_ingest_args = $(shell GONIO_SAMPLE_DATA=$(dir $(RGBINK_INKS_TOML)) $(BIN)/python -m gonio_cli.samples ingest-args $(1))
+RGBINK_FIT = $(eval RGBINK_FIT := $(shell GONIO_SAMPLE_DATA=$(dir $(RGBINK_INKS_TOML)) $(BIN)/python -m gonio_cli.samples fit-args))$(RGBINK_FIT)
 
 RGBINK_TARGETS := \
   $(foreach i,$(INKS),$(RGBINK)/$(i).measurement.json $(RGBINK)/$(i).material.json \
@@ -21,14 +25,15 @@ RGBINK_TARGETS := \
 rgbink: $(RGBINK_TARGETS)
 
 # The three inks come in the three layouts ingest reads (see docs/ingest.md).
-$(RGBINK)/red.measurement.json: sample_data/ink_red.csv | $(STAMP)
-	$(GONIO) ingest $^ -o $@ --summary
+$(RGBINK)/red.measurement.json: sample_data/ink_red.csv $(RGBINK_INKS_TOML) | $(STAMP)
+	$(GONIO) ingest $(filter %.csv,$^) -o $@ $(call rgbink_ingest_args,red) --summary
 
-$(RGBINK)/green.measurement.json: sample_data/ink_green.csv | $(STAMP)
-	$(GONIO) ingest $^ -o $@ --quantity ratio-to-white --white-reflectance 0.99 --summary
+$(RGBINK)/green.measurement.json: sample_data/ink_green.csv $(RGBINK_INKS_TOML) | $(STAMP)
+	$(GONIO) ingest $(filter %.csv,$^) -o $@ $(call rgbink_ingest_args,green) --summary
 
-$(RGBINK)/blue.measurement.json: sample_data/ink_blue_a.csv sample_data/ink_blue_b.csv | $(STAMP)
-	$(GONIO) ingest $^ -o $@ --summary
+$(RGBINK)/blue.measurement.json: sample_data/ink_blue_a.csv sample_data/ink_blue_b.csv \
+                                 $(RGBINK_INKS_TOML) | $(STAMP)
+	$(GONIO) ingest $(filter %.csv,$^) -o $@ $(call rgbink_ingest_args,blue) --summary
 
 # A pattern rule with two targets: one run writes the material and its plot.
 $(RGBINK)/%.material.json $(RGBINK)/%.fit.png: $(RGBINK)/%.measurement.json

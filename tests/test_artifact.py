@@ -294,3 +294,30 @@ def test_atomic_writes_get_normal_file_permissions(tmp_path):
     finally:
         os.umask(old)
     assert stat.S_IMODE((tmp_path / "a.json").stat().st_mode) == 0o644
+
+
+def test_image_metadata_is_the_envelope_without_a_time(tmp_path):
+    """Every image gonio writes carries schema, version, gonio version and its inputs'
+    SHA-256 (hashlib of the file's bytes), and no time stamp (same settings, same bytes)."""
+    from gonio_cli.imageio import read_image, write_png
+
+    src = tmp_path / "in.csv"
+    src.write_bytes(b"a,b\n1,2\n")
+    meta = artifact.image_metadata("gonio.test-image", 3, inputs=[src],
+                                   parameters={"size": 4}, method="m", weights=np.arange(2.0))
+    assert meta == {"schema": "gonio.test-image", "schema_version": 3,
+                    "gonio_version": gonio_cli.__version__,
+                    "inputs": [{"path": str(src),
+                                "sha256": hashlib.sha256(b"a,b\n1,2\n").hexdigest()}],
+                    "parameters": {"size": 4}, "method": "m", "weights": [0.0, 1.0]}
+    with pytest.raises(ValueError, match="gonio_version"):
+        artifact.image_metadata("gonio.test-image", 1, gonio_version="0")
+    a, b = tmp_path / "a.png", tmp_path / "b.png"
+    pixels = np.zeros((2, 3, 3), np.uint8)
+    write_png(a, pixels, meta)
+    write_png(b, pixels, meta)
+    assert a.read_bytes() == b.read_bytes()
+    back = read_image(a).metadata
+    assert back["gonio_version"] == gonio_cli.__version__
+    assert json.loads(back["inputs"]) == meta["inputs"] and back["schema_version"] == "3"
+    assert a.read_bytes().count(b"gonio:gonio_version") == 1     # written once

@@ -119,6 +119,8 @@ def test_first_run_writes_24_frames_6_previews_manifest_and_sheet(runs):
         for s in SCENES:
             with Image.open(out / i / f"{s}.png") as im:  # the animated preview
                 assert getattr(im, "n_frames", 1) == N_FRAMES and im.size == (48, 48)
+                assert im.info["gonio:schema"] == "gonio.turntable"   # its frames, hashed
+                assert len(json.loads(im.info["gonio:inputs"])) == N_FRAMES
     assert len(records) == 36 and {r["status"] for r in records.values()} == {"ok"}
     for r in records.values():
         assert r["attempts"] == 1 and r["time_s"] > 0 and r["worker"] and r["error"] is None

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 from pathlib import Path
 
@@ -99,7 +100,11 @@ def test_mask_formats_and_compression(run_gonio, tmp_path):
     assert r.exit_code == 0, r.stderr
     assert png_header(rgb) == (8, 2, 3)          # truecolour, level 9 (FLEVEL 3)
     np.testing.assert_array_equal(mask_of(pal), mask_of(rgb))
-    assert json.loads(read_image(rgb).metadata["parameters"])["mask_format"] == "rgb"
+    meta = read_image(rgb).metadata
+    assert json.loads(meta["parameters"])["mask_format"] == "rgb"
+    assert meta["schema"] == "gonio.halftone-mask" and int(meta["schema_version"]) == 1
+    assert json.loads(meta["inputs"]) == [
+        {"path": str(SAMPLE), "sha256": hashlib.sha256(Path(SAMPLE).read_bytes()).hexdigest()}]
 
 
 def test_tone_error_only_with_a_report(run_gonio, tmp_path):

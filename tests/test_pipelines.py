@@ -315,3 +315,26 @@ def test_stamp_is_order_only(tree):
     time.sleep(0.05)  # past the file system's clock tick (~4 ms): the edit is newer
     tree.touch("gonio_cli/halftone/_diffuse.c")
     assert tree.plan(stamp=str(stamp)) == {str(stamp)}
+
+
+def test_ink_options_come_from_inks_toml(tree):
+    """The demo's ingest and fit options are sample_data/inks.toml's (gonio report and
+    tests/test_fit.py read the same file): editing it changes the commands and remakes
+    every ink."""
+    from gonio_cli.samples import demo_inks
+
+    inks = {i.name: i for i in demo_inks(tree.root / "sample_data")}
+    commands = tree.commands("-B", "rgbink")
+    for name, ink in inks.items():
+        argv = next(a for a in commands if a[0] == "ingest"
+                    and _output(a) == tree.target(f"rgbink/{name}.measurement.json"))
+        flags = argv[argv.index("-o") + 2:]
+        expected = [x for k, v in ink.ingest.items()
+                    for x in ("--" + k.replace("_", "-"), f"{v:g}" if isinstance(v, float)
+                              else str(v))]
+        assert flags == expected + ["--summary"]
+        assert argv[1:argv.index("-o")] == [str(p.relative_to(tree.root)) for p in ink.files]
+    fits = [a for a in commands if a[0] == "fit"]
+    assert len(fits) == 6 and all(a[-2:] == ["--exclude-theta-i", "70"] for a in fits)
+    tree.touch("sample_data/inks.toml")
+    assert {f"rgbink/{i}.measurement.json" for i in inks} <= tree.plan("rgbink")

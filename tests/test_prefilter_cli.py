@@ -49,6 +49,8 @@ def test_writes_one_map_per_exponent_and_the_index(run_gonio, sky, tmp_path):
         img = read_image(out / m["path"])
         assert img.pixels.shape == (m["height"], m["width"], 3)
         assert img.metadata["schema"] == "gonio.prefilter"
+        assert int(img.metadata["schema_version"]) == 1
+        assert json.loads(img.metadata["inputs"]) == index["inputs"]   # same hashes
         assert np.all(img.pixels >= 0.0) and np.all(np.isfinite(img.pixels))
         assert m["error_estimate"] < 0.01
     assert sorted(p.name for p in out.iterdir()) == sorted(

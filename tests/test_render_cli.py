@@ -3,11 +3,15 @@ report, options, and input errors (one stderr line, exit 2, nothing written)."""
 
 from __future__ import annotations
 
+import hashlib
 import json
 import textwrap
+from pathlib import Path
 
 import numpy as np
 import pytest
+
+import gonio_cli
 
 from gonio_cli.imageio import read_image
 from gonio_cli.schemas import Material, write_material
@@ -72,6 +76,12 @@ def test_png_exr_and_report(run_gonio, scene, tmp_path):
     assert lin.pixels.max() > 0 and np.all(np.isfinite(lin.pixels))
     meta = lin.metadata
     assert meta["schema"] == "gonio.render" and float(meta["render_time_s"]) > 0
+    assert int(meta["schema_version"]) == 1 and meta["gonio_version"] == gonio_cli.__version__
+    inputs = json.loads(meta["inputs"])
+    assert inputs[0] == {"path": str(scene),
+                         "sha256": hashlib.sha256(Path(scene).read_bytes()).hexdigest()}
+    png_meta = read_image(png).metadata       # the same envelope, inputs left out (why:
+    assert png_meta["schema_version"] == "1" and "inputs" not in png_meta   # write_outputs)
     settings = json.loads(meta["settings"])
     assert settings["ssaa"] == 2 and settings["spectral"] == "table"
     assert settings["exposure"] == 1.0 and settings["tonemap"] == "reinhard"

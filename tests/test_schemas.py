@@ -156,3 +156,23 @@ def test_array_messages(doc, message):
             "channels": "xyz", "solver": "nnls", **doc}
     with pytest.raises(ArtifactError, match=re.escape(message)):
         schemas.LobeBasis.from_document(full, path="basis.json")
+
+
+def test_prefilter_index_written_and_read_by_one_definition(tmp_path):
+    """gonio prefilter writes index.json through the reader's definition: what it writes
+    reads back, and a document the reader would refuse is not written at all."""
+    index = schemas.PrefilterIndex(
+        maps=[{"exponent": 1.0, "path": "prefiltered_E1.exr", "width": 8, "height": 4},
+              {"exponent": 64.0, "path": "prefiltered_E64.exr", "width": 16, "height": 8,
+               "method": "ring", "error_estimate": 0.002}],
+        source={"width": 16, "height": 8, "channels": 3}, diffuse="prefiltered_E1.exr")
+    path = tmp_path / "index.json"
+    doc = schemas.write_prefilter_index(path, index, parameters={"exponents": [1, 64]})
+    assert doc["schema"] == "gonio.prefilter" and doc["schema_version"] == 1
+    assert schemas.read_prefilter_index(path) == index
+    bad = tmp_path / "bad.json"
+    broken = schemas.PrefilterIndex(maps=[{"exponent": 0.5, "path": "x.exr", "width": 8,
+                                           "height": 4}])       # below the exponent range
+    with pytest.raises(ArtifactError, match="exponent"):
+        schemas.write_prefilter_index(bad, broken)
+    assert not bad.exists()

@@ -3,6 +3,7 @@ with its metadata, one-line errors with nothing written, scene keys, the run rep
 
 from __future__ import annotations
 
+import hashlib
 import json
 import textwrap
 from pathlib import Path
@@ -28,6 +29,13 @@ def test_sparkle_writes_the_packed_texture(run_gonio, tmp_path):
     assert json.loads(img.metadata["theta_i_deg"]) == [70, 60, 50, 40, 30, 20, 10]
     assert json.loads(img.metadata["theta_h_deg"]) == [35, 30, 25, 20, 15, 10, 5]
     assert img.metadata["rule"] == "mad" and float(img.metadata["parameter"]) == 5.0
+    # the envelope of gonio_cli.artifact.image_metadata: each photo with its own hash
+    assert img.metadata["schema"] == "gonio.sparkle-texture"
+    assert int(img.metadata["schema_version"]) == 1 and img.metadata["gonio_version"]
+    inputs = json.loads(img.metadata["inputs"])
+    assert [r["path"] for r in inputs] == [str(p) for p in PHOTOS]
+    assert [r["sha256"] for r in inputs] == [hashlib.sha256(p.read_bytes()).hexdigest()
+                                             for p in PHOTOS]
     shipped = read_image(SAMPLE / "sparkle.png").pixels
     assert np.array_equal(img.pixels, shipped)
     assert "sparkle pixels" in res.stderr

@@ -100,7 +100,7 @@ def halftone(
     """
     from .. import log
     from .. import halftone as core
-    from ..artifact import make_document, write_json
+    from ..artifact import image_metadata, make_document, write_json
     from ..errors import InputError
     from ..halftone import coverage as cov
     from ..imageio import get_compression, read_image, write_png_1bit
@@ -151,8 +151,8 @@ def halftone(
                   "split": split, "compress": compress, "mask_format": mask_format}
     screens = split_paths(output) if split else []
     payload.update(mask=str(output), split=[str(p) for p in screens])
-    meta = {"schema": "gonio.halftone-mask", "method": m.name, "parameters": parameters,
-            "input": str(image), "time_s": round(t["time_s"], 6)}
+    meta = image_metadata(core.MASK_SCHEMA, core.MASK_SCHEMA_VERSION, inputs=[image],
+                          parameters=parameters, method=m.name, time_s=round(t["time_s"], 6))
     MASK_WRITERS[mask_format](output, result.labels, meta, compress)
     for k, path in enumerate(screens):
         write_png_1bit(path, result.labels == k + 1, {**meta, "ink": core.INKS[k]},

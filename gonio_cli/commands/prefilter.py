@@ -16,10 +16,6 @@ from typing import Optional
 
 import typer
 
-#: Schema of OUTDIR/index.json (its fields: gonio_cli.schemas.prefilter_index_spec).
-INDEX_SCHEMA = "gonio.prefilter"
-INDEX_VERSION = 1
-
 #: Digits of a non-integer exponent in its file name (``prefiltered_E12p5.exr``).
 NAME_DIGITS = 6
 
@@ -53,22 +49,6 @@ def parse_exponents(text: str) -> list[float]:
     if not values:
         raise InputError("--exponents is empty", fix="give a list such as 1,8,64")
     return values
-
-
-def read_lobe_exponents(path: Path) -> list[float]:
-    """The top-level ``exponents`` list of a ``gonio.lobes`` artifact (schema_version 1)."""
-    from ..artifact import read_artifact
-    from ..errors import ArtifactError
-    from ..schemas import Lobes
-
-    doc = read_artifact(path, Lobes.SCHEMA, (Lobes.VERSION,))
-    # only this field is used: checked by the lobes' own definition (gonio_cli.schemas)
-    spec, _ = Lobes.spec().fields["exponents"]
-    if "exponents" not in doc:
-        raise ArtifactError("has no top-level 'exponents' list of numbers", path=path,
-                            fix="pass the lobes file written by gonio lobes")
-    return spec.check(doc["exponents"], "exponents", path,
-                      "pass the lobes file written by gonio lobes").tolist()
 
 
 def prefilter(
@@ -105,6 +85,7 @@ def prefilter(
     from .. import prefilter as core
     from ..errors import InputError
     from ..imageio import read_image
+    from ..schemas import read_lobe_exponents
     from . import require_files
 
     require_files([envmap_path], what="image file")
@@ -165,16 +146,19 @@ def summary_line(output: Path, results, time_s: float) -> str:
 def _write(output: Path, envmap_path: Path, lobes, shape, results, names, parameters,
            replaced: int, time_s: float) -> None:
     """Write the maps and index.json through a temporary folder beside OUTDIR."""
-    from ..artifact import make_document, write_json
+    from ..artifact import image_metadata
     from ..imageio import write_exr
     from ..outputs import folder_output
-    from ..schemas import prefilter_index_spec, validate
+    from ..schemas import PrefilterIndex, write_prefilter_index
 
     # staged as a whole, moved into OUTDIR when the command succeeds, index.json last
     with folder_output(output, merge=True) as tmp:
+        inputs = [envmap_path] + ([lobes] if lobes else [])
+        base = image_metadata(PrefilterIndex.SCHEMA, PrefilterIndex.VERSION, inputs=inputs,
+                              parameters=parameters)
         entries = []
         for r, name in zip(results, names):
-            meta = {"schema": INDEX_SCHEMA, "exponent": r.exponent, "method": r.method,
+            meta = {**base, "exponent": r.exponent, "method": r.method,
                     "error_estimate": r.error_estimate, "time_s": r.time_s,
                     "layout": "lat-long, Mitsuba 3 envmap (docs/conventions.md)"}
             write_exr(tmp / name, r.pixels, meta)
@@ -185,17 +169,13 @@ def _write(output: Path, envmap_path: Path, lobes, shape, results, names, parame
                             "working_width": r.working_shape[1],
                             "working_height": r.working_shape[0],
                             "time_s": r.time_s})
-        doc = make_document(INDEX_SCHEMA, INDEX_VERSION, {
-            "source": {"width": int(shape[1]), "height": int(shape[0]),
-                       "channels": int(shape[2]), "invalid_texels_replaced": int(replaced)},
-            "diffuse": names[0],
-            "maps": entries,
-        }, inputs=[envmap_path] + ([lobes] if lobes else []), parameters=parameters,
-            time_s=time_s)
-        # the reader's definition (gonio_cli.schemas): what is written can be read back
-        validate(doc, prefilter_index_spec(), output / "index.json",
-                 "a bug in gonio prefilter: please report it")
-        write_json(tmp / "index.json", doc)
+        index = PrefilterIndex(
+            source={"width": int(shape[1]), "height": int(shape[0]),
+                    "channels": int(shape[2]), "invalid_texels_replaced": int(replaced)},
+            diffuse=names[0], maps=entries)
+        # checked against the reader's definition before writing (gonio_cli.schemas)
+        write_prefilter_index(tmp / "index.json", index, inputs=inputs,
+                              parameters=parameters, time_s=time_s)
 
 
 EXAMPLE = "gonio prefilter sky.exr --exponents 8,64,512 -o sky.prefiltered"

@@ -186,6 +186,7 @@ def render_turntable(options: dict) -> None:
     animated PNG of the frames."""
     from .. import log
     from ..imageio import write_apng
+    from ..render.pipeline import turntable_metadata
 
     from ..outputs import declare
 
@@ -198,7 +199,7 @@ def render_turntable(options: dict) -> None:
         render(**{**options, **named, "frame": k})
         pngs.append(named["output"])
     write_apng(options["output"], pngs,
-               metadata={"turntable_frames": len(pngs), "orbit": options["orbit"]})
+               metadata=turntable_metadata(pngs, orbit=options["orbit"]))
     log.info(f"{options['output']}: turntable preview of {len(pngs)} frames "
              f"({options['orbit']} orbit)")
 

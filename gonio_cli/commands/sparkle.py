@@ -51,6 +51,7 @@ def sparkle(
     """
     from .. import log
     from .. import sparkle as core
+    from ..artifact import image_metadata
     from ..errors import InputError
     from ..imageio import read_image, write_png
     from . import require_files
@@ -80,13 +81,13 @@ def sparkle(
                          fix="crop all photos to the same area")
     with log.timer() as t:
         result = core.build_texture([im.pixels for im in images], angles, rule, parameter)
-    meta = {"schema": core.TEXTURE_SCHEMA, "theta_i_deg": result.theta_i_deg,
-            "theta_h_deg": core.theta_h_deg(result.theta_i_deg).tolist(),
-            "bit_order": "bit k = k-th largest theta_i (seed 004 eq. 16)",
-            "rule": result.rule, "parameter": result.parameter,
-            "thresholds": result.thresholds, "fraction_set": result.fraction,
-            "color": result.color,
-            "inputs": [str(p) for p in photos], "time_s": round(t["time_s"], 6)}
+    meta = image_metadata(
+        core.TEXTURE_SCHEMA, core.TEXTURE_VERSION, inputs=photos,
+        theta_i_deg=result.theta_i_deg,
+        theta_h_deg=core.theta_h_deg(result.theta_i_deg).tolist(),
+        bit_order="bit k = k-th largest theta_i (seed 004 eq. 16)",
+        rule=result.rule, parameter=result.parameter, thresholds=result.thresholds,
+        fraction_set=result.fraction, color=result.color, time_s=round(t["time_s"], 6))
     write_png(output, result.texture, metadata=meta)
     per_bit = " ".join(f"{a:g}°:{100 * f:.1f}%" for a, f in
                        zip(result.theta_i_deg, result.fraction))

@@ -45,6 +45,9 @@ TONE_SIGMA_PX = 2.0
 
 REPORT_SCHEMA = "gonio.halftone-report"
 REPORT_SCHEMA_VERSION = 1
+#: Schema of the masks' PNG metadata (``gonio:schema``), written by ``gonio halftone``.
+MASK_SCHEMA = "gonio.halftone-mask"
+MASK_SCHEMA_VERSION = 1
 
 
 @dataclass(frozen=True)

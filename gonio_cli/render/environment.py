@@ -40,12 +40,8 @@ from ..envmap import lookup
 from ..errors import ArtifactError, InputError
 from ..geometry import reflect
 from ..lobes import lobe_integral, phong_normalisation
-from ..schemas import MAX_MAGNITUDE, PREFILTER_SCHEMA, PREFILTER_VERSION, Lobes
+from ..schemas import MAX_MAGNITUDE, Lobes
 from ..spectra import rgb_spectral_basis
-
-#: Schema and version of a prefiltered environment's ``index.json`` (``gonio prefilter``),
-#: defined with its fields in :mod:`gonio_cli.schemas`.
-INDEX_SCHEMA, INDEX_VERSION = PREFILTER_SCHEMA, PREFILTER_VERSION
 
 #: Pixels per block of :func:`environment_xyz`, so the lookups' temporaries (4 corners ×
 #: 3 channels × lobes) stay in cache: 0.43 s instead of 0.9 s at 512² (8 lobes).
@@ -151,17 +147,17 @@ def load_environment(index_json_path: str | os.PathLike) -> Environment:
     object uses cost nothing. Missing files, a missing diffuse map (E = 1), duplicate or
     non-positive exponents are refused here, naming the file.
     """
-    from ..schemas import PREFILTER_FIX, read_prefilter_index
+    from ..schemas import PrefilterIndex, read_prefilter_index
 
     path = Path(index_json_path)
     index = read_prefilter_index(path)  # types, ranges and unknown keys (docs/schemas/)
     exps, files, shapes = [], [], []
-    for k, entry in enumerate(index["maps"]):
+    for k, entry in enumerate(index.maps):
         name = entry["path"]
         f = path.parent / name
         if not f.is_file():
             raise ArtifactError(f"field 'maps[{k}].path': {name} does not exist", path=path,
-                                fix=PREFILTER_FIX)
+                                fix=PrefilterIndex.FIX)
         exps.append(float(entry["exponent"]))
         files.append(os.fspath(f))
         shapes.append((entry["height"], entry["width"]))
@@ -169,7 +165,7 @@ def load_environment(index_json_path: str | os.PathLike) -> Environment:
     e = np.asarray(exps)[order]
     if np.any(np.diff(e) <= EXPONENT_RTOL * e[1:]):
         raise ArtifactError("field 'maps' lists an exponent twice", path=path,
-                            fix=PREFILTER_FIX)
+                            fix=PrefilterIndex.FIX)
     env = Environment(os.fspath(path), e, [files[i] for i in order], [shapes[i] for i in order])
     if not env.has(1.0):
         raise ArtifactError("has no diffuse map (exponent 1)", path=path,

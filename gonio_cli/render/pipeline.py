@@ -34,14 +34,29 @@ import numpy as np
 
 from .. import log
 from ..errors import ArtifactError, GonioError, InputError
+# the run report's schema and version (its fields: schemas.render_report_spec)
+from ..schemas import RENDER_REPORT_SCHEMA as REPORT_SCHEMA
+from ..schemas import RENDER_REPORT_VERSION as REPORT_VERSION
 from . import Stats
 from .scene import Scene
 
 #: Stages whose sum is the frame time (acceptance: rasterize, shade, tone map).
 FRAME_STAGES = ("rasterize", "shade", "downsample", "tonemap")
 
-REPORT_SCHEMA = "gonio.render-report"
-REPORT_VERSION = 1
+#: Schema of the rendered images' metadata (``gonio:schema`` of the PNG and the EXR).
+IMAGE_SCHEMA = "gonio.render"
+IMAGE_SCHEMA_VERSION = 1
+#: Schema of a turntable's animated PNG (``gonio render --turntable``, ``gonio batch``).
+TURNTABLE_SCHEMA = "gonio.turntable"
+TURNTABLE_SCHEMA_VERSION = 1
+
+
+def turntable_metadata(frames, **fields) -> dict:
+    """The metadata of a turntable's animated PNG: its frames (hashed) and ``fields``."""
+    from ..artifact import image_metadata
+
+    return image_metadata(TURNTABLE_SCHEMA, TURNTABLE_SCHEMA_VERSION, inputs=frames,
+                          turntable_frames=len(frames), **fields)
 
 
 @dataclass
@@ -678,12 +693,18 @@ def write_outputs(frame: Frame, scene: Scene, stats: Stats, *, png, exr=None,
     space in its ``chromaticities`` and ``gonio:exr_space``; settings and time in its
     metadata), the PNG (8-bit sRGB), if asked the gamut-warning PNG and the spectral EXR
     (:func:`gonio_cli.imageio.write_spectral_exr`, the frame's ``spectra``), atomically."""
+    from ..artifact import image_metadata
     from ..imageio import write_exr, write_png
     from .tonemap import get_exr_space
 
     elapsed = time.perf_counter() - start if start is not None else None
     space = get_exr_space(exr_space)
-    meta = {"schema": "gonio.render", "settings": settings(scene),
+    # the envelope of the EXRs (inputs hashed once); the PNG's leaves the inputs out: a
+    # re-fitted material of the same parameters (new file, new hash) must give the same
+    # PNG bytes, so gonio batch can skip what depends on the frame (docs/batch.md)
+    base = image_metadata(IMAGE_SCHEMA, IMAGE_SCHEMA_VERSION, inputs=scene.inputs)
+    png_base = {k: v for k, v in base.items() if k != "inputs"}
+    meta = {**base, "settings": settings(scene),
             "render_time_s": elapsed if elapsed is not None else
             sum(v for k, v in stats.time_s.items() if "." not in k),
             "frame_time_s": frame_time(stats), "exr_space": exr_space,
@@ -697,7 +718,6 @@ def write_outputs(frame: Frame, scene: Scene, stats: Stats, *, png, exr=None,
     if spectral_exr is not None:
         if frame.spectra is None:
             raise ValueError("the frame has no spectra: render_scene(..., spectra=True)")
-        from ..artifact import input_records
         from ..spectra import grid_spec
 
         with _Stage(stats, "write_spectral_exr"):
@@ -705,17 +725,17 @@ def write_outputs(frame: Frame, scene: Scene, stats: Stats, *, png, exr=None,
 
             write_spectral_exr(
                 spectral_exr, frame.spectra, scene.grid_nm, frame.linear,
-                {"schema": "gonio.render-spectra", "settings": settings(scene),
-                 "inputs": input_records(scene.inputs),
+                {**base, "schema": "gonio.render-spectra", "settings": settings(scene),
                  "grid_nm": grid_spec(scene.grid_nm) or [float(v) for v in scene.grid_nm],
                  "radiance_units": SPECTRAL_UNITS,
                  "preview": "R, G, B: the colour EXR's linear sRGB (after adaptation)",
                  "render_time_s": meta["render_time_s"]})
     with _Stage(stats, "write_png"):
-        write_png(png, frame.display, {"schema": "gonio.render", "settings": settings(scene)})
+        write_png(png, frame.display, {**png_base, "settings": settings(scene)})
         if gamut_warning is not None:
             write_png(gamut_warning, gamut_warning_image(frame),
-                      {"schema": "gonio.render-gamut-warning", "settings": settings(scene),
+                      {**png_base, "schema": "gonio.render-gamut-warning",
+                       "settings": settings(scene),
                        "marked": f"pixels outside sRGB painted sRGB {GAMUT_WARNING_RGB}",
                        "out_of_gamut_pixels": stats.counts.get("out_of_gamut_pixels")})
 

@@ -305,8 +305,14 @@ def _substitute(value, variables: Mapping[str, str], chk: _Checker, where: str):
 
 # ------------------------------------------------------------------------------ loader --
 
+def read_scene_toml(path: str | os.PathLike, display: str | None = None) -> dict[str, Any]:
+    """A scene file as data (``tomllib``), or one line naming the file."""
+    return read_toml(path, "scene", InputError, display)
+
+
 def load_scene(path: str | os.PathLike, *, variables: Mapping[str, str] | None = None,
-               overrides: Mapping[str, Any] | None = None) -> Scene:
+               overrides: Mapping[str, Any] | None = None,
+               doc: Mapping[str, Any] | None = None) -> Scene:
     """Read and validate a scene file.
 
     Parameters
@@ -316,6 +322,9 @@ def load_scene(path: str | os.PathLike, *, variables: Mapping[str, str] | None =
     overrides : command-line settings that replace the file's: ``width``, ``height``
         (camera), ``ssaa``, ``spectral``, ``exposure``, ``tonemap``, ``adapt``, ``grid_nm`` (output;
         a ``grid_nm`` given here is used as it is, :func:`choose_grid`); None = keep.
+    doc : the scene as data (what ``tomllib`` gives for the file, e.g. a template edited
+        by a program); None reads ``path``, which in both cases names the scene in errors
+        and anchors its relative paths.
 
     Raises
     ------
@@ -324,7 +333,8 @@ def load_scene(path: str | os.PathLike, *, variables: Mapping[str, str] | None =
     display = os.fspath(path)
     path = Path(path)
     chk = _Checker(path.resolve(), display)
-    doc = read_toml(path, "scene", InputError, display)
+    if doc is None:
+        doc = read_scene_toml(path, display)
     chk.keys(doc, TOP_KEYS, "")
 
     defaults = chk.table(doc.get("vars", {}), "[vars]")

@@ -15,9 +15,12 @@ import numpy as np
 
 from . import format_seconds, sweeps
 
-ROOT = Path(__file__).resolve().parent.parent.parent
-SAMPLE_DATA = ROOT / "sample_data"
-SCENES = SAMPLE_DATA / "scenes"
+
+def _sample(*parts: str) -> Path:
+    """A file of the bundled sample data (:func:`gonio_cli.samples.sample_data_dir`)."""
+    from ..samples import sample_data_dir
+
+    return sample_data_dir().joinpath(*parts)
 
 #: Seed 000 Table 1 (RTX 4080 laptop GPU, 512 × 512): the paper's numbers, pasted and
 #: labelled as such in the report. Render time per frame in µs, shared by the three inks.
@@ -134,21 +137,20 @@ def _scatter(path: Path, series: dict[str, tuple[list[float], list[float]]], xla
 
 # -------------------------------------------------------------------------------- inputs --
 
-def default_inputs(exclude_theta_i_deg=(70.0,)) -> Inputs:
-    """The bundled sample inks as the demo ingests them (pipelines/rgbink.mk), fitted in
-    memory with both models (seed 000 leaves out the 70° row)."""
+def default_inputs(exclude_theta_i_deg=None) -> Inputs:
+    """The bundled sample inks as the demo ingests them (sample_data/inks.toml, read by
+    pipelines/rgbink.mk too), fitted in memory with both models (seed 000 leaves out the
+    70° row: the file's ``[fit]``, unless ``exclude_theta_i_deg`` is given)."""
     from ..ingest import ingest
+    from ..samples import demo_fit_options, demo_inks
 
-    files = {"red": (["ink_red.csv"], {}),
-             "green": (["ink_green.csv"], {"quantity": "ratio-to-white",
-                                           "white_reflectance": 0.99}),
-             "blue": (["ink_blue_a.csv", "ink_blue_b.csv"], {})}
+    if exclude_theta_i_deg is None:
+        exclude_theta_i_deg = tuple(demo_fit_options().get("exclude_theta_i_deg", ()))
     inks, sources = [], []
-    for name, (csvs, kw) in files.items():
-        paths = [SAMPLE_DATA / c for c in csvs]
-        sources += [str(p) for p in paths]
-        m = ingest(paths, **kw)
-        inks.append(Ink(name, m, fit_models(m, exclude_theta_i_deg)))
+    for ink in demo_inks():
+        sources += [str(p) for p in ink.files]
+        m = ingest(list(ink.files), **ink.ingest)
+        inks.append(Ink(ink.name, m, fit_models(m, exclude_theta_i_deg)))
     return Inputs(inks, [(f"{i.name} ({MODEL_LABEL[k]})", mat) for i in inks
                          for k, mat in i.materials.items()], sources)
 
@@ -255,7 +257,7 @@ def lobes_section(inputs: Inputs, workdir: Path, quick: bool) -> Section:
 
     res = sweeps.lobe_sweep(max_lobes=4 if quick else 8, repeats=3 if quick else 15)
     rows = res["rows"]
-    sky = read_image(SAMPLE_DATA / "sky.exr").pixels[:, :, :3].astype(np.float64)
+    sky = read_image(_sample("sky.exr")).pixels[:, :, :3].astype(np.float64)
     sky = envmap.downsample(sky, max(1, sky.shape[0] // 64))
     ink = inputs.inks[0].materials.get("goniochromatic") if inputs.inks else None
     render = sweeps.lobe_render_times(res["basis"], ink, sky, size=96 if quick else 256) \
@@ -302,7 +304,7 @@ def prefilter_section(inputs: Inputs, workdir: Path, quick: bool) -> Section:
     from .. import envmap
     from ..imageio import read_image
 
-    sky = read_image(SAMPLE_DATA / "sky.exr").pixels[:, :, :3].astype(np.float64)
+    sky = read_image(_sample("sky.exr")).pixels[:, :, :3].astype(np.float64)
     h = sky.shape[0]
     small = envmap.downsample(sky, max(1, h // 64))
     mid = envmap.downsample(sky, max(1, h // (128 if quick else 256)))
@@ -343,15 +345,16 @@ def prefilter_section(inputs: Inputs, workdir: Path, quick: bool) -> Section:
 
 # -------------------------------------------------------------------------------- render --
 
-def _sphere_scene(workdir: Path, segments: int | None) -> Path:
-    """spheres.toml with the sphere's tessellation set (scratch copy in ``workdir``)."""
-    text = (SCENES / "spheres.toml").read_text(encoding="utf-8")
+def _sphere_scene(segments: int | None) -> tuple[Path, dict]:
+    """spheres.toml as data with the sphere's tessellation set: (path, scene)."""
+    from ..render.scene import read_scene_toml
+
+    path = _sample("scenes", "spheres.toml")
+    doc = read_scene_toml(path)
     if segments is not None:
-        text = text.replace('mesh = "builtin:sphere"',
-                            f'mesh = "builtin:sphere?segments={segments}"')
-    path = workdir / f"spheres-s{segments or 'default'}.toml"
-    path.write_text(text, encoding="utf-8")
-    return path
+        sphere = next(o for o in doc["object"] if o.get("mesh") == "builtin:sphere")
+        sphere["mesh"] = f"builtin:sphere?segments={segments}"
+    return path, doc
 
 
 def render_section(inputs: Inputs, workdir: Path, quick: bool) -> Section:
@@ -359,20 +362,21 @@ def render_section(inputs: Inputs, workdir: Path, quick: bool) -> Section:
     ink = inputs.inks[0].name
     variables = {"out": str(workdir), "material": ink}
     ref_settings = dict(spectral="exact", ssaa=4, segments=288)
-    ref, _, ref_t = sweeps.render_scene_file(_sphere_scene(workdir, 288), variables,
-                                             width=size, height=size, ssaa=4,
-                                             spectral="exact")
+    path, doc = _sphere_scene(288)
+    ref, _, ref_t = sweeps.render_scene_file(path, variables, doc=doc, width=size,
+                                             height=size, ssaa=4, spectral="exact")
     points = [dict(sweep=f"{sp}, ssaa 1-3", spectral=sp, ssaa=s, segments=None)
               for sp in ("table", "exact") for s in (1, 2, 3)]
     points += [dict(sweep="table, ssaa 2, segments 12-96", spectral="table", ssaa=2,
                     segments=n) for n in (12, 24, 48, 96)]
     rows = []
     for p in points:
-        scene = _sphere_scene(workdir, p["segments"])
-        sweeps.render_scene_file(scene, variables, width=size, height=size, ssaa=p["ssaa"],
-                                 spectral=p["spectral"])  # warm (first use in the process)
-        frame, stats, t = sweeps.render_scene_file(scene, variables, width=size, height=size,
-                                                   ssaa=p["ssaa"], spectral=p["spectral"])
+        path, doc = _sphere_scene(p["segments"])
+        sweeps.render_scene_file(path, variables, doc=doc, width=size, height=size,
+                                 ssaa=p["ssaa"], spectral=p["spectral"])  # warm (first use)
+        frame, stats, t = sweeps.render_scene_file(path, variables, doc=doc, width=size,
+                                                   height=size, ssaa=p["ssaa"],
+                                                   spectral=p["spectral"])
         covered = (frame.coverage > 0) | (ref.coverage > 0)
         de = sweeps.delta_e_2000(frame.xyz[covered], ref.xyz[covered])
         segments = p["segments"] or 144
@@ -423,12 +427,12 @@ def table1_section(inputs: Inputs, workdir: Path, quick: bool) -> Section:
     rows, images = [], {}
     for ink in inputs.inks:
         v = {"out": str(workdir), "ink": ink.name}
-        ref, _, ref_t = sweeps.render_scene_file(SCENES / "spheres_measured.toml", v,
+        ref, _, ref_t = sweeps.render_scene_file(_sample("scenes", "spheres_measured.toml"), v,
                                                  width=size, height=size)
         ref_img = ref.display / 255.0
         images[(ink.name, "measured")] = ref.display
         for model, suffix in (("goniochromatic", ""), ("torrance-sparrow", ".torrance-sparrow")):
-            scene = SCENES / "spheres.toml"
+            scene = _sample("scenes", "spheres.toml")
             mv = {"out": str(workdir), "material": ink.name + suffix}
             sweeps.render_scene_file(scene, mv, width=size, height=size)  # warm
             frame, _, t = sweeps.render_scene_file(scene, mv, width=size, height=size)

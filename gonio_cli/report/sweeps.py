@@ -206,15 +206,17 @@ def delta_e_2000(xyz_a, xyz_b) -> np.ndarray:
                                      colour.XYZ_to_Lab(xyz_b, white), method="CIE 2000"))
 
 
-def render_scene_file(path: Path, variables: dict | None = None, **overrides):
+def render_scene_file(path: Path, variables: dict | None = None, *, doc: dict | None = None,
+                      **overrides):
     """Load and render one scene file (a template; ``overrides`` as ``gonio render``'s
-    width, height, ssaa, spectral). Returns (Frame, Stats, frame time s)."""
+    width, height, ssaa, spectral; ``doc``: the scene as data, ``path`` then only anchors
+    its relative paths). Returns (Frame, Stats, frame time s)."""
     from ..render import Stats
     from ..render.pipeline import frame_time, render_scene
     from ..render.scene import load_scene
 
     stats = Stats()
-    scene = load_scene(path, variables=variables or {},
+    scene = load_scene(path, variables=variables or {}, doc=doc,
                        overrides={k: overrides.get(k) for k in
                                   ("width", "height", "ssaa", "spectral", "exposure",
                                    "tonemap")})
