@@ -13,6 +13,7 @@ from gonio_cli.fit import fit, to_material
 from gonio_cli.fit.common import (FitOptions, LinearProfile, golden_section, prepare,
                                   weighted_linear_lsq)
 from gonio_cli.geometry import in_plane_cosines
+from gonio_cli.names import OPTIMIZERS_BY_MODEL
 from gonio_cli.schemas import Measurement, read_material, write_measurement
 from gonio_cli.synthetic import ink_spectra, paper_geometry, synthetic_measurement
 
@@ -81,7 +82,7 @@ def test_step2_at_the_true_alpha_is_exact_on_mirror_configurations():
         np.testing.assert_allclose(result.params["c"], c, atol=1e-9)
 
 
-@pytest.mark.parametrize("optimizer", ["nlopt-bobyqa", "nlopt-lbfgs", "scipy-least-squares"])
+@pytest.mark.parametrize("optimizer", OPTIMIZERS_BY_MODEL["goniochromatic"][1:])
 @pytest.mark.parametrize("alpha, noise", [(0.03, 0.0), (0.19, 0.0), (0.19, 0.02), (0.6, 0.02),
                                           (0.85, 0.0)])
 def test_every_optimizer_reaches_the_same_minimum(optimizer, alpha, noise):
@@ -89,7 +90,10 @@ def test_every_optimizer_reaches_the_same_minimum(optimizer, alpha, noise):
     # point it evaluated must be kept (a regression: it once fell back to the coarse scan).
     m, rho, c = gonio_measurement(alpha, noise=noise, seed=5,
                                   theta_i_deg=(20.0, 30.0, 40.0, 50.0, 60.0, 70.0))
-    base = fit(prepare(m), "goniochromatic", FitOptions()).params
+    # the default (the first name) against each alternative, never against itself
+    base = fit(prepare(m), "goniochromatic", FitOptions()).result
+    assert base.optimizer == OPTIMIZERS_BY_MODEL["goniochromatic"][0] != optimizer
+    base = base.params
     p = fit(prepare(m), "goniochromatic", FitOptions(optimizer=optimizer)).params
     # Same cost function, same minimum: agreement to the α tolerance (1e-8 in log α)
     # up to the flatness of the cost there (relative 1e-6 is ~100× the precision needed).
@@ -273,6 +277,9 @@ def test_cli_fit_writes_a_material_that_evaluates_like_the_model(run_gonio, meas
 @pytest.mark.parametrize("args, needle", [
     (["--model", "phong"], "--model 'phong' is unknown"),
     (["--optimizer", "newton"], "--optimizer 'newton' is unknown"),
+    (["--model", "cook-torrance", "--optimizer", "nlopt-lbfgs"],
+     "--optimizer nlopt-lbfgs does not apply to --model cook-torrance; use one of "
+     "golden-section, scipy-least-squares"),
     (["--step2", "some"], "--step2 'some' is unknown"),
     (["--alpha", "2"], "--alpha 2 is outside"),
     (["--exclude-theta-i", "75"], "no configuration has theta_i_deg=75"),

@@ -7,13 +7,9 @@ from typing import List, Optional
 
 import typer
 
-OPTIMIZER_NAMES = ("nlopt-bobyqa", "nlopt-lbfgs", "scipy-least-squares")
-#: Mirrors gonio_cli.fit.MODEL_CHOICES and fit.common.RESIDUALS (the help must not import
-#: the fit package: a test checks these against the registries).
-MODEL_NAMES = ("goniochromatic", "goniochromatic-diffuse", "goniochromatic-coat",
-               "torrance-sparrow", "cook-torrance", "cook-torrance-2", "cook-torrance-3",
-               "auto")
-RESIDUAL_NAMES = ("compressive", "log", "linear")
+from ..names import FIT_MODEL_CHOICES as MODEL_NAMES
+from ..names import OPTIMIZER_NAMES, OPTIMIZERS_BY_MODEL, RESIDUAL_NAMES
+
 #: The default model; only its poor fits try the other models for a hint (a model chosen
 #: on purpose, e.g. the standard model for a comparison, is not second-guessed).
 DEFAULT_MODEL = "goniochromatic"
@@ -47,8 +43,10 @@ def fit(
              "linear."),
     std_weights: bool = typer.Option(True, "--std-weights/--no-std-weights",
                                      help="Weight by brdf_std of the repeats when present."),
-    optimizer: str = typer.Option("nlopt-bobyqa", "--optimizer", metavar="NAME",
-                                  help=f"One of: {', '.join(OPTIMIZER_NAMES)}."),
+    optimizer: Optional[str] = typer.Option(
+        None, "--optimizer", metavar="|".join(OPTIMIZER_NAMES), show_default=False,
+        help="Default: the model's first. " + "; ".join(
+            f"{m}: {', '.join(v)}" for m, v in OPTIMIZERS_BY_MODEL.items()) + "."),
     alpha: Optional[float] = typer.Option(None, "--alpha", metavar="ALPHA",
                                           help="Fix the roughness instead of fitting it."),
     max_error: Optional[float] = typer.Option(
@@ -75,23 +73,20 @@ def fit(
     """
     from .. import log
     from ..errors import FitError, InputError, PoorFitError
-    from ..fit import MODEL_CHOICES, judge, to_material
+    from ..fit import check_options, judge, to_material
     from ..fit import fit as run_fit
     from ..fit import fit_auto
-    from ..fit.common import FitOptions, check_optimizer, prepare
+    from ..fit.common import FitOptions, prepare
     from ..schemas import read_measurement, write_material
     from . import require_files
 
     require_files([measurement], missing_fix="check the path or make it with gonio ingest")
     if on_failure not in ("error", "write"):
         raise InputError(f"--on-failure {on_failure!r} is unknown", fix="use error or write")
-    if model not in MODEL_CHOICES:
-        raise InputError(f"--model {model!r} is unknown",
-                         fix=f"use one of {', '.join(MODEL_CHOICES)}")
+    check_options(model, optimizer)
     if max_error is not None and not (max_error > 0 and max_error < 1e3):
         raise InputError(f"--max-error {max_error:g} is not a CIEDE2000 limit",
                          fix="give a number in (0, 1000), e.g. 1.0")
-    check_optimizer(optimizer)
     from ..outputs import declare
     declare({"-o": output, "--plot": plot}, [measurement, weights])
     m = read_measurement(measurement)
