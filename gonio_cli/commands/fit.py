@@ -8,7 +8,7 @@ from typing import List, Optional
 import typer
 
 from ..names import FIT_MODEL_CHOICES as MODEL_NAMES
-from ..names import OPTIMIZER_NAMES, OPTIMIZERS_BY_MODEL, RESIDUAL_NAMES
+from ..names import OPTIMIZER_NAMES, OPTIMIZERS_BY_MODEL, RESIDUAL_NAMES, STEP2_NAMES, metavar
 
 #: The default model; only its poor fits try the other models for a hint (a model chosen
 #: on purpose, e.g. the standard model for a comparison, is not second-guessed).
@@ -20,12 +20,12 @@ def fit(
                                       help="A gonio.measurement file (gonio ingest)."),
     output: Path = typer.Option(..., "--output", "-o", metavar="MATERIAL.json",
                                 help="The gonio.material file to write."),
-    model: str = typer.Option(DEFAULT_MODEL, "--model", "-m", metavar="NAME",
-                              help=f"One of: {', '.join(MODEL_NAMES)} (auto: every model, "
-                                   "the best on held-out angles of incidence)."),
+    model: str = typer.Option(DEFAULT_MODEL, "--model", "-m", metavar=metavar(MODEL_NAMES),
+                              help="The model (docs/fit.md); auto: every model, the best "
+                                   "on held-out angles of incidence."),
     refine: bool = typer.Option(True, "--refine/--no-refine",
                                 help="Fit alpha, rho, c jointly after seed 000's two steps."),
-    step2: str = typer.Option("mirror", "--step2", metavar="mirror|all",
+    step2: str = typer.Option("mirror", "--step2", metavar=metavar(STEP2_NAMES),
                               help="Configurations of the paper's step 2: mirror (eq. 7) or all."),
     exclude_theta_i: List[float] = typer.Option(
         [], "--exclude-theta-i", "--exclude-theta-i-deg", metavar="DEG",
@@ -38,13 +38,13 @@ def fit(
         help="Weights by configuration: CSV theta_i_deg,theta_o_deg,weight (unlisted: 1; "
              "0 leaves one out)."),
     residuals: str = typer.Option(
-        "compressive", "--residuals", metavar="|".join(RESIDUAL_NAMES),
+        "compressive", "--residuals", metavar=metavar(RESIDUAL_NAMES),
         help="compressive (peak and tail alike, default), log (multiplicative noise) or "
              "linear."),
     std_weights: bool = typer.Option(True, "--std-weights/--no-std-weights",
                                      help="Weight by brdf_std of the repeats when present."),
     optimizer: Optional[str] = typer.Option(
-        None, "--optimizer", metavar="|".join(OPTIMIZER_NAMES), show_default=False,
+        None, "--optimizer", metavar=metavar(OPTIMIZER_NAMES), show_default=False,
         help="Default: the model's first. " + "; ".join(
             f"{m}: {', '.join(v)}" for m, v in OPTIMIZERS_BY_MODEL.items()) + "."),
     alpha: Optional[float] = typer.Option(None, "--alpha", metavar="ALPHA",

@@ -16,6 +16,8 @@ from typing import Optional
 
 import typer
 
+from ..names import PREFILTER_AUTO, PREFILTER_METHOD_NAMES, metavar
+
 #: Schema of OUTDIR/index.json (its fields: gonio_cli.schemas.prefilter_index_spec).
 INDEX_SCHEMA = "gonio.prefilter"
 INDEX_VERSION = 1
@@ -80,7 +82,8 @@ def prefilter(
                                             help="Cosine-lobe exponents, 1 to 1e4."),
     lobes: Optional[Path] = typer.Option(None, "--lobes", metavar="LOBES.json",
                                          help="Take the exponents of a gonio.lobes file."),
-    method: str = typer.Option("auto", "--method", "-m", metavar="NAME",
+    method: str = typer.Option("auto", "--method", "-m",
+                               metavar=metavar((PREFILTER_AUTO,) + PREFILTER_METHOD_NAMES),
                                help="auto (per exponent), ring, or brute (exact, slow)."),
     resolution: Optional[int] = typer.Option(
         None, "--resolution", metavar="HEIGHT",

@@ -7,7 +7,8 @@ from typing import List, Optional
 
 import typer
 
-RULE_NAMES = ("mad", "percentile")  # gonio_cli.sparkle.SEGMENTATION_RULES (lazy)
+from ..names import SPARKLE_RULE_NAMES as RULE_NAMES
+from ..names import metavar
 
 
 def parse_angles(text: str) -> list[float]:
@@ -33,7 +34,7 @@ def sparkle(
     theta_i: str = typer.Option("10,20,30,40,50,60,70", "--theta-i", metavar="DEG,...",
                                 help="Angle of incidence of each photo, in the photos' "
                                      "order (degrees; at most 8)."),
-    rule: str = typer.Option("mad", "--rule", metavar="NAME",
+    rule: str = typer.Option("mad", "--rule", metavar=metavar(RULE_NAMES),
                              help=f"Segmentation of the brightest pixels: one of "
                                   f"{', '.join(RULE_NAMES)}."),
     parameter: Optional[float] = typer.Option(None, "--parameter", metavar="X",

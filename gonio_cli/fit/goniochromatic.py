@@ -44,7 +44,7 @@ STEP1_MIN_CONFIGURATIONS = 3
 
 LOG4 = np.log(4.0)
 
-STEP2_MODES = ("mirror", "all")
+from ..names import STEP2_NAMES as STEP2_MODES  # noqa: E402
 
 
 # ------------------------------------------------------------------------ step 2 core --
