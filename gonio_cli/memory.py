@@ -96,7 +96,7 @@ def check(need: int, what: str, *, fix: str, path=None) -> int:
     what : str
         The work, as the message names it: ``"a 2048x2048 render at ssaa 16"``.
     fix : str
-        The option(s) that lower the estimate: ``"lower --ssaa or --width/--height"``.
+        The option(s) that lower the estimate: ``"lower --ssaa or --width-px/--height-px"``.
     path : optional
         The file the work comes from (printed first).
 

@@ -10,7 +10,7 @@
 RGBINK     := $(OUT)/rgbink
 INKS       := red green blue
 # Seed 000 leaves out the unreliable 70° row.
-RGBINK_FIT := --exclude-theta-i 70
+RGBINK_FIT := --exclude-theta-i-deg 70
 
 RGBINK_TARGETS := \
   $(foreach i,$(INKS),$(RGBINK)/$(i).measurement.json $(RGBINK)/$(i).material.json \

@@ -16,7 +16,7 @@ import pytest
 import typer.main
 
 from gonio_cli import cli
-from gonio_cli.commands import argument_label, first_sentence
+from gonio_cli.commands import HIDDEN_ALIASES, argument_label, first_sentence
 
 
 def all_commands():
@@ -258,3 +258,36 @@ def test_each_fitter_s_optimizers_are_its_names_default_first():
     for model in names.FIT_MODEL_NAMES:
         assert tuple(fit.OPTIMIZERS_BY_MODEL[model]) == names.OPTIMIZERS_BY_MODEL[model], model
     assert FitOptions().optimizer is None      # None: each fitter's first
+
+
+# ------------------------------------------------------------------ flags carry units --
+
+#: A metavar that says the value's unit, and the suffix the flag's shown name then ends in.
+UNIT_METAVARS = {"DEG": "-deg", "DEG,...": "-deg", "PX": "-px", "MM": "-mm", "S": "-s",
+                 "STOPS": "-stops"}
+
+
+def test_a_flag_with_a_unit_says_it_in_its_name():
+    for path, cmd in COMMANDS:
+        for p in getattr(cmd, "params", []):
+            suffix = UNIT_METAVARS.get(p.metavar or "")
+            if suffix is None or p.param_type_name != "option":
+                continue
+            shown = [o for o in p.opts if o not in HIDDEN_ALIASES]
+            assert shown and all(o.endswith(suffix) for o in shown if o.startswith("--")), \
+                (path, p.opts)
+
+
+@pytest.mark.parametrize("path, new, old", [
+    ("render", "--width-px", "--width"), ("render", "--height-px", "--height"),
+    ("render", "--exposure-stops", "--exposure"),
+    ("fit", "--exclude-theta-i-deg", "--exclude-theta-i"),
+    ("fit", "--exclude-theta-o-deg", "--exclude-theta-o"),
+    ("sparkle", "--theta-i-deg", "--theta-i"), ("prefilter", "--height-px", "--resolution"),
+    ("lobes fit", "--view-angles-deg", "--view-angles")])
+def test_old_spellings_are_hidden_aliases(run_gonio, path, new, old):
+    param = _option(path, new)
+    assert old in param.opts                     # still parsed, to the same parameter
+    text = run_gonio(*path.split(), "--help").stdout
+    assert re.search(rf"{re.escape(new)}\b", text)
+    assert not re.search(rf"{re.escape(old)}(?![\w-])", text), (path, old)

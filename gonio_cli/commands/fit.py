@@ -28,10 +28,10 @@ def fit(
     step2: str = typer.Option("mirror", "--step2", metavar=metavar(STEP2_NAMES),
                               help="Configurations of the paper's step 2: mirror (eq. 7) or all."),
     exclude_theta_i: List[float] = typer.Option(
-        [], "--exclude-theta-i", "--exclude-theta-i-deg", metavar="DEG",
+        [], "--exclude-theta-i-deg", "--exclude-theta-i", metavar="DEG",
         help="Leave out an angle of incidence (deg); repeatable."),
     exclude_theta_o: List[float] = typer.Option(
-        [], "--exclude-theta-o", "--exclude-theta-o-deg", metavar="DEG",
+        [], "--exclude-theta-o-deg", "--exclude-theta-o", metavar="DEG",
         help="Leave out a detector angle (deg, signed); repeatable."),
     weights: Optional[Path] = typer.Option(
         None, "--weights", metavar="WEIGHTS.csv",
@@ -68,7 +68,7 @@ def fit(
 
     \b
     Example:
-      gonio fit red.measurement.json -o red.material.json --exclude-theta-i 70 --plot red.png
+      gonio fit red.measurement.json -o red.material.json --exclude-theta-i-deg 70 --plot red.png
       gonio fit wrap.measurement.json -o wrap.material.json --model auto
     """
     from .. import log
@@ -270,7 +270,7 @@ def better_model_hint(data, result, judgement: dict, options) -> str | None:
             f"{best[0]:.2f} in sample); --model auto chooses by held-out angles")
 
 
-EXAMPLE = ("gonio fit red.measurement.json -o red.material.json --exclude-theta-i 70 "
+EXAMPLE = ("gonio fit red.measurement.json -o red.material.json --exclude-theta-i-deg 70 "
            "--plot red.png")
 
 

@@ -86,7 +86,7 @@ def prefilter(
                                metavar=metavar((PREFILTER_AUTO,) + PREFILTER_METHOD_NAMES),
                                help="auto (per exponent), ring, or brute (exact, slow)."),
     resolution: Optional[int] = typer.Option(
-        None, "--resolution", metavar="HEIGHT",
+        None, "--height-px", "--resolution", metavar="PX",
         help="Force the output height (the input's divided by a power of two)."),
     fix_invalid: bool = typer.Option(False, "--fix-invalid",
                                      help="Replace NaN/inf/negative texels instead of failing."),

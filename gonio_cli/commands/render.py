@@ -32,7 +32,8 @@ def render(
     spectral: Optional[str] = typer.Option(
         None, "--spectral", metavar=metavar(SPECTRAL),
         help="Tabulated spectral sum (fast) or all wavelengths per pixel (overrides [output])."),
-    exposure: Optional[float] = typer.Option(None, "--exposure", metavar="STOPS",
+    exposure: Optional[float] = typer.Option(None, "--exposure-stops", "--exposure",
+                                             metavar="STOPS",
                                              help="Exposure in stops (overrides [output])."),
     tonemap: Optional[str] = typer.Option(
         None, "--tonemap", metavar=metavar(TONEMAP_NAMES),
@@ -45,9 +46,9 @@ def render(
     gamut_warning: Optional[Path] = typer.Option(
         None, "--gamut-warning", metavar="FILE.png",
         help="Also write the PNG with pixels outside sRGB painted grey."),
-    width: Optional[int] = typer.Option(None, "--width", metavar="PX",
+    width: Optional[int] = typer.Option(None, "--width-px", "--width", metavar="PX",
                                         help="Image width (overrides [camera])."),
-    height: Optional[int] = typer.Option(None, "--height", metavar="PX",
+    height: Optional[int] = typer.Option(None, "--height-px", "--height", metavar="PX",
                                          help="Image height (overrides [camera])."),
     grid_nm: Optional[str] = typer.Option(
         None, "--grid-nm", metavar="START:STOP:STEP",

@@ -151,9 +151,9 @@ def prepare(measurement: Measurement, *, residuals: str = "log",
     ti, to = measurement.theta_i_deg, measurement.theta_o_deg
     keep = np.ones(ti.shape, dtype=bool)
     dropped_ti, dropped_to = [], []
-    for flag, angles, dropped, values in (("--exclude-theta-i", exclude_theta_i_deg,
+    for flag, angles, dropped, values in (("--exclude-theta-i-deg", exclude_theta_i_deg,
                                            dropped_ti, ti),
-                                          ("--exclude-theta-o", exclude_theta_o_deg,
+                                          ("--exclude-theta-o-deg", exclude_theta_o_deg,
                                            dropped_to, to)):
         for t in angles:
             hit = np.abs(values - float(t)) < 1e-6
