@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from gonio_cli.brdf import goniochromatic
-from gonio_cli.errors import FitError
+from gonio_cli.errors import FitError, InputError
 from gonio_cli.fit import fit, to_material
 from gonio_cli.fit.common import (FitOptions, LinearProfile, golden_section, prepare,
                                   weighted_linear_lsq)
@@ -355,3 +355,23 @@ def test_sample_inks_fit_back_to_their_truth(ink, files, options, residuals):
     ea, er, ec = errors(result.params, truth["alpha"], np.array(truth["rho"]),
                         np.array(truth["c"]))
     assert result.result.success and ea < 0.01 and er < 0.02 and ec < 0.05
+
+
+@pytest.mark.parametrize("model, options, needle", [
+    ("goniochromatic", FitOptions(step2="some"), "--step2 'some' is unknown"),
+    ("goniochromatic", FitOptions(alpha=2.0), "--alpha 2 is outside"),
+    ("goniochromatic-diffuse", FitOptions(alpha=2.0), "--alpha 2 is outside"),
+    ("torrance-sparrow", FitOptions(alpha=2.0), "--alpha 2 is outside"),
+    ("cook-torrance", FitOptions(alpha=0.2), "--alpha does not apply"),
+    ("goniochromatic", FitOptions(optimizer="newton"), "--optimizer 'newton' is unknown"),
+    ("goniochromatic-coat", FitOptions(optimizer="scipy-least-squares"),
+     "--optimizer scipy-least-squares does not apply to --model goniochromatic-coat"),
+    ("cook-torrance-2", FitOptions(optimizer="nlopt-lbfgs"),
+     "--optimizer nlopt-lbfgs does not apply to --model cook-torrance-2"),
+])
+def test_option_errors_are_one_error_class(model, options, needle):
+    # every option a fitter refuses is an InputError (exit 2 in the CLI), never a FitError
+    m, _, _ = gonio_measurement(0.2, noise=0.0, seed=1)
+    with pytest.raises(InputError) as exc:
+        fit(prepare(m), model, options)
+    assert needle in exc.value.message and not isinstance(exc.value, FitError)

@@ -158,7 +158,7 @@ def prepare(measurement: Measurement, *, residuals: str = "log",
         for t in angles:
             hit = np.abs(values - float(t)) < 1e-6
             if not hit.any():
-                name = "theta_i_deg" if flag.endswith("-i") else "theta_o_deg"
+                name = "theta_i_deg" if flag.endswith("-i-deg") else "theta_o_deg"
                 raise InputError(f"{flag} {t:g}: no configuration has {name}={t:g}",
                                  path=path,
                                  fix=f"measured: {', '.join(f'{v:g}' for v in np.unique(values))}")
