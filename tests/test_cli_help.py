@@ -263,8 +263,8 @@ def test_each_fitter_s_optimizers_are_its_names_default_first():
 # ------------------------------------------------------------------ flags carry units --
 
 #: A metavar that says the value's unit, and the suffix the flag's shown name then ends in.
-UNIT_METAVARS = {"DEG": "-deg", "DEG,...": "-deg", "PX": "-px", "MM": "-mm", "S": "-s",
-                 "STOPS": "-stops"}
+UNIT_METAVARS = {"DEG": "-deg", "DEG,...": "-deg", "PX": "-px", "WxH": "-px", "MM": "-mm",
+                 "S": "-s", "STOPS": "-stops"}
 
 
 def test_a_flag_with_a_unit_says_it_in_its_name():
@@ -284,7 +284,8 @@ def test_a_flag_with_a_unit_says_it_in_its_name():
     ("fit", "--exclude-theta-i-deg", "--exclude-theta-i"),
     ("fit", "--exclude-theta-o-deg", "--exclude-theta-o"),
     ("sparkle", "--theta-i-deg", "--theta-i"), ("prefilter", "--height-px", "--resolution"),
-    ("lobes fit", "--view-angles-deg", "--view-angles")])
+    ("lobes fit", "--view-angles-deg", "--view-angles"),
+    ("halftone", "--size-px", "--size")])
 def test_old_spellings_are_hidden_aliases(run_gonio, path, new, old):
     param = _option(path, new)
     assert old in param.opts                     # still parsed, to the same parameter

@@ -79,7 +79,8 @@ def argument_label(param) -> str:
 #: accepted, never shown in ``--help`` (tests/test_cli_help.py checks each has a shown
 #: spelling with a unit).
 HIDDEN_ALIASES = frozenset({"--width", "--height", "--exclude-theta-i", "--exclude-theta-o",
-                            "--theta-i", "--resolution", "--view-angles", "--exposure"})
+                            "--theta-i", "--resolution", "--view-angles", "--exposure",
+                            "--size"})
 
 
 def _help_record(param, ctx):

@@ -56,7 +56,7 @@ def halftone(
     gamut: str = typer.Option("scale", "--gamut", metavar=metavar(GAMUT_NAMES),
                               help="Where r+g+b > 1: scale (divide by the sum) or clip "
                                    "(nearest in-gamut coverage)."),
-    size: Optional[str] = typer.Option(None, "--size", metavar="WxH",
+    size: Optional[str] = typer.Option(None, "--size-px", "--size", metavar="WxH",
                                        help="Resample to this many pixels first."),
     dpi: Optional[float] = typer.Option(None, "--dpi", metavar="DPI",
                                         help="Resample to this resolution (needs "
@@ -113,11 +113,11 @@ def halftone(
     if output.suffix.lower() != ".png":
         raise InputError("the mask must be a PNG", path=output, fix="name it *.png")
     if size is not None and (dpi is not None or print_width_mm is not None):
-        raise InputError("--size and --dpi/--print-width-mm both set the print size",
+        raise InputError("--size-px and --dpi/--print-width-mm both set the print size",
                          fix="give one of them")
     if (dpi is None) != (print_width_mm is None):
         raise InputError("--dpi and --print-width-mm go together",
-                         fix="give both, or --size WxH")
+                         fix="give both, or --size-px WxH")
     target_size = cov.parse_size(size) if size is not None else None
     from ..outputs import declare
     declare({"-o": output, "--report": report,
@@ -131,7 +131,7 @@ def halftone(
 
     width, height = target_size or (img.pixels.shape[1], img.pixels.shape[0])
     memory.check(core.memory_estimate(width, height), f"a {width}x{height} halftone", path=image,
-          fix="lower --size (or --dpi)" if size or dpi else "resample it first with --size")
+          fix="lower --size-px (or --dpi)" if size or dpi else "resample it first with --size-px")
     with log.timer() as t:
         prepared, result = core.prepare_and_halftone(
             img.pixels, is_float=img.is_float, encoding=input_encoding, gamut=gamut,
