@@ -258,6 +258,9 @@ def test_each_fitter_s_optimizers_are_its_names_default_first():
     for model in names.FIT_MODEL_NAMES:
         assert tuple(fit.OPTIMIZERS_BY_MODEL[model]) == names.OPTIMIZERS_BY_MODEL[model], model
     assert FitOptions().optimizer is None      # None: each fitter's first
+    from gonio_cli.commands import fit as shell
+
+    assert shell.DEFAULT_MODEL in names.FIT_MODEL_NAMES
 
 
 # ------------------------------------------------------------------ flags carry units --

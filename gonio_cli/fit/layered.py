@@ -28,7 +28,7 @@ import numpy as np
 
 from ..brdf import (LOG_MAX, evaluate, goniochromatic_exponent_arg, log_ggx_d,
                     torrance_sparrow)
-from ..errors import FitError, InputError
+from ..errors import InputError
 from .common import (ALPHA_MAX, ALPHA_MIN, C_LIMIT, FitData, FitOptions, FitReport,
                      ModelFit, Stopwatch, choose_optimizer, error_figures,
                      minimize_log_alpha, nm_list, profile_c)
