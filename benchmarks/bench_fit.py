@@ -32,7 +32,7 @@ MODELS = ("goniochromatic", "goniochromatic-diffuse", "goniochromatic-coat",
 #: (label, input files, ingest options, fit options) of the whole-command table.
 DATASETS = (
     ("red ink (sample, eq. 5 + 2 % noise)", ["sample_data/ink_red.csv"], [],
-     ["--exclude-theta-i", "70"]),
+     ["--exclude-theta-i-deg", "70"]),
     ("car paint (sample, 14 ASTM geometries)", ["sample_data/carpaint_multiangle.csv"],
      ["--quantity", "reflectance-factor"], []),
     ("matte pigment (MA-T12, 12 geometries)", ["tests/fixtures/real/ma_t12_clean.csv"],
@@ -49,10 +49,11 @@ def commands(tmp: Path, quick: bool) -> None:
             ("gonio ingest (red ink, 15 252 rows)",
              [gonio, "-q", "ingest", str(ROOT / "sample_data/ink_red.csv"), "-o", str(red)]),
             ("gonio fit (red ink, default)",
-             [gonio, "-q", "fit", str(red), "-o", str(tmp / "m.json"), "--exclude-theta-i", "70"]),
+             [gonio, "-q", "fit", str(red), "-o", str(tmp / "m.json"),
+              "--exclude-theta-i-deg", "70"]),
             ("gonio fit --plot",
-             [gonio, "-q", "fit", str(red), "-o", str(tmp / "m.json"), "--exclude-theta-i", "70",
-              "--plot", str(tmp / "m.png")]),
+             [gonio, "-q", "fit", str(red), "-o", str(tmp / "m.json"),
+              "--exclude-theta-i-deg", "70", "--plot", str(tmp / "m.png")]),
             ("gonio eval",
              [gonio, "-q", "eval", str(tmp / "m.json"), "--at", str(red), "-o",
               str(tmp / "e.json")])]

@@ -208,7 +208,7 @@ def main() -> None:
             (f"OBJ sphere {n1m} tri, ssaa 1, cold cache", s1m, ("--ssaa", "1"), True),
             (f"OBJ sphere {n1m} tri, ssaa 1, cached arrays", s1m, ("--ssaa", "1"), False),
             ("builtin sphere, 2048x2048, ssaa 2", sbig,
-             ("--width", "2048", "--height", "2048"), False)]
+             ("--width-px", "2048", "--height-px", "2048"), False)]
     results = {}
     run_process(s20k, out, env=env)       # first use: colour tables into the fresh cache
     for label, scene, args, error in rows:

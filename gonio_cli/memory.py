@@ -2,7 +2,7 @@
 
 A stage that allocates in proportion to a user's option (render buffers × ssaa², the
 tessellation of ``builtin:sphere?segments=N``, a prefilter at full resolution, a
-halftone at ``--size``) estimates its peak bytes with an estimator next to the code that
+halftone at ``--size-px``) estimates its peak bytes with an estimator next to the code that
 allocates, and calls :func:`check` before the work. Beyond what the machine has, the run
 ends at once with one line giving the estimate, the memory available and the option to
 change (exit status 2), instead of a ``MemoryError`` or the kernel's OOM killer minutes
@@ -96,7 +96,7 @@ def check(need: int, what: str, *, fix: str, path=None) -> int:
     what : str
         The work, as the message names it: ``"a 2048x2048 render at ssaa 16"``.
     fix : str
-        The option(s) that lower the estimate: ``"lower --ssaa or --width/--height"``.
+        The option(s) that lower the estimate: ``"lower --ssaa or --width-px/--height-px"``.
     path : optional
         The file the work comes from (printed first).
 

@@ -21,7 +21,7 @@ SAMPLE_DATA_ENV = "GONIO_SAMPLE_DATA"
 #: The file that says how the demo reads the sample inks (and marks the folder).
 INKS_FILE = "inks.toml"
 #: ``gonio fit`` flags of the ``[fit]`` keys (the ``ingest`` keys are ``--key-with-dashes``).
-FIT_FLAGS = {"exclude_theta_i_deg": "--exclude-theta-i"}
+FIT_FLAGS = {"exclude_theta_i_deg": "--exclude-theta-i-deg"}
 
 
 def sample_data_dir() -> Path:

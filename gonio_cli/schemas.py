@@ -52,7 +52,7 @@ MAX_MAGNITUDE = 1e30
 #: ~0.1° wide, below any map's texel (gonio prefilter's MAX_EXPONENT).
 EXPONENT_RANGE = (1.0, 1e6)
 
-#: ``--exposure`` / ``[output] exposure`` in stops: 2^60 ≈ 1e18 still leaves a float32
+#: ``--exposure-stops`` / ``[output] exposure`` in stops: 2^60 ≈ 1e18 still leaves a float32
 #: pixel (max 3.4e38) room for any radiance below 1e20; a real scene needs ±20.
 EXPOSURE_MAX_STOPS = 60.0
 

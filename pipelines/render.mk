@@ -47,7 +47,7 @@ SPARKLE_PHOTOS := $(sort $(wildcard sample_data/sparkle/photo_ti*.png))
 # Sparkles (seed 004 §6): the texture from the sample flake photos (eqs. 15–16), then
 # the car paint under the sky and a sun, with sparkles (eq. 17).
 $(RENDER)/sparkle.png: $(SPARKLE_PHOTOS) | $(STAMP)
-	$(GONIO) sparkle $^ -o $@ --theta-i 10,20,30,40,50,60,70
+	$(GONIO) sparkle $^ -o $@ --theta-i-deg 10,20,30,40,50,60,70
 
 $(RENDER)/paint_sparkle.png: $(SCENES)/paint_sparkle.toml $(CARPAINT)/paint.material.json \
   $(LOBES)/paint.lobes.json $(SKY)/index.json $(RENDER)/sparkle.png

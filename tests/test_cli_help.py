@@ -16,7 +16,7 @@ import pytest
 import typer.main
 
 from gonio_cli import cli
-from gonio_cli.commands import argument_label, first_sentence
+from gonio_cli.commands import HIDDEN_ALIASES, argument_label, first_sentence
 
 
 def all_commands():
@@ -167,3 +167,131 @@ class _Param:
 ])
 def test_argument_label(metavar, nargs, label):
     assert argument_label(_Param(metavar, nargs)) == label
+
+
+# ------------------------------------------------- each choice listed once (names.py) --
+
+def _registries():
+    """(command path, flag, the names the shell shows, the core registry's keys): the
+    cores are imported here, never by the shells' help."""
+    from gonio_cli import fit, imageio, lobes, names, prefilter, report, sparkle
+    from gonio_cli.commands import halftone as halftone_shell
+    from gonio_cli.fit import common, goniochromatic
+    from gonio_cli.halftone import METHODS, coverage
+    from gonio_cli.render import shade, scene, tonemap
+
+    assert scene.SPECTRAL_MODES is names.SPECTRAL_PATHS is shade.SPECTRAL_PATHS
+    return [
+        ("fit", "--model", names.FIT_MODEL_CHOICES, tuple(fit.FITTERS) + (fit.AUTO,)),
+        ("fit", "--step2", names.STEP2_NAMES, goniochromatic.STEP2_MODES),
+        ("fit", "--residuals", names.RESIDUAL_NAMES, common.RESIDUALS),
+        ("fit", "--optimizer", names.OPTIMIZER_NAMES,
+         tuple(dict.fromkeys(k for v in fit.OPTIMIZERS_BY_MODEL.values() for k in v))),
+        ("render", "--spectral", names.SPECTRAL_PATHS, shade.SPECTRAL_PATHS),
+        ("render", "--tonemap", names.TONEMAP_NAMES, tuple(tonemap.TONEMAPS)),
+        ("render", "--adapt", names.ADAPTATION_NAMES, tuple(tonemap.ADAPTATIONS)),
+        ("render", "--exr-space", names.EXR_SPACE_NAMES, tuple(tonemap.EXR_SPACES)),
+        ("halftone", "--method", names.HALFTONE_METHOD_NAMES, tuple(METHODS)),
+        ("halftone", "--gamut", names.GAMUT_NAMES, tuple(coverage.GAMUT_MAPPERS)),
+        ("halftone", "--input-encoding", names.INPUT_ENCODING_NAMES, coverage.INPUT_ENCODINGS),
+        ("halftone", "--compress", names.COMPRESSION_NAMES, tuple(imageio.COMPRESSION)),
+        ("halftone", "--mask-format", names.MASK_FORMAT_NAMES,
+         tuple(halftone_shell.MASK_WRITERS)),
+        ("lobes basis", "--samples", names.SAMPLE_SET_NAMES + ("FILE.csv",),
+         tuple(lobes.SAMPLE_SETS) + ("FILE.csv",)),
+        ("lobes fit", "--samples", names.SAMPLE_SET_NAMES + ("FILE.csv",),
+         tuple(lobes.SAMPLE_SETS) + ("FILE.csv",)),
+        ("lobes basis", "--channels", names.CHANNEL_NAMES, tuple(lobes.CHANNELS)),
+        ("lobes fit", "--channels", names.CHANNEL_NAMES, tuple(lobes.CHANNELS)),
+        ("lobes basis", "--solver", names.BASIS_SOLVER_NAMES, tuple(lobes.BASIS_SOLVERS)),
+        ("lobes fit", "--solver", names.WEIGHT_SOLVER_NAMES, tuple(lobes.WEIGHT_SOLVERS)),
+        ("prefilter", "--method", (names.PREFILTER_AUTO,) + names.PREFILTER_METHOD_NAMES,
+         ("auto",) + tuple(prefilter.METHODS)),
+        ("sparkle", "--rule", names.SPARKLE_RULE_NAMES, tuple(sparkle.SEGMENTATION_RULES)),
+        ("report", "--sections", names.REPORT_SECTION_NAMES, report.SECTION_NAMES),
+    ]
+
+
+#: Choice metavars that name no core registry: the shell's own two-way switches, and
+#: "a value or a file" forms.
+NOT_REGISTRIES = {("fit", "--on-failure"), ("render", "--orbit"),
+                  ("ingest", "--white-reflectance"), ("ingest", "--theta-i-deg"),
+                  ("ingest", "--theta-o-deg"), ("lobes fit", "--view-angles"),
+                  ("batch", "--scheduler")}
+
+
+def _option(path: str, flag: str):
+    cmd = dict(COMMANDS)[path]
+    (param,) = [p for p in cmd.params if flag in p.opts]
+    return param
+
+
+def test_every_registry_s_keys_are_its_names_and_each_help_shows_them(run_gonio):
+    for path, flag, shown, keys in _registries():
+        assert shown == keys, (path, flag)
+        param = _option(path, flag)
+        help_text = run_gonio(*path.split(), "--help").stdout
+        if param.metavar not in ("LIST",):
+            assert param.metavar == "|".join(keys), (path, flag, param.metavar)
+            assert f"{flag} {param.metavar}" in help_text.replace("\n", " "), (path, flag)
+        else:   # a comma-separated subset: the help lists the names
+            assert ",".join(keys) in help_text, (path, flag)
+
+
+def test_every_choice_option_is_checked_against_a_registry():
+    # a choice option added later (a metavar listing names with "|") must join the table
+    # above or be named here as no registry's
+    checked = {(path, flag) for path, flag, _, _ in _registries()}
+    for path, cmd in COMMANDS:
+        for p in getattr(cmd, "params", []):
+            if p.metavar and "|" in p.metavar:
+                key = next(((path, o) for o in p.opts if (path, o) in checked | NOT_REGISTRIES),
+                           None)
+                assert key is not None, (path, p.opts, p.metavar)
+
+
+def test_each_fitter_s_optimizers_are_its_names_default_first():
+    from gonio_cli import fit, names
+    from gonio_cli.fit.common import FitOptions
+
+    assert tuple(fit.FITTERS) == names.FIT_MODEL_NAMES
+    for model in names.FIT_MODEL_NAMES:
+        assert tuple(fit.OPTIMIZERS_BY_MODEL[model]) == names.OPTIMIZERS_BY_MODEL[model], model
+    assert FitOptions().optimizer is None      # None: each fitter's first
+    from gonio_cli.commands import fit as shell
+
+    assert shell.DEFAULT_MODEL in names.FIT_MODEL_NAMES
+
+
+# ------------------------------------------------------------------ flags carry units --
+
+#: A metavar that says the value's unit, and the suffix the flag's shown name then ends in.
+UNIT_METAVARS = {"DEG": "-deg", "DEG,...": "-deg", "PX": "-px", "WxH": "-px", "MM": "-mm",
+                 "S": "-s", "STOPS": "-stops"}
+
+
+def test_a_flag_with_a_unit_says_it_in_its_name():
+    for path, cmd in COMMANDS:
+        for p in getattr(cmd, "params", []):
+            suffix = UNIT_METAVARS.get(p.metavar or "")
+            if suffix is None or p.param_type_name != "option":
+                continue
+            shown = [o for o in p.opts if o not in HIDDEN_ALIASES]
+            assert shown and all(o.endswith(suffix) for o in shown if o.startswith("--")), \
+                (path, p.opts)
+
+
+@pytest.mark.parametrize("path, new, old", [
+    ("render", "--width-px", "--width"), ("render", "--height-px", "--height"),
+    ("render", "--exposure-stops", "--exposure"),
+    ("fit", "--exclude-theta-i-deg", "--exclude-theta-i"),
+    ("fit", "--exclude-theta-o-deg", "--exclude-theta-o"),
+    ("sparkle", "--theta-i-deg", "--theta-i"), ("prefilter", "--height-px", "--resolution"),
+    ("lobes fit", "--view-angles-deg", "--view-angles"),
+    ("halftone", "--size-px", "--size")])
+def test_old_spellings_are_hidden_aliases(run_gonio, path, new, old):
+    param = _option(path, new)
+    assert old in param.opts                     # still parsed, to the same parameter
+    text = run_gonio(*path.split(), "--help").stdout
+    assert re.search(rf"{re.escape(new)}\b", text)
+    assert not re.search(rf"{re.escape(old)}(?![\w-])", text), (path, old)

@@ -8,11 +8,12 @@ import numpy as np
 import pytest
 
 from gonio_cli.brdf import goniochromatic
-from gonio_cli.errors import FitError
+from gonio_cli.errors import FitError, InputError
 from gonio_cli.fit import fit, to_material
 from gonio_cli.fit.common import (FitOptions, LinearProfile, golden_section, prepare,
                                   weighted_linear_lsq)
 from gonio_cli.geometry import in_plane_cosines
+from gonio_cli.names import OPTIMIZERS_BY_MODEL
 from gonio_cli.schemas import Measurement, read_material, write_measurement
 from gonio_cli.synthetic import ink_spectra, paper_geometry, synthetic_measurement
 
@@ -81,7 +82,7 @@ def test_step2_at_the_true_alpha_is_exact_on_mirror_configurations():
         np.testing.assert_allclose(result.params["c"], c, atol=1e-9)
 
 
-@pytest.mark.parametrize("optimizer", ["nlopt-bobyqa", "nlopt-lbfgs", "scipy-least-squares"])
+@pytest.mark.parametrize("optimizer", OPTIMIZERS_BY_MODEL["goniochromatic"][1:])
 @pytest.mark.parametrize("alpha, noise", [(0.03, 0.0), (0.19, 0.0), (0.19, 0.02), (0.6, 0.02),
                                           (0.85, 0.0)])
 def test_every_optimizer_reaches_the_same_minimum(optimizer, alpha, noise):
@@ -89,7 +90,10 @@ def test_every_optimizer_reaches_the_same_minimum(optimizer, alpha, noise):
     # point it evaluated must be kept (a regression: it once fell back to the coarse scan).
     m, rho, c = gonio_measurement(alpha, noise=noise, seed=5,
                                   theta_i_deg=(20.0, 30.0, 40.0, 50.0, 60.0, 70.0))
-    base = fit(prepare(m), "goniochromatic", FitOptions()).params
+    # the default (the first name) against each alternative, never against itself
+    base = fit(prepare(m), "goniochromatic", FitOptions()).result
+    assert base.optimizer == OPTIMIZERS_BY_MODEL["goniochromatic"][0] != optimizer
+    base = base.params
     p = fit(prepare(m), "goniochromatic", FitOptions(optimizer=optimizer)).params
     # Same cost function, same minimum: agreement to the α tolerance (1e-8 in log α)
     # up to the flatness of the cost there (relative 1e-6 is ~100× the precision needed).
@@ -273,6 +277,9 @@ def test_cli_fit_writes_a_material_that_evaluates_like_the_model(run_gonio, meas
 @pytest.mark.parametrize("args, needle", [
     (["--model", "phong"], "--model 'phong' is unknown"),
     (["--optimizer", "newton"], "--optimizer 'newton' is unknown"),
+    (["--model", "cook-torrance", "--optimizer", "nlopt-lbfgs"],
+     "--optimizer nlopt-lbfgs does not apply to --model cook-torrance; use one of "
+     "golden-section, scipy-least-squares"),
     (["--step2", "some"], "--step2 'some' is unknown"),
     (["--alpha", "2"], "--alpha 2 is outside"),
     (["--exclude-theta-i", "75"], "no configuration has theta_i_deg=75"),
@@ -346,3 +353,23 @@ def test_sample_inks_fit_back_to_their_truth(ink, residuals):
     ea, er, ec = errors(result.params, truth["alpha"], np.array(truth["rho"]),
                         np.array(truth["c"]))
     assert result.result.success and ea < 0.01 and er < 0.02 and ec < 0.05
+
+
+@pytest.mark.parametrize("model, options, needle", [
+    ("goniochromatic", FitOptions(step2="some"), "--step2 'some' is unknown"),
+    ("goniochromatic", FitOptions(alpha=2.0), "--alpha 2 is outside"),
+    ("goniochromatic-diffuse", FitOptions(alpha=2.0), "--alpha 2 is outside"),
+    ("torrance-sparrow", FitOptions(alpha=2.0), "--alpha 2 is outside"),
+    ("cook-torrance", FitOptions(alpha=0.2), "--alpha does not apply"),
+    ("goniochromatic", FitOptions(optimizer="newton"), "--optimizer 'newton' is unknown"),
+    ("goniochromatic-coat", FitOptions(optimizer="scipy-least-squares"),
+     "--optimizer scipy-least-squares does not apply to --model goniochromatic-coat"),
+    ("cook-torrance-2", FitOptions(optimizer="nlopt-lbfgs"),
+     "--optimizer nlopt-lbfgs does not apply to --model cook-torrance-2"),
+])
+def test_option_errors_are_one_error_class(model, options, needle):
+    # every option a fitter refuses is an InputError (exit 2 in the CLI), never a FitError
+    m, _, _ = gonio_measurement(0.2, noise=0.0, seed=1)
+    with pytest.raises(InputError) as exc:
+        fit(prepare(m), model, options)
+    assert needle in exc.value.message and not isinstance(exc.value, FitError)

@@ -354,14 +354,3 @@ irradiance = 3.0
     assert png.stat().st_size > 0
 
 
-def test_the_shell_lists_the_registries_choices():
-    # commands/fit.py spells the choices for its help without importing the fit package
-    # (a fast --help); they must be the registries' own, in the same order.
-    from gonio_cli.commands import fit as shell
-    from gonio_cli.fit import MODEL_CHOICES
-    from gonio_cli.fit.common import OPTIMIZERS, RESIDUALS
-
-    assert shell.MODEL_NAMES == MODEL_CHOICES
-    assert shell.RESIDUAL_NAMES == RESIDUALS
-    assert shell.OPTIMIZER_NAMES == tuple(OPTIMIZERS)
-    assert shell.DEFAULT_MODEL in MODEL_CHOICES

@@ -133,7 +133,7 @@ def test_render_at_a_high_ssaa_is_refused(run_gonio, scene, monkeypatch):
     r = run_gonio("render", scene, "-o", scene.parent / "o.png", "--width", "2048",
                   "--height", "2048", "--ssaa", "16")
     refused(r, "scene.toml: a 2048x2048 render at ssaa 16 needs about",
-            "lower --ssaa or --width/--height")
+            "lower --ssaa or --width-px/--height-px")
     only_inputs(scene.parent, "scene.toml", "red.json")
 
 

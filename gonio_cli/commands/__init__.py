@@ -75,6 +75,26 @@ def argument_label(param) -> str:
     return label
 
 
+#: Old spellings of flags that now carry their unit (``--width`` → ``--width-px``): still
+#: accepted, never shown in ``--help`` (tests/test_cli_help.py checks each has a shown
+#: spelling with a unit).
+HIDDEN_ALIASES = frozenset({"--width", "--height", "--exclude-theta-i", "--exclude-theta-o",
+                            "--theta-i", "--resolution", "--view-angles", "--exposure",
+                            "--size"})
+
+
+def _help_record(param, ctx):
+    """``param``'s help row without its :data:`HIDDEN_ALIASES`."""
+    shown = [o for o in param.opts if o not in HIDDEN_ALIASES]
+    if len(shown) == len(param.opts) or not shown:
+        return param.get_help_record(ctx)
+    opts, param.opts = param.opts, shown
+    try:
+        return param.get_help_record(ctx)
+    finally:
+        param.opts = opts
+
+
 class _HelpStyle:
     """gonio's help layout for a typer command (mixed into the command classes)."""
 
@@ -94,7 +114,7 @@ class _HelpStyle:
     def format_options(self, ctx, formatter) -> None:
         sections: dict[str, list[tuple[str, str]]] = {"argument": [], "option": []}
         for param in self.get_params(ctx):
-            record = param.get_help_record(ctx)
+            record = _help_record(param, ctx)
             if record is None or param.param_type_name not in sections:
                 continue
             if param.param_type_name == "argument":  # no '<list[Path]>' after the name

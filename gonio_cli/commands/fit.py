@@ -7,13 +7,9 @@ from typing import List, Optional
 
 import typer
 
-OPTIMIZER_NAMES = ("nlopt-bobyqa", "nlopt-lbfgs", "scipy-least-squares")
-#: Mirrors gonio_cli.fit.MODEL_CHOICES and fit.common.RESIDUALS (the help must not import
-#: the fit package: a test checks these against the registries).
-MODEL_NAMES = ("goniochromatic", "goniochromatic-diffuse", "goniochromatic-coat",
-               "torrance-sparrow", "cook-torrance", "cook-torrance-2", "cook-torrance-3",
-               "auto")
-RESIDUAL_NAMES = ("compressive", "log", "linear")
+from ..names import FIT_MODEL_CHOICES as MODEL_NAMES
+from ..names import OPTIMIZER_NAMES, OPTIMIZERS_BY_MODEL, RESIDUAL_NAMES, STEP2_NAMES, metavar
+
 #: The default model; only its poor fits try the other models for a hint (a model chosen
 #: on purpose, e.g. the standard model for a comparison, is not second-guessed).
 DEFAULT_MODEL = "goniochromatic"
@@ -24,31 +20,33 @@ def fit(
                                       help="A gonio.measurement file (gonio ingest)."),
     output: Path = typer.Option(..., "--output", "-o", metavar="MATERIAL.json",
                                 help="The gonio.material file to write."),
-    model: str = typer.Option(DEFAULT_MODEL, "--model", "-m", metavar="NAME",
-                              help=f"One of: {', '.join(MODEL_NAMES)} (auto: every model, "
-                                   "the best on held-out angles of incidence)."),
+    model: str = typer.Option(DEFAULT_MODEL, "--model", "-m", metavar=metavar(MODEL_NAMES),
+                              help="The model (docs/fit.md); auto: every model, the best "
+                                   "on held-out angles of incidence."),
     refine: bool = typer.Option(True, "--refine/--no-refine",
                                 help="Fit alpha, rho, c jointly after seed 000's two steps."),
-    step2: str = typer.Option("mirror", "--step2", metavar="mirror|all",
+    step2: str = typer.Option("mirror", "--step2", metavar=metavar(STEP2_NAMES),
                               help="Configurations of the paper's step 2: mirror (eq. 7) or all."),
     exclude_theta_i: List[float] = typer.Option(
-        [], "--exclude-theta-i", "--exclude-theta-i-deg", metavar="DEG",
+        [], "--exclude-theta-i-deg", "--exclude-theta-i", metavar="DEG",
         help="Leave out an angle of incidence (deg); repeatable."),
     exclude_theta_o: List[float] = typer.Option(
-        [], "--exclude-theta-o", "--exclude-theta-o-deg", metavar="DEG",
+        [], "--exclude-theta-o-deg", "--exclude-theta-o", metavar="DEG",
         help="Leave out a detector angle (deg, signed); repeatable."),
     weights: Optional[Path] = typer.Option(
         None, "--weights", metavar="WEIGHTS.csv",
         help="Weights by configuration: CSV theta_i_deg,theta_o_deg,weight (unlisted: 1; "
              "0 leaves one out)."),
     residuals: str = typer.Option(
-        "compressive", "--residuals", metavar="|".join(RESIDUAL_NAMES),
+        "compressive", "--residuals", metavar=metavar(RESIDUAL_NAMES),
         help="compressive (peak and tail alike, default), log (multiplicative noise) or "
              "linear."),
     std_weights: bool = typer.Option(True, "--std-weights/--no-std-weights",
                                      help="Weight by brdf_std of the repeats when present."),
-    optimizer: str = typer.Option("nlopt-bobyqa", "--optimizer", metavar="NAME",
-                                  help=f"One of: {', '.join(OPTIMIZER_NAMES)}."),
+    optimizer: Optional[str] = typer.Option(
+        None, "--optimizer", metavar=metavar(OPTIMIZER_NAMES), show_default=False,
+        help="Default: the model's first. " + "; ".join(
+            f"{m}: {', '.join(v)}" for m, v in OPTIMIZERS_BY_MODEL.items()) + "."),
     alpha: Optional[float] = typer.Option(None, "--alpha", metavar="ALPHA",
                                           help="Fix the roughness instead of fitting it."),
     max_error: Optional[float] = typer.Option(
@@ -70,28 +68,25 @@ def fit(
 
     \b
     Example:
-      gonio fit red.measurement.json -o red.material.json --exclude-theta-i 70 --plot red.png
+      gonio fit red.measurement.json -o red.material.json --exclude-theta-i-deg 70 --plot red.png
       gonio fit wrap.measurement.json -o wrap.material.json --model auto
     """
     from .. import log
     from ..errors import FitError, InputError, PoorFitError
-    from ..fit import MODEL_CHOICES, judge, to_material
+    from ..fit import check_options, judge, to_material
     from ..fit import fit as run_fit
     from ..fit import fit_auto
-    from ..fit.common import FitOptions, check_optimizer, prepare
+    from ..fit.common import FitOptions, prepare
     from ..schemas import read_measurement, write_material
     from . import require_files
 
     require_files([measurement], missing_fix="check the path or make it with gonio ingest")
     if on_failure not in ("error", "write"):
         raise InputError(f"--on-failure {on_failure!r} is unknown", fix="use error or write")
-    if model not in MODEL_CHOICES:
-        raise InputError(f"--model {model!r} is unknown",
-                         fix=f"use one of {', '.join(MODEL_CHOICES)}")
+    check_options(model, optimizer)
     if max_error is not None and not (max_error > 0 and max_error < 1e3):
         raise InputError(f"--max-error {max_error:g} is not a CIEDE2000 limit",
                          fix="give a number in (0, 1000), e.g. 1.0")
-    check_optimizer(optimizer)
     from ..outputs import declare
     declare({"-o": output, "--plot": plot}, [measurement, weights])
     m = read_measurement(measurement)
@@ -275,7 +270,7 @@ def better_model_hint(data, result, judgement: dict, options) -> str | None:
             f"{best[0]:.2f} in sample); --model auto chooses by held-out angles")
 
 
-EXAMPLE = ("gonio fit red.measurement.json -o red.material.json --exclude-theta-i 70 "
+EXAMPLE = ("gonio fit red.measurement.json -o red.material.json --exclude-theta-i-deg 70 "
            "--plot red.png")
 
 

@@ -7,12 +7,9 @@ from typing import Optional
 
 import typer
 
-#: Methods and gamut modes shown in --help; the core's registries are the truth and
-#: refuse anything else (kept here only so that --help needs no core import).
-METHOD_NAMES = ("floyd-steinberg", "jarvis", "stucki", "bayer", "clustered", "clustered-3x3",
-                "blue-noise")
-GAMUT_NAMES = ("scale", "clip")
-COMPRESSION_NAMES = ("none", "fast", "balanced", "small")     # imageio.COMPRESSION
+from ..names import COMPRESSION_NAMES, GAMUT_NAMES, INPUT_ENCODING_NAMES, MASK_FORMAT_NAMES
+from ..names import HALFTONE_METHOD_NAMES as METHOD_NAMES
+from ..names import metavar
 
 
 def _write_palette(path: Path, labels, metadata: dict, compression: str) -> None:
@@ -50,16 +47,16 @@ def halftone(
     output: Path = typer.Option(..., "--output", "-o", metavar="MASK.png",
                                 help="The RGB ink mask to write (channels 0/255, one ink "
                                      "per pixel at most)."),
-    method: str = typer.Option("floyd-steinberg", "--method", "-m", metavar="NAME",
-                               help=f"One of: {', '.join(METHOD_NAMES)}."),
+    method: str = typer.Option("floyd-steinberg", "--method", "-m", metavar=metavar(METHOD_NAMES),
+                               help="How to halftone (docs/halftone.md)."),
     input_encoding: str = typer.Option(
-        "auto", "--input-encoding", metavar="auto|srgb|linear",
+        "auto", "--input-encoding", metavar=metavar(INPUT_ENCODING_NAMES),
         help="How pixel values are encoded; auto: sRGB for 8/16-bit files, linear for "
              "float files (EXR)."),
-    gamut: str = typer.Option("scale", "--gamut", metavar="scale|clip",
+    gamut: str = typer.Option("scale", "--gamut", metavar=metavar(GAMUT_NAMES),
                               help="Where r+g+b > 1: scale (divide by the sum) or clip "
                                    "(nearest in-gamut coverage)."),
-    size: Optional[str] = typer.Option(None, "--size", metavar="WxH",
+    size: Optional[str] = typer.Option(None, "--size-px", "--size", metavar="WxH",
                                        help="Resample to this many pixels first."),
     dpi: Optional[float] = typer.Option(None, "--dpi", metavar="DPI",
                                         help="Resample to this resolution (needs "
@@ -83,10 +80,10 @@ def halftone(
                                           help="Write coverage per ink, tone error, "
                                                "out-of-gamut fraction and times (the tone "
                                                "error is computed only for the report)."),
-    compress: str = typer.Option("fast", "--compress", metavar="LEVEL",
+    compress: str = typer.Option("fast", "--compress", metavar=metavar(COMPRESSION_NAMES),
                                  help="PNG deflate level, lossless: "
                                       f"{', '.join(COMPRESSION_NAMES)} (zlib 0, 1, 6, 9)."),
-    mask_format: str = typer.Option("palette", "--mask-format", metavar="palette|rgb",
+    mask_format: str = typer.Option("palette", "--mask-format", metavar=metavar(MASK_FORMAT_NAMES),
                                     help="How the mask PNG stores its RGB pixels: palette "
                                          "(2 bits per pixel, fast) or rgb (8-bit "
                                          "truecolour); both decode to the same RGB image."),
@@ -116,11 +113,11 @@ def halftone(
     if output.suffix.lower() != ".png":
         raise InputError("the mask must be a PNG", path=output, fix="name it *.png")
     if size is not None and (dpi is not None or print_width_mm is not None):
-        raise InputError("--size and --dpi/--print-width-mm both set the print size",
+        raise InputError("--size-px and --dpi/--print-width-mm both set the print size",
                          fix="give one of them")
     if (dpi is None) != (print_width_mm is None):
         raise InputError("--dpi and --print-width-mm go together",
-                         fix="give both, or --size WxH")
+                         fix="give both, or --size-px WxH")
     target_size = cov.parse_size(size) if size is not None else None
     from ..outputs import declare
     declare({"-o": output, "--report": report,
@@ -134,7 +131,7 @@ def halftone(
 
     width, height = target_size or (img.pixels.shape[1], img.pixels.shape[0])
     memory.check(core.memory_estimate(width, height), f"a {width}x{height} halftone", path=image,
-          fix="lower --size (or --dpi)" if size or dpi else "resample it first with --size")
+          fix="lower --size-px (or --dpi)" if size or dpi else "resample it first with --size-px")
     with log.timer() as t:
         prepared, result = core.prepare_and_halftone(
             img.pixels, is_float=img.is_float, encoding=input_encoding, gamut=gamut,

@@ -7,18 +7,22 @@ from typing import List, Optional
 
 import typer
 
+from ..names import (BASIS_SOLVER_NAMES, CHANNEL_NAMES, SAMPLE_SET_NAMES, WEIGHT_SOLVER_NAMES,
+                     metavar)
+
 SAMPLE_SET_HELP = ("seed001 (default, seed 001 §4), dense, hemisphere (lights off the plane too: "
                    "use it for lobes rendered under an environment), or a CSV with "
                    "theta_i_deg,theta_o_deg.")
 
 
 def _samples_option():
-    return typer.Option("seed001", "--samples", metavar="NAME|FILE.csv", help=SAMPLE_SET_HELP)
+    return typer.Option("seed001", "--samples", metavar=metavar(SAMPLE_SET_NAMES + ("FILE.csv",)),
+                        help=SAMPLE_SET_HELP)
 
 
-def _choice_option(flag: str, default: str, choices: str, help: str):
+def _choice_option(flag: str, default: str, choices, help: str):
     """A string option whose metavar lists its choices (validated by the core's registry)."""
-    return typer.Option(default, flag, metavar=choices, help=help)
+    return typer.Option(default, flag, metavar=metavar(choices), help=help)
 
 sub = typer.Typer(help="Cosine-lobe approximation of BRDFs (seed 001): choose exponents, "
                        "fit weights.", no_args_is_help=True, add_completion=False,
@@ -34,9 +38,9 @@ def basis(
     max_lobes: int = typer.Option(11, "--max-lobes", metavar="N",
                                   help="Choose exponents for 1 ... N lobes."),
     samples: str = _samples_option(),
-    channels: str = _choice_option("--channels", "xyz", "xyz|spectral",
+    channels: str = _choice_option("--channels", "xyz", CHANNEL_NAMES,
                                    "Colour channels the errors are measured in."),
-    solver: str = _choice_option("--solver", "nnls", "nnls|lp-simplex",
+    solver: str = _choice_option("--solver", "nnls", BASIS_SOLVER_NAMES,
                                  "Weights inside eq. 4 (nnls: continuous, monotone)."),
     plot: Optional[Path] = typer.Option(None, "--plot", metavar="BASIS.png",
                                         help="Draw error and exponents against lobe count."),
@@ -94,11 +98,12 @@ def fit(
     exponents: Optional[str] = typer.Option(None, "--exponents", metavar="E1,E2,...",
                                             help="Exponents given directly instead of --basis."),
     samples: str = _samples_option(),
-    view_angles: str = typer.Option("0:80:10", "--view-angles", metavar="START:STOP:STEP|LIST",
+    view_angles: str = typer.Option("0:80:10", "--view-angles-deg", "--view-angles",
+                                    metavar="START:STOP:STEP|LIST",
                                     help="View angles of the weight table (deg, seed 001 §5.2)."),
-    channels: str = _choice_option("--channels", "spectral", "spectral|xyz",
+    channels: str = _choice_option("--channels", "spectral", CHANNEL_NAMES,
                                    "Weights per wavelength of the grid, or per XYZ."),
-    solver: str = _choice_option("--solver", "lp", "lp|highs|lp-simplex|nnls|lsq-clamp",
+    solver: str = _choice_option("--solver", "lp", WEIGHT_SOLVER_NAMES,
                                  "Solver of the weights written (lp: exact simplex; highs: "
                                  "the same LP by HiGHS, the reference)."),
     compare: bool = typer.Option(False, "--compare",

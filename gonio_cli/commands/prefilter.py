@@ -16,6 +16,8 @@ from typing import Optional
 
 import typer
 
+from ..names import PREFILTER_AUTO, PREFILTER_METHOD_NAMES, metavar
+
 #: Digits of a non-integer exponent in its file name (``prefiltered_E12p5.exr``).
 NAME_DIGITS = 6
 
@@ -60,10 +62,11 @@ def prefilter(
                                             help="Cosine-lobe exponents, 1 to 1e4."),
     lobes: Optional[Path] = typer.Option(None, "--lobes", metavar="LOBES.json",
                                          help="Take the exponents of a gonio.lobes file."),
-    method: str = typer.Option("auto", "--method", "-m", metavar="NAME",
+    method: str = typer.Option("auto", "--method", "-m",
+                               metavar=metavar((PREFILTER_AUTO,) + PREFILTER_METHOD_NAMES),
                                help="auto (per exponent), ring, or brute (exact, slow)."),
     resolution: Optional[int] = typer.Option(
-        None, "--resolution", metavar="HEIGHT",
+        None, "--height-px", "--resolution", metavar="PX",
         help="Force the output height (the input's divided by a power of two)."),
     fix_invalid: bool = typer.Option(False, "--fix-invalid",
                                      help="Replace NaN/inf/negative texels instead of failing."),

@@ -7,10 +7,9 @@ from typing import List, Optional
 
 import typer
 
-SPECTRAL = ("table", "exact")
-TONEMAP_NAMES = ("neutral", "none", "clip", "reinhard", "filmic")  # tonemap.TONEMAPS (lazy)
-ADAPT_NAMES = ("bradford", "cat16", "none")  # gonio_cli.render.tonemap.ADAPTATIONS (lazy)
-EXR_SPACE_NAMES = ("srgb", "xyz", "acescg")  # gonio_cli.render.tonemap.EXR_SPACES (lazy)
+from ..names import ADAPTATION_NAMES as ADAPT_NAMES
+from ..names import EXR_SPACE_NAMES, TONEMAP_NAMES, metavar
+from ..names import SPECTRAL_PATHS as SPECTRAL
 
 
 def render(
@@ -22,7 +21,7 @@ def render(
     exr: Optional[Path] = typer.Option(None, "--exr", metavar="OUT.exr",
                                        help="Also write scene-linear float32 EXR "
                                             "(in --exr-space)."),
-    exr_space: str = typer.Option("srgb", "--exr-space", metavar="|".join(EXR_SPACE_NAMES),
+    exr_space: str = typer.Option("srgb", "--exr-space", metavar=metavar(EXR_SPACE_NAMES),
                                   help="Colour space of the --exr image (named in its "
                                        "header)."),
     spectral_exr: Optional[Path] = typer.Option(
@@ -31,24 +30,25 @@ def render(
     ssaa: Optional[int] = typer.Option(None, "--ssaa", metavar="N",
                                        help="Supersampling per axis (overrides [output])."),
     spectral: Optional[str] = typer.Option(
-        None, "--spectral", metavar="table|exact",
+        None, "--spectral", metavar=metavar(SPECTRAL),
         help="Tabulated spectral sum (fast) or all wavelengths per pixel (overrides [output])."),
-    exposure: Optional[float] = typer.Option(None, "--exposure", metavar="STOPS",
+    exposure: Optional[float] = typer.Option(None, "--exposure-stops", "--exposure",
+                                             metavar="STOPS",
                                              help="Exposure in stops (overrides [output])."),
     tonemap: Optional[str] = typer.Option(
-        None, "--tonemap", metavar="NAME",
+        None, "--tonemap", metavar=metavar(TONEMAP_NAMES),
         help=f"One of: {', '.join(TONEMAP_NAMES)} (overrides [output]; default neutral, "
              "which keeps hue)."),
     adapt: Optional[str] = typer.Option(
-        None, "--adapt", metavar="NAME",
+        None, "--adapt", metavar=metavar(ADAPT_NAMES),
         help=f"Chromatic adaptation of the lights' white to D65, one of: "
              f"{', '.join(ADAPT_NAMES)} (overrides [output]; default bradford)."),
     gamut_warning: Optional[Path] = typer.Option(
         None, "--gamut-warning", metavar="FILE.png",
         help="Also write the PNG with pixels outside sRGB painted grey."),
-    width: Optional[int] = typer.Option(None, "--width", metavar="PX",
+    width: Optional[int] = typer.Option(None, "--width-px", "--width", metavar="PX",
                                         help="Image width (overrides [camera])."),
-    height: Optional[int] = typer.Option(None, "--height", metavar="PX",
+    height: Optional[int] = typer.Option(None, "--height-px", "--height", metavar="PX",
                                          help="Image height (overrides [camera])."),
     grid_nm: Optional[str] = typer.Option(
         None, "--grid-nm", metavar="START:STOP:STEP",

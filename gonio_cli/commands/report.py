@@ -13,7 +13,7 @@ from typing import List, Optional
 
 import typer
 
-SECTION_NAMES = ("fit", "lobes", "prefilter", "render", "table1", "sheets")  # report.SECTION_NAMES
+from ..names import REPORT_SECTION_NAMES as SECTION_NAMES
 
 
 def report(

@@ -7,7 +7,8 @@ from typing import List, Optional
 
 import typer
 
-RULE_NAMES = ("mad", "percentile")  # gonio_cli.sparkle.SEGMENTATION_RULES (lazy)
+from ..names import SPARKLE_RULE_NAMES as RULE_NAMES
+from ..names import metavar
 
 
 def parse_angles(text: str) -> list[float]:
@@ -19,7 +20,7 @@ def parse_angles(text: str) -> list[float]:
         try:
             out.append(float(item))
         except ValueError:
-            raise InputError(f"--theta-i: {item.strip()!r} is not a number",
+            raise InputError(f"--theta-i-deg: {item.strip()!r} is not a number",
                              fix="give degrees separated by commas, e.g. 10,20,30") from None
     return out
 
@@ -30,10 +31,11 @@ def sparkle(
                                              "normal, one per angle of incidence, same size."),
     output: Path = typer.Option(..., "--output", "-o", metavar="SPARKLE.png",
                                 help="The packed 8-bit sparkle texture (eq. 16)."),
-    theta_i: str = typer.Option("10,20,30,40,50,60,70", "--theta-i", metavar="DEG,...",
+    theta_i: str = typer.Option("10,20,30,40,50,60,70", "--theta-i-deg", "--theta-i",
+                                metavar="DEG,...",
                                 help="Angle of incidence of each photo, in the photos' "
                                      "order (degrees; at most 8)."),
-    rule: str = typer.Option("mad", "--rule", metavar="NAME",
+    rule: str = typer.Option("mad", "--rule", metavar=metavar(RULE_NAMES),
                              help=f"Segmentation of the brightest pixels: one of "
                                   f"{', '.join(RULE_NAMES)}."),
     parameter: Optional[float] = typer.Option(None, "--parameter", metavar="X",
@@ -67,7 +69,7 @@ def sparkle(
         raise InputError(f"{len(photos)} photos; a sparkle texture holds at most "
                          f"{core.N_BITS} (one bit each, eq. 16)")
     if len(angles) != len(photos):
-        raise InputError(f"{len(photos)} photos but {len(angles)} angles in --theta-i "
+        raise InputError(f"{len(photos)} photos but {len(angles)} angles in --theta-i-deg "
                          f"{theta_i}", fix="give one angle per photo, in the same order")
     core.bit_order(angles)
     images = [read_image(p) for p in log.progress(photos, "reading photos",

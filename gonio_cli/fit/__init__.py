@@ -21,9 +21,10 @@ from __future__ import annotations
 from typing import Any, Callable
 
 from ..errors import InputError
+from ..names import AUTO_MODEL, FIT_MODEL_CHOICES, OPTIMIZER_NAMES
 from ..schemas import Material
 from . import cook_torrance, cook_torrance_lobes, goniochromatic, layered, torrance_sparrow
-from .common import FitData, FitOptions, ModelFit
+from .common import FitData, FitOptions, ModelFit, choose_optimizer
 
 FITTERS: dict[str, Callable[[FitData, FitOptions], ModelFit]] = {
     "goniochromatic": goniochromatic.fit,
@@ -35,11 +36,40 @@ FITTERS: dict[str, Callable[[FitData, FitOptions], ModelFit]] = {
     "cook-torrance-3": cook_torrance_lobes.fit_3,
 }
 
+#: Each fitter's ``{--optimizer name: callable}``, the first its default; the names are
+#: spelled once in :data:`gonio_cli.names.OPTIMIZERS_BY_MODEL` (a test checks the keys).
+OPTIMIZERS_BY_MODEL: dict[str, dict[str, Callable]] = {
+    "goniochromatic": goniochromatic.OPTIMIZERS,
+    "goniochromatic-diffuse": layered.OPTIMIZERS,
+    "goniochromatic-coat": layered.OPTIMIZERS,
+    "torrance-sparrow": torrance_sparrow.OPTIMIZERS,
+    "cook-torrance": cook_torrance.OPTIMIZERS,
+    "cook-torrance-2": cook_torrance_lobes.OPTIMIZERS,
+    "cook-torrance-3": cook_torrance_lobes.OPTIMIZERS,
+}
+
 #: The ``--model`` value that chooses among :data:`FITTERS` by held-out error.
-AUTO = "auto"
+AUTO = AUTO_MODEL
 
 #: Every ``--model`` value, for the CLI's help and errors.
-MODEL_CHOICES = tuple(FITTERS) + (AUTO,)
+MODEL_CHOICES = FIT_MODEL_CHOICES
+
+
+def check_options(model: str, optimizer: str | None) -> None:
+    """Refuse an unknown ``--model`` or an ``--optimizer`` that ``model`` does not take
+    (before any file is read); ``auto`` takes any name, its candidates that lack it are
+    skipped with a note."""
+    if model not in MODEL_CHOICES:
+        raise InputError(f"--model {model!r} is unknown",
+                         fix=f"use one of {', '.join(MODEL_CHOICES)}")
+    if optimizer is None:
+        return
+    if model == AUTO:
+        if optimizer not in OPTIMIZER_NAMES:
+            raise InputError(f"--optimizer {optimizer!r} is unknown",
+                             fix=f"use one of {', '.join(OPTIMIZER_NAMES)}")
+        return
+    choose_optimizer(model, OPTIMIZERS_BY_MODEL[model], optimizer)
 
 
 def fit(data: FitData, model: str = "goniochromatic",

@@ -8,7 +8,7 @@ becomes a one-dimensional search over log α of the *profile* cost (the cost wit
 per-wavelength parameters optimal for that α). :func:`minimize_log_alpha` does that search:
 a coarse scan over the whole admissible range (so a stiff, near-mirror lobe or a rough one
 is bracketed, never missed by a local method started far away), then a local refinement
-with the chosen optimiser (:data:`OPTIMIZERS`).
+with the chosen optimiser (each fitter's ``OPTIMIZERS``).
 """
 
 from __future__ import annotations
@@ -151,14 +151,14 @@ def prepare(measurement: Measurement, *, residuals: str = "log",
     ti, to = measurement.theta_i_deg, measurement.theta_o_deg
     keep = np.ones(ti.shape, dtype=bool)
     dropped_ti, dropped_to = [], []
-    for flag, angles, dropped, values in (("--exclude-theta-i", exclude_theta_i_deg,
+    for flag, angles, dropped, values in (("--exclude-theta-i-deg", exclude_theta_i_deg,
                                            dropped_ti, ti),
-                                          ("--exclude-theta-o", exclude_theta_o_deg,
+                                          ("--exclude-theta-o-deg", exclude_theta_o_deg,
                                            dropped_to, to)):
         for t in angles:
             hit = np.abs(values - float(t)) < 1e-6
             if not hit.any():
-                name = "theta_i_deg" if flag.endswith("-i") else "theta_o_deg"
+                name = "theta_i_deg" if flag.endswith("-i-deg") else "theta_o_deg"
                 raise InputError(f"{flag} {t:g}: no configuration has {name}={t:g}",
                                  path=path,
                                  fix=f"measured: {', '.join(f'{v:g}' for v in np.unique(values))}")
@@ -486,14 +486,16 @@ def parabolic_minimum(fun, left, mid, right, f_left, f_mid, f_right, steps: int)
 
 # ------------------------------------------------------------------------ the α search --
 
-#: Optimisers for the nonlinear step. The nlopt ones refine the 1-D profile cost in log α
-#: after the coarse scan; ``scipy-least-squares`` instead solves the joint problem (α and
-#: every per-wavelength parameter) as one nonlinear least-squares problem, started from the
-#: scan's best point. Justification in docs/fit.md.
-OPTIMIZERS = {
-    "nlopt-bobyqa": "nlopt LN_BOBYQA on the profile cost (derivative-free, bounded)",
-    "nlopt-lbfgs": "nlopt LD_LBFGS on the profile cost (gradient by central differences)",
-    "scipy-least-squares": "scipy.optimize.least_squares (trf) on all parameters jointly",
+#: The nlopt algorithm of :func:`minimize_log_alpha`, by ``--optimizer`` name. The nlopt
+#: names refine the 1-D profile cost in log α after the coarse scan; a fitter whose
+#: ``scipy-least-squares`` solves the joint problem (α and every per-wavelength parameter,
+#: as one nonlinear least-squares problem) still searches 1-D profiles (seed 000's step 1)
+#: with BOBYQA. Each fitter's own ``OPTIMIZERS`` dict says which names it accepts;
+#: justification in docs/fit.md.
+LOG_ALPHA_ALGORITHMS = {
+    "nlopt-bobyqa": "LN_BOBYQA",     # derivative-free, bounded
+    "nlopt-lbfgs": "LD_LBFGS",       # gradient by central differences
+    "scipy-least-squares": "LN_BOBYQA",
 }
 DEFAULT_OPTIMIZER = "nlopt-bobyqa"
 
@@ -501,11 +503,21 @@ DEFAULT_OPTIMIZER = "nlopt-bobyqa"
 _BAD_COST = 1e300
 
 
-def check_optimizer(name: str) -> str:
-    if name not in OPTIMIZERS:
-        raise InputError(f"--optimizer {name!r} is unknown",
-                         fix=f"use one of {', '.join(OPTIMIZERS)}")
-    return name
+def choose_optimizer(model: str, optimizers: dict[str, Any], name: str | None):
+    """``(name, optimizers[name])`` for ``--optimizer name`` of ``--model model``; ``None``
+    is the fitter's default (its first key). A name the fitter lacks is an
+    :class:`~gonio_cli.errors.InputError` listing the ones it has."""
+    from ..names import OPTIMIZER_NAMES
+
+    if name is None:
+        name = next(iter(optimizers))
+    if name not in optimizers:
+        if name not in OPTIMIZER_NAMES:
+            raise InputError(f"--optimizer {name!r} is unknown",
+                             fix=f"--model {model} takes {', '.join(optimizers)}")
+        raise InputError(f"--optimizer {name} does not apply to --model {model}",
+                         fix=f"use one of {', '.join(optimizers)}")
+    return name, optimizers[name]
 
 
 @dataclass
@@ -548,7 +560,8 @@ def minimize_log_alpha(cost: Callable[[float], float], optimizer: str = DEFAULT_
     ``cost(log_alpha)`` returns the (weighted) sum of squared residuals with every other
     parameter optimal for that α. The scan brackets the global minimum among its points;
     the refinement runs inside the two neighbouring scan cells with an nlopt optimiser
-    (``scipy-least-squares`` falls back to BOBYQA here: the joint problem is the fitter's).
+    (:data:`LOG_ALPHA_ALGORITHMS`: ``scipy-least-squares`` searches with BOBYQA here, the
+    joint problem is the fitter's).
     ``costs(log_alphas)``, if given, evaluates the scan in one vectorised call.
     """
     grid, values, i = scan_log_alpha(cost, lo, hi, points, costs)
@@ -557,7 +570,7 @@ def minimize_log_alpha(cost: Callable[[float], float], optimizer: str = DEFAULT_
     import nlopt
 
     NLOPT_STOPS = nlopt_stops()
-    algorithm = nlopt.LD_LBFGS if optimizer == "nlopt-lbfgs" else nlopt.LN_BOBYQA
+    algorithm = getattr(nlopt, LOG_ALPHA_ALGORITHMS[optimizer])
     counter = {"n": 0}
     seen = {"x": float(grid[i]), "f": float(values[i])}   # best point nlopt evaluated
 
@@ -666,13 +679,13 @@ class FitOptions:
 
     refine : fit α and the spectra jointly after the paper's two steps (goniochromatic)
     step2 : "mirror" (seed 000 eq. 7) or "all" configurations in the paper's step 2
-    optimizer : a key of :data:`OPTIMIZERS`
+    optimizer : a key of the fitter's ``OPTIMIZERS`` (None: its default, the first key)
     alpha : fix the roughness instead of fitting it (models with an α)
     """
 
     refine: bool = True
     step2: str = "mirror"
-    optimizer: str = DEFAULT_OPTIMIZER
+    optimizer: str | None = None
     alpha: float | None = None
 
 

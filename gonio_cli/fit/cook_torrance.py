@@ -56,7 +56,7 @@ from ..brdf import (LOG_MAX, cook_torrance, cook_torrance_specular_geometry,
                     dlog_beckmann_dlog_m, schlick_fresnel)
 from ..errors import FitError, InputError
 from .common import (SINGULAR_TOL, FitData, FitOptions, FitReport, ModelFit, Stopwatch,
-                     error_figures, golden_section, nm_list)
+                     choose_optimizer, error_figures, golden_section, nm_list)
 
 MODEL = "cook-torrance"
 
@@ -457,27 +457,47 @@ class Run:
         return self.lm if self.lm is not None else self.profile
 
 
-def _run(profile: Profile, cols: np.ndarray, free_f0: bool, run_lm: bool) -> Run:
-    """Profile fit (and LM from it) of the wavelengths ``cols`` with F0 free or = 1."""
+def _keep_profile(profile: Profile, prof: Spectra, cols: np.ndarray, free_f0: bool):
+    """``golden-section``: the profile solution is final (no polish)."""
+    return None, 0, []
+
+
+def _polish_lm(profile: Profile, prof: Spectra, cols: np.ndarray, free_f0: bool):
+    """``scipy-least-squares``: seed 004's Levenberg–Marquardt per wavelength from the
+    profile solution, kept where it is not worse. Returns (spectra, evaluations, the
+    wavelengths where it stopped before converging)."""
+    lm, nfev, failed = prof.copy(), 0, []
+    for c in cols:
+        if prof.ks[c] <= 0:  # no lobe: m and F0 inert, the profile's kd is final
+            continue
+        kd, ks, m, f0, cost, n, ok = levenberg_marquardt(
+            profile, c, prof.kd[c], prof.ks[c], prof.m[c], prof.f0[c], free_f0)
+        nfev += n
+        if not ok:
+            failed.append(float(profile.data.wavelength_nm[c]))
+        if cost <= prof.cost[c] and np.all(np.isfinite([kd, ks, m, f0])):
+            lm.kd[c], lm.ks[c], lm.m[c], lm.f0[c], lm.cost[c] = kd, ks, m, f0, cost
+    return lm, nfev, failed
+
+
+#: ``--optimizer``: what follows the profile fit (scan + golden section over log m, always
+#: run); the first is the default.
+OPTIMIZERS = {
+    "golden-section": _keep_profile,
+    "scipy-least-squares": _polish_lm,
+}
+
+
+def _run(profile: Profile, cols: np.ndarray, free_f0: bool, polish) -> Run:
+    """Profile fit (and ``polish`` from it, a value of :data:`OPTIMIZERS`) of the
+    wavelengths ``cols`` with F0 free or = 1."""
     sw = Stopwatch()
     L = profile.data.wavelength_nm.size
     log_m, lin, evaluations, at_bound = search_m(profile, cols, np.full(cols.size, free_f0))
     prof = Spectra.empty(L)
     prof.put_linear(cols, log_m, lin)
     t_profile = sw.lap()
-    lm, nfev, failed = None, 0, []
-    if run_lm:
-        lm = prof.copy()
-        for c in cols:
-            if prof.ks[c] <= 0:  # no lobe: m and F0 inert, the profile's kd is final
-                continue
-            kd, ks, m, f0, cost, n, ok = levenberg_marquardt(
-                profile, c, prof.kd[c], prof.ks[c], prof.m[c], prof.f0[c], free_f0)
-            nfev += n
-            if not ok:
-                failed.append(float(profile.data.wavelength_nm[c]))
-            if cost <= prof.cost[c] and np.all(np.isfinite([kd, ks, m, f0])):
-                lm.kd[c], lm.ks[c], lm.m[c], lm.f0[c], lm.cost[c] = kd, ks, m, f0, cost
+    lm, nfev, failed = polish(profile, prof, cols, free_f0)
     return Run(prof, lm, evaluations, at_bound, nfev, failed, t_profile, sw.lap())
 
 
@@ -487,8 +507,9 @@ def fit(data: FitData, options: FitOptions) -> ModelFit:
     Parameters
     ----------
     data : :class:`~.common.FitData` (N configurations, L wavelengths)
-    options : ``optimizer`` ``scipy-least-squares`` adds seed 004's Levenberg–Marquardt
-        after the profile fit; the nlopt names leave the profile fit final. ``alpha``
+    options : ``optimizer`` (a key of :data:`OPTIMIZERS`): ``scipy-least-squares`` adds
+        seed 004's Levenberg–Marquardt after the profile fit; ``golden-section`` (the
+        default) leaves the profile fit final. ``alpha``
         does not apply (this model's roughness m is per wavelength).
 
     Returns
@@ -511,10 +532,10 @@ def fit(data: FitData, options: FitOptions) -> ModelFit:
     if cols.size == 0:
         raise FitError(f"no wavelength has {MIN_CONFIGURATIONS} or more usable readings "
                        "(positive, with weight)", fix="check the measurement")
-    run_lm = options.optimizer == "scipy-least-squares"
+    _, polish = choose_optimizer(MODEL, OPTIMIZERS, options.optimizer)
 
     # ---- all four parameters free
-    free = _run(profile, cols, True, run_lm)
+    free = _run(profile, cols, True, polish)
     fin = free.final
     a, b = fin.ks[cols] * fin.f0[cols], fin.ks[cols] * (1.0 - fin.f0[cols])
     se = f0_standard_error(profile, fin.kd[cols], a, b, fin.m[cols], cols)
@@ -528,7 +549,7 @@ def fit(data: FitData, options: FitOptions) -> ModelFit:
     at_bound = np.zeros(nm.size, bool)
     at_bound[cols] = free.at_bound
     if vague.size:
-        one = _run(profile, vague, False, run_lm)
+        one = _run(profile, vague, False, polish)
         sigma2 = fin.cost[vague] / np.maximum(profile.n_used[vague] - 4, 1)
         accept = one.final.cost[vague] - fin.cost[vague] <= CHI2_1DOF_95 * sigma2
         fixed_cols = vague[accept]
@@ -588,9 +609,7 @@ def fit(data: FitData, options: FitOptions) -> ModelFit:
     reports = {"profile": report(
         "profile", free.profile, "scan+golden-section", evaluations, t_profile,
         "per wavelength: NNLS for (kd, ks*F0, ks*(1-F0)) and a scan + golden section over "
-        f"log m in [{M_MIN:g}, {M_MAX:g}]" + ("" if run_lm else
-                                             f" (--optimizer {options.optimizer} has no "
-                                             "role in this model)"))}
+        f"log m in [{M_MIN:g}, {M_MAX:g}]")}
     final = "profile"
     if free.lm is not None:
         reports["levenberg_marquardt"] = report(

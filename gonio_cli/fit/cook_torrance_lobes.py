@@ -43,8 +43,8 @@ import numpy as np
 
 from ..brdf import cook_torrance_specular_geometry, schlick_fresnel
 from ..errors import InputError
-from .common import (FitData, FitOptions, FitReport, ModelFit, Stopwatch, error_figures,
-                     nm_list, nnls2)
+from .common import (FitData, FitOptions, FitReport, ModelFit, Stopwatch, choose_optimizer,
+                     error_figures, nm_list, nnls2)
 from .cook_torrance import M_MAX, M_MIN
 
 #: Model name by number of lobes.
@@ -228,18 +228,23 @@ def _search(problem: Lobes):
     return _to_m(v, n), np.asarray(v[n:], float), count["n"], message
 
 
+#: ``--optimizer``: the lobes' joint search (:func:`_search`); the first is the default.
+OPTIMIZERS = {"nlopt-bobyqa": _search}
+
+
 def fit_lobes(data: FitData, options: FitOptions, n_lobes: int) -> ModelFit:
     """Fit ``cook-torrance-2`` or ``cook-torrance-3`` (``n_lobes`` 2 or 3)."""
     model = MODELS[n_lobes]
     if options.alpha is not None:
         raise InputError(f"--alpha does not apply to --model {model}",
                          fix="its lobes' roughnesses m_j are fitted; drop --alpha")
+    optimizer, search = choose_optimizer(model, OPTIMIZERS, options.optimizer)
     sw = Stopwatch()
     problem = Lobes(data, n_lobes)
     if not problem.signal.any():
         raise InputError(f"no wavelength has a positive weighted reading to fit {model} to",
                          fix="check the measurement's values and weights")
-    m, ks, evaluations, message = _search(problem)
+    m, ks, evaluations, message = search(problem)
     kd, f0, _ = problem.solve(m, ks)
     ok = problem.signal
     params: dict = {"kd": np.where(ok, kd, 0.0), "f0": np.where(ok, f0, 0.0)}
@@ -266,7 +271,7 @@ def fit_lobes(data: FitData, options: FitOptions, n_lobes: int) -> ModelFit:
 
     f = evaluate(model, data.cos, params)
     report = FitReport("refined", status, message, params, error_figures(data, f),
-                       "nlopt-bobyqa", evaluations, sw.lap(), failed,
+                       optimizer, evaluations, sw.lap(), failed,
                        {"f0_at_one_nm": f0_at_one})
     return ModelFit(model, data.wavelength_nm, {"refined": report}, "refined", data.excluded)
 

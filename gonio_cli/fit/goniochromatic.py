@@ -32,17 +32,19 @@ import numpy as np
 
 from ..brdf import (LOG_MAX, dlog_ggx_d_dlog_alpha, goniochromatic,
                     goniochromatic_exponent_arg, log_ggx_d, log_goniochromatic_d4)
-from ..errors import FitError
+from ..errors import FitError, InputError
+from ..names import STEP2_NAMES
 from .common import (ALPHA_MAX, ALPHA_MIN, C_LIMIT, FitData, FitOptions, FitReport,
                      LinearProfile, ModelFit, Stopwatch, WARM_ALPHA_FACTOR,
-                     WARM_ALPHA_POINTS, error_figures, minimize_log_alpha, nm_list, profile_c,
-                     scan_log_alpha)
+                     WARM_ALPHA_POINTS, choose_optimizer, error_figures, minimize_log_alpha,
+                     nm_list, profile_c, scan_log_alpha)
 
 #: Step 1 fits α per angle of incidence only from groups with at least this many
 #: configurations (2 parameters, scale and α, plus one degree of freedom).
 STEP1_MIN_CONFIGURATIONS = 3
 
-STEP2_MODES = ("mirror", "all")
+#: ``--step2``'s choices (gonio_cli.names, which the shell reads too).
+STEP2_MODES = STEP2_NAMES
 
 
 # ------------------------------------------------------------------------ step 2 core --
@@ -248,9 +250,10 @@ def fit(data: FitData, options: FitOptions) -> ModelFit:
     that runs but cannot be trusted comes back with ``status`` "failed" and a message.
     """
     if options.step2 not in STEP2_MODES:
-        raise FitError(f"--step2 {options.step2!r} is unknown", fix="use mirror or all")
+        raise InputError(f"--step2 {options.step2!r} is unknown", fix="use mirror or all")
+    optimizer, _ = choose_optimizer("goniochromatic", OPTIMIZERS, options.optimizer)
     if options.alpha is not None and not (ALPHA_MIN <= options.alpha <= ALPHA_MAX):
-        raise FitError(f"--alpha {options.alpha:g} is outside [{ALPHA_MIN:g}, {ALPHA_MAX:g}]",
+        raise InputError(f"--alpha {options.alpha:g} is outside [{ALPHA_MIN:g}, {ALPHA_MAX:g}]",
                        fix="GGX alpha of seed 000 eq. 3 lies in (0, 1]")
     if options.alpha is None:
         check_identifiable(data)
@@ -259,7 +262,7 @@ def fit(data: FitData, options: FitOptions) -> ModelFit:
 
     # ---- seed 000's two steps
     if options.alpha is None:
-        s1 = step1_alpha_per_theta_i(data, options.optimizer)
+        s1 = step1_alpha_per_theta_i(data, optimizer)
         alpha1, evals1 = s1["alpha_mean"], s1["evaluations"]
         extra = {k: s1[k] for k in ("alpha_per_theta_i", "alpha_mean",
                                     "alpha_std_percent_of_mean")}
@@ -270,7 +273,7 @@ def fit(data: FitData, options: FitOptions) -> ModelFit:
         reports["paper_two_step"] = FitReport(
             "paper_two_step", "failed",
             f"step 1 needs at least {STEP1_MIN_CONFIGURATIONS} configurations at some angle "
-            "of incidence", {}, {}, options.optimizer, evals1, sw.lap(), [], extra)
+            "of incidence", {}, {}, optimizer, evals1, sw.lap(), [], extra)
     else:
         sub = data.subset(data.mirror_rows()) if options.step2 == "mirror" else data
         n_ti = np.unique(np.round(sub.theta_i_deg, 6)).size
@@ -279,11 +282,11 @@ def fit(data: FitData, options: FitOptions) -> ModelFit:
                 "paper_two_step", "failed",
                 f"step 2 on mirror configurations needs them at 2 or more angles of "
                 f"incidence to separate rho and c; found {n_ti}", {"alpha": alpha1}, {},
-                options.optimizer, evals1, sw.lap(), [], extra)
+                optimizer, evals1, sw.lap(), [], extra)
         else:
             rho, c, _, ok = solve_spectra(sub, alpha1)
             reports["paper_two_step"] = _report(
-                "paper_two_step", data, alpha1, rho, c, ok, optimizer=options.optimizer,
+                "paper_two_step", data, alpha1, rho, c, ok, optimizer=optimizer,
                 evaluations=evals1 + 1, time_s=sw.lap(),
                 message="seed 000 two steps: alpha from spectrum-averaged GGX per "
                         f"theta_i, then rho and c on {options.step2} configurations",
@@ -291,43 +294,57 @@ def fit(data: FitData, options: FitOptions) -> ModelFit:
 
     # ---- joint refinement (profile over log α, closed-form step 2 inside)
     if options.refine and options.alpha is None:
-        reports["refined"] = refine(data, options.optimizer, sw)
+        reports["refined"] = refine(data, optimizer, sw)
     final = "refined" if "refined" in reports else "paper_two_step"
     if not reports[final].params:
         raise FitError(reports[final].message)
     return ModelFit("goniochromatic", data.wavelength_nm, reports, final, data.excluded)
 
 
+def _refine_joint(data: FitData, step2: Step2, optimizer: str):
+    """``scipy-least-squares``: α and (log ρ, c) jointly, from the scan's best α."""
+    grid, costs, i = scan_log_alpha(step2.cost, costs=step2.costs)
+    rho, c, _, ok = step2.solve(float(np.exp(grid[i])))
+    beta0 = np.stack([np.log(np.where(ok, rho, 1.0)), c])
+    sub = data.subset(slice(None))
+    sub.w = data.w * ok[None, :]                    # fitted wavelengths only
+    alpha, beta, nfev, message = joint_least_squares(sub, grid[i], beta0, step2.X)
+    at_bound = bool(np.isclose(alpha, ALPHA_MIN) or np.isclose(alpha, ALPHA_MAX))
+    return alpha, len(grid) + nfev, True, message, at_bound
+
+
+def _refine_profile(data: FitData, step2: Step2, optimizer: str):
+    """The nlopt names: α by the 1-D profile search (:func:`minimize_log_alpha`)."""
+    if data.residuals == "log":
+        search = minimize_log_alpha(step2.cost, optimizer, costs=step2.costs)
+    else:  # start where the log-residual profile (closed form) has its minimum
+        log_fit = minimize_log_alpha(step2.log_cost, optimizer, costs=step2.log_costs)
+        lo = max(np.log(log_fit.alpha / WARM_ALPHA_FACTOR), np.log(ALPHA_MIN))
+        hi = min(np.log(log_fit.alpha * WARM_ALPHA_FACTOR), np.log(ALPHA_MAX))
+        search = minimize_log_alpha(step2.cost, optimizer, lo=lo, hi=hi,
+                                    points=WARM_ALPHA_POINTS, costs=step2.costs)
+        search.evaluations += log_fit.evaluations
+    return search.alpha, search.evaluations, search.success, search.message, search.at_bound
+
+
+#: ``--optimizer`` of the joint refinement: each returns (α, evaluations, success,
+#: message, α at a bound); the first is the default.
+OPTIMIZERS = {
+    "nlopt-bobyqa": _refine_profile,
+    "nlopt-lbfgs": _refine_profile,
+    "scipy-least-squares": _refine_joint,
+}
+
+
 def refine(data: FitData, optimizer: str, sw: Stopwatch | None = None) -> FitReport:
     """α, ρ(λ), c(λ) jointly over all configurations (the default final fit)."""
     sw = sw or Stopwatch()
     step2 = Step2(data)
-    if optimizer == "scipy-least-squares":
-        grid, costs, i = scan_log_alpha(step2.cost, costs=step2.costs)
-        rho, c, _, ok = step2.solve(float(np.exp(grid[i])))
-        beta0 = np.stack([np.log(np.where(ok, rho, 1.0)), c])
-        sub = data.subset(slice(None))
-        sub.w = data.w * ok[None, :]                    # fitted wavelengths only
-        alpha, beta, nfev, message = joint_least_squares(sub, grid[i], beta0, step2.X)
-        # (log ρ, c) at the optimum α are the closed form again (same minimiser);
-        # recomputing them keeps one definition of step 2 for every optimiser.
-        rho, c, _, ok = step2.solve(alpha)
-        evaluations, success = len(grid) + nfev, True
-        at_bound = bool(np.isclose(alpha, ALPHA_MIN) or np.isclose(alpha, ALPHA_MAX))
-    else:
-        if data.residuals == "log":
-            search = minimize_log_alpha(step2.cost, optimizer, costs=step2.costs)
-        else:  # start where the log-residual profile (closed form) has its minimum
-            log_fit = minimize_log_alpha(step2.log_cost, optimizer, costs=step2.log_costs)
-            lo = max(np.log(log_fit.alpha / WARM_ALPHA_FACTOR), np.log(ALPHA_MIN))
-            hi = min(np.log(log_fit.alpha * WARM_ALPHA_FACTOR), np.log(ALPHA_MAX))
-            search = minimize_log_alpha(step2.cost, optimizer, lo=lo, hi=hi,
-                                        points=WARM_ALPHA_POINTS, costs=step2.costs)
-            search.evaluations += log_fit.evaluations
-        alpha, evaluations, success, message = (search.alpha, search.evaluations,
-                                                search.success, search.message)
-        at_bound = search.at_bound
-        rho, c, _, ok = step2.solve(alpha)
+    alpha, evaluations, success, message, at_bound = OPTIMIZERS[optimizer](data, step2,
+                                                                           optimizer)
+    # (log ρ, c) at the optimum α are the closed form (for the joint fit the same
+    # minimiser): one definition of step 2 for every optimiser.
+    rho, c, _, ok = step2.solve(alpha)
     if at_bound:
         message += f"; alpha={alpha:.4g} is at the bound of [{ALPHA_MIN:g}, {ALPHA_MAX:g}]"
     return _report("refined", data, alpha, rho, c, ok, optimizer=optimizer,

@@ -27,10 +27,10 @@ from __future__ import annotations
 import numpy as np
 
 from ..brdf import evaluate, goniochromatic_d4, goniochromatic_exponent_arg, torrance_sparrow
-from ..errors import FitError
+from ..errors import InputError
 from .common import (ALPHA_MAX, ALPHA_MIN, C_LIMIT, FitData, FitOptions, FitReport,
-                     ModelFit, Stopwatch, error_figures, minimize_log_alpha, nm_list,
-                     profile_c)
+                     ModelFit, Stopwatch, choose_optimizer, error_figures,
+                     minimize_log_alpha, nm_list, profile_c)
 
 #: The clear coat's F0 for a dielectric of refractive index 1.5 ((n − 1)/(n + 1))², the
 #: start of its search.
@@ -140,19 +140,28 @@ def _search_coat(problem: Layered, alpha0: float):
             count["n"], message)
 
 
+#: ``--optimizer``: the search of the layer-free α (the coat's own search is BOBYQA);
+#: the first is the default.
+OPTIMIZERS = {
+    "nlopt-bobyqa": minimize_log_alpha,
+    "nlopt-lbfgs": minimize_log_alpha,
+}
+
+
 def fit_layered(data: FitData, options: FitOptions, coat: bool) -> ModelFit:
     """Fit ``goniochromatic-diffuse`` (``coat=False``) or ``goniochromatic-coat``."""
     model = "goniochromatic-coat" if coat else "goniochromatic-diffuse"
     if options.alpha is not None and not (ALPHA_MIN <= options.alpha <= ALPHA_MAX):
-        raise FitError(f"--alpha {options.alpha:g} is outside [{ALPHA_MIN:g}, {ALPHA_MAX:g}]",
-                       fix="GGX alpha of seed 000 eq. 3 lies in (0, 1]")
+        raise InputError(f"--alpha {options.alpha:g} is outside [{ALPHA_MIN:g}, {ALPHA_MAX:g}]",
+                         fix="GGX alpha of seed 000 eq. 3 lies in (0, 1]")
+    optimizer, search_alpha = choose_optimizer(model, OPTIMIZERS, options.optimizer)
     sw = Stopwatch()
     plain = Layered(data)
     if options.alpha is not None:
         alpha, evaluations, message, success = options.alpha, 0, "alpha fixed", True
     else:
-        search = minimize_log_alpha(lambda g: plain.cost(float(np.exp(g))), options.optimizer,
-                                    points=LAYERED_ALPHA_POINTS)
+        search = search_alpha(lambda g: plain.cost(float(np.exp(g))), optimizer,
+                              points=LAYERED_ALPHA_POINTS)
         alpha, evaluations, message, success = (search.alpha, search.evaluations,
                                                 search.message, search.success)
     if coat:
@@ -169,7 +178,7 @@ def fit_layered(data: FitData, options: FitOptions, coat: bool) -> ModelFit:
                    f"rho = rho_d = c = 0 there. " + message)
     f = evaluate(model, data.cos, params)
     report = FitReport("refined", status, message, params, error_figures(data, f),
-                       "nlopt-bobyqa", evaluations, sw.lap(), failed)
+                       optimizer, evaluations, sw.lap(), failed)
     return ModelFit(model, data.wavelength_nm, {"refined": report}, "refined", data.excluded)
 
 

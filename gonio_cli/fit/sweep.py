@@ -17,7 +17,8 @@ import numpy as np
 
 from ..synthetic import ink_spectra, paper_geometry, synthetic_measurement
 from . import fit
-from .common import DEFAULT_OPTIMIZER, OPTIMIZERS, FitOptions, prepare
+from ..names import OPTIMIZERS_BY_MODEL
+from .common import FitOptions, prepare
 
 #: (label, options, report key) for each method of the goniochromatic fit.
 METHODS = (
@@ -51,7 +52,8 @@ def _timed(fun, repeats: int):
 def goniochromatic_sweep(alphas: Iterable[float] = (0.03, 0.19, 0.5),
                          inks: Iterable[str] = ("red", "green", "blue"),
                          noise: float = 0.02, repeats: int = 5,
-                         optimizers: Iterable[str] = tuple(OPTIMIZERS)) -> list[SweepRow]:
+                         optimizers: Iterable[str] = OPTIMIZERS_BY_MODEL["goniochromatic"]
+                         ) -> list[SweepRow]:
     """One row per (case, method, optimiser); time is the median of ``repeats`` runs of
     the whole fit (preparation included), after one warm-up run."""
     rows = []
@@ -121,16 +123,17 @@ def _ink(wl: np.ndarray) -> dict:
     return {"alpha": 0.15, "rho": rho, "c": c}
 
 
-#: Models whose fitter has one optimiser of its own (the ``--optimizer`` choice does not
-#: apply): swept once, with the compressive residual they are meant for.
-_SINGLE_OPTIMIZER = {"goniochromatic-diffuse", "goniochromatic-coat", "cook-torrance-2",
-                     "cook-torrance-3"}
+#: Models swept once, at their default optimiser, with the compressive residual they are
+#: meant for.
+_LAYERED = {"goniochromatic-diffuse", "goniochromatic-coat", "cook-torrance-2",
+            "cook-torrance-3"}
 
 
 def comparison_sweep(noise: float = 0.02, repeats: int = 5,
-                     optimizers: Iterable[str] = tuple(OPTIMIZERS)) -> list[dict]:
+                     optimizers: Iterable[str] | None = None) -> list[dict]:
     """Each comparison model on data made from itself: relative RMSE of each parameter
-    against the truth (%), the data's relative RMSE (seed 004 eq. 14) and median time."""
+    against the truth (%), the data's relative RMSE (seed 004 eq. 14) and median time.
+    Each model runs with each of ``optimizers`` it takes (default: all it takes)."""
     from ..spectra import parse_grid
 
     wl = parse_grid()
@@ -138,9 +141,10 @@ def comparison_sweep(noise: float = 0.02, repeats: int = 5,
     rows = []
     for model, truth in _comparison_truths(wl).items():
         m = synthetic_measurement(model, truth, ti, to, noise=noise, seed=1)
-        layered = model in _SINGLE_OPTIMIZER
+        layered = model in _LAYERED
+        own = OPTIMIZERS_BY_MODEL[model][:1] if layered else OPTIMIZERS_BY_MODEL[model]
         residuals = "compressive" if layered else "log"
-        for optimizer in ((DEFAULT_OPTIMIZER,) if layered else optimizers):
+        for optimizer in [o for o in own if optimizers is None or o in optimizers]:
             run = lambda: fit(prepare(m, residuals=residuals), model,  # noqa: E731
                               FitOptions(optimizer=optimizer))
             run()

@@ -39,7 +39,8 @@ from ..brdf import (dlog_ggx_d_dlog_alpha, dlog_smith_g1_dlog_alpha, schlick_fre
                     torrance_sparrow)
 from ..errors import FitError, InputError
 from .common import (ALPHA_MAX, ALPHA_MIN, FitData, FitOptions, FitReport, ModelFit,
-                     Stopwatch, error_figures, minimize_log_alpha, nm_list, scan_log_alpha)
+                     Stopwatch, choose_optimizer, error_figures, minimize_log_alpha, nm_list,
+                     scan_log_alpha)
 
 MODEL = "torrance-sparrow"
 
@@ -253,6 +254,30 @@ def joint_least_squares(profile: F0Profile, log_alpha0: float, f00: np.ndarray):
     return float(np.exp(res.x[0])), int(res.nfev + res.njev), res.status > 0, res.message
 
 
+def _search_joint(profile: F0Profile, optimizer: str):
+    """``scipy-least-squares``: the scan, then (log α, F0(λ)) jointly."""
+    grid, costs, i = scan_log_alpha(profile.cost, costs=profile.costs)
+    f00 = profile.solve(grid[i])[0][0]
+    alpha, nfev, success, message = joint_least_squares(profile, grid[i], f00)
+    return alpha, len(grid) + nfev, success, f"joint least_squares over (log alpha, f0): {message}"
+
+
+def _search_profile(profile: F0Profile, optimizer: str):
+    """The nlopt names: α by the 1-D profile search, F0(λ) in closed form for each α."""
+    search = minimize_log_alpha(profile.cost, optimizer, costs=profile.costs)
+    return (search.alpha, search.evaluations, search.success,
+            f"alpha by profile search ({optimizer}): {search.message}")
+
+
+#: ``--optimizer``: each returns (α, evaluations, success, message); the first is the
+#: default.
+OPTIMIZERS = {
+    "nlopt-bobyqa": _search_profile,
+    "nlopt-lbfgs": _search_profile,
+    "scipy-least-squares": _search_joint,
+}
+
+
 # ------------------------------------------------------------------------------ fit --
 
 def fit(data: FitData, options: FitOptions) -> ModelFit:
@@ -261,7 +286,7 @@ def fit(data: FitData, options: FitOptions) -> ModelFit:
     Parameters
     ----------
     data : :class:`~.common.FitData` (N configurations, L wavelengths)
-    options : ``optimizer`` (a key of :data:`~.common.OPTIMIZERS`), ``alpha`` to fix the
+    options : ``optimizer`` (a key of :data:`OPTIMIZERS`), ``alpha`` to fix the
         roughness instead of fitting it; ``refine`` and ``step2`` are goniochromatic only.
 
     Returns
@@ -288,21 +313,13 @@ def fit(data: FitData, options: FitOptions) -> ModelFit:
         raise FitError("every configuration is a mirror one (theta_o_deg = theta_i_deg), so "
                        "alpha only scales f0 and cannot be fitted",
                        fix="add off-specular configurations or fix it with --alpha")
-    optimizer = options.optimizer
+    optimizer, search = choose_optimizer(MODEL, OPTIMIZERS, options.optimizer)
     extra: dict = {"alpha_fixed": options.alpha is not None}
     success, at_bound = True, False
     if options.alpha is not None:
         alpha, evaluations, message = float(options.alpha), 1, "alpha fixed; F0 per wavelength"
-    elif optimizer == "scipy-least-squares":
-        grid, costs, i = scan_log_alpha(profile.cost, costs=profile.costs)
-        f00 = profile.solve(grid[i])[0][0]
-        alpha, nfev, success, message = joint_least_squares(profile, grid[i], f00)
-        evaluations = len(grid) + nfev
-        message = f"joint least_squares over (log alpha, f0): {message}"
     else:
-        search = minimize_log_alpha(profile.cost, optimizer, costs=profile.costs)
-        alpha, evaluations, success = search.alpha, search.evaluations, search.success
-        message = f"alpha by profile search ({optimizer}): {search.message}"
+        alpha, evaluations, success, message = search(profile, optimizer)
     if options.alpha is None:
         at_bound = bool(np.isclose(alpha, ALPHA_MIN) or np.isclose(alpha, ALPHA_MAX))
         extra["alpha_at_bound"] = at_bound

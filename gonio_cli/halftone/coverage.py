@@ -248,9 +248,9 @@ def parse_size(text: str) -> tuple[int, int]:
     """``"WxH"`` → (width_px, height_px), both positive, within :data:`MAX_PIXELS`."""
     m = re.fullmatch(r"\s*(\d+)\s*[xX×]\s*(\d+)\s*", text or "")
     if not m:
-        raise InputError(f"--size {text!r} is not WIDTHxHEIGHT in pixels",
-                         fix="write e.g. --size 2048x1536")
-    return check_size(int(m.group(1)), int(m.group(2)), f"--size {text}")
+        raise InputError(f"--size-px {text!r} is not WIDTHxHEIGHT in pixels",
+                         fix="write e.g. --size-px 2048x1536")
+    return check_size(int(m.group(1)), int(m.group(2)), f"--size-px {text}")
 
 
 def check_size(width: int, height: int, what: str) -> tuple[int, int]:

@@ -336,7 +336,7 @@ def sample_set(name: str, view_angle_deg: Sequence[float] | None = None) -> Samp
         bad = views[~((views >= 0) & (views < 90))]
         if bad.size:
             raise InputError(f"view angle {bad[0]:g} deg is outside [0, 90)",
-                             fix="e.g. --view-angles 0:80:10")
+                             fix="e.g. --view-angles-deg 0:80:10")
         samples = SAMPLE_SETS[name].samples(views, name)
     elif str(name).lower().endswith(".csv"):
         light, view = read_sample_csv(name)
@@ -368,10 +368,11 @@ def parse_view_angles(spec: str) -> np.ndarray:
         else:
             values = np.array([float(p) for p in text.split(",") if p.strip()])
     except ValueError:
-        raise InputError(f"--view-angles {spec!r} is not START:STOP:STEP or a list",
-                         fix="e.g. --view-angles 0:80:10 or --view-angles 10,40,70") from None
+        raise InputError(f"--view-angles-deg {spec!r} is not START:STOP:STEP or a list",
+                         fix="e.g. --view-angles-deg 0:80:10 or --view-angles-deg 10,40,70"
+                         ) from None
     if values.size == 0:
-        raise InputError("--view-angles is empty", fix="e.g. --view-angles 0:80:10")
+        raise InputError("--view-angles-deg is empty", fix="e.g. --view-angles-deg 0:80:10")
     return values
 
 

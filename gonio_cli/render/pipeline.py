@@ -373,13 +373,13 @@ def check_memory(scene: Scene, spectra: bool = False) -> int:
               "built-in mesh triangles", path=scene.display,
               fix="lower segments= (and rings=) of the builtin: mesh")
     check(frame, f"a {cam.width}x{cam.height} render at ssaa {scene.output.ssaa}",
-          path=scene.display, fix="lower --ssaa or --width/--height")
+          path=scene.display, fix="lower --ssaa or --width-px/--height-px")
     if not spectra:
         return frame
     return check(memory_estimate(scene, spectra=True),
                  f"a {cam.width}x{cam.height} spectral image on {np.size(scene.grid_nm)} "
                  "wavelengths with the frame's buffers", path=scene.display,
-                 fix="use a coarser --grid-nm, or lower --width/--height or --ssaa")
+                 fix="use a coarser --grid-nm, or lower --width-px/--height-px or --ssaa")
 
 
 def needs_positions(scene: Scene) -> bool:
@@ -454,7 +454,6 @@ def _render_steps(scene: Scene, stats: Stats, state: dict, spectra: bool = False
             environment = load_environment(scene.environment.prefiltered)
     yield "materials"
     from .raster import rasterize
-    from .shade import shade_rows
 
     ssaa = scene.output.ssaa
     with _Stage(stats, "rasterize"):

@@ -59,7 +59,7 @@ from . import Camera, Light
 BUILTIN_PREFIX = "builtin:"
 BUILTIN_MESHES = ("sphere", "plane")
 
-SPECTRAL_MODES = ("table", "exact")
+from ..names import SPECTRAL_PATHS as SPECTRAL_MODES  # noqa: E402
 LIGHT_TYPES = ("directional", "point")
 
 #: Supersampling factors above this multiply memory by > 256 per pixel: refused.

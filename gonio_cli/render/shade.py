@@ -87,7 +87,7 @@ from ..schemas import Lobes, Material
 from . import GBuffer, Light, Stats
 
 #: The spectral paths of :func:`shade` (STYLE 3: a registry, named in errors).
-SPECTRAL_PATHS = ("table", "exact")
+from ..names import SPECTRAL_PATHS  # noqa: E402  (the names, spelled once)
 
 #: Smallest goniochromatic table (entries over x ∈ [0, 1]); doubled (as 2^k + 1) until
 #: :data:`TABLE_REL_TOL` holds.

@@ -20,7 +20,7 @@ from ..errors import InputError
 SCHEMA = "gonio.report"
 SCHEMA_VERSION = 1
 #: Section names in report order (the registry lives in :mod:`.sections`, imported lazily).
-SECTION_NAMES = ("fit", "lobes", "prefilter", "render", "table1", "sheets")
+from ..names import REPORT_SECTION_NAMES as SECTION_NAMES  # noqa: E402
 
 
 def format_seconds(t: float) -> str:

@@ -13,6 +13,7 @@ from typing import Any, Callable
 
 import numpy as np
 
+from ..names import SPECTRAL_PATHS
 from . import format_seconds, sweeps
 
 
@@ -366,7 +367,7 @@ def render_section(inputs: Inputs, workdir: Path, quick: bool) -> Section:
     ref, _, ref_t = sweeps.render_scene_file(path, variables, doc=doc, width=size,
                                              height=size, ssaa=4, spectral="exact")
     points = [dict(sweep=f"{sp}, ssaa 1-3", spectral=sp, ssaa=s, segments=None)
-              for sp in ("table", "exact") for s in (1, 2, 3)]
+              for sp in SPECTRAL_PATHS for s in (1, 2, 3)]
     points += [dict(sweep="table, ssaa 2, segments 12-96", spectral="table", ssaa=2,
                     segments=n) for n in (12, 24, 48, 96)]
     rows = []

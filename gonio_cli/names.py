@@ -1,0 +1,86 @@
+"""The names of every registry's choices, in one light module.
+
+The cores build their registries (dicts of callables) keyed by these names and the typer
+shells spell their ``--help`` and metavars from them, so importing this module costs
+nothing at ``gonio --version`` (no numpy). ``tests/test_cli_help.py`` asserts that each
+registry's keys equal the names here, in order, and that every command's help shows them.
+"""
+
+from __future__ import annotations
+
+# ---------------------------------------------------------------------------- gonio fit --
+
+#: ``--model``: the fitters of :data:`gonio_cli.fit.FITTERS`, in that order.
+FIT_MODEL_NAMES = ("goniochromatic", "goniochromatic-diffuse", "goniochromatic-coat",
+                   "torrance-sparrow", "cook-torrance", "cook-torrance-2", "cook-torrance-3")
+#: The ``--model`` value that chooses among the fitters by held-out error.
+AUTO_MODEL = "auto"
+FIT_MODEL_CHOICES = FIT_MODEL_NAMES + (AUTO_MODEL,)
+#: ``--step2``: :data:`gonio_cli.fit.goniochromatic.STEP2_MODES`.
+STEP2_NAMES = ("mirror", "all")
+#: ``--residuals``: :data:`gonio_cli.fit.common.RESIDUALS`.
+RESIDUAL_NAMES = ("compressive", "log", "linear")
+#: ``--optimizer``: each fitter's own ``OPTIMIZERS`` dict, keyed by a subset of these, the
+#: first being that fitter's default (:data:`gonio_cli.fit.OPTIMIZERS_BY_MODEL`).
+OPTIMIZERS_BY_MODEL = {
+    "goniochromatic": ("nlopt-bobyqa", "nlopt-lbfgs", "scipy-least-squares"),
+    "goniochromatic-diffuse": ("nlopt-bobyqa", "nlopt-lbfgs"),
+    "goniochromatic-coat": ("nlopt-bobyqa", "nlopt-lbfgs"),
+    "torrance-sparrow": ("nlopt-bobyqa", "nlopt-lbfgs", "scipy-least-squares"),
+    "cook-torrance": ("golden-section", "scipy-least-squares"),
+    "cook-torrance-2": ("nlopt-bobyqa",),
+    "cook-torrance-3": ("nlopt-bobyqa",),
+}
+#: Every ``--optimizer`` value, in order of first appearance.
+OPTIMIZER_NAMES = tuple(dict.fromkeys(n for v in OPTIMIZERS_BY_MODEL.values() for n in v))
+
+# ------------------------------------------------------------------------- gonio render --
+
+#: ``--spectral`` / ``[output] spectral``: :data:`gonio_cli.render.shade.SPECTRAL_PATHS`.
+SPECTRAL_PATHS = ("table", "exact")
+#: ``--tonemap``: :data:`gonio_cli.render.tonemap.TONEMAPS`.
+TONEMAP_NAMES = ("neutral", "none", "clip", "reinhard", "filmic")
+#: ``--adapt``: :data:`gonio_cli.render.tonemap.ADAPTATIONS`.
+ADAPTATION_NAMES = ("bradford", "cat16", "none")
+#: ``--exr-space``: :data:`gonio_cli.render.tonemap.EXR_SPACES`.
+EXR_SPACE_NAMES = ("srgb", "xyz", "acescg")
+
+# ----------------------------------------------------------------------- gonio halftone --
+
+#: ``--method``: :data:`gonio_cli.halftone.METHODS`.
+HALFTONE_METHOD_NAMES = ("floyd-steinberg", "jarvis", "stucki", "bayer", "clustered",
+                         "clustered-3x3", "blue-noise")
+#: ``--gamut``: :data:`gonio_cli.halftone.coverage.GAMUT_MAPPERS`.
+GAMUT_NAMES = ("scale", "clip")
+#: ``--input-encoding``: :data:`gonio_cli.halftone.coverage.INPUT_ENCODINGS`.
+INPUT_ENCODING_NAMES = ("auto", "srgb", "linear")
+#: ``--compress``: :data:`gonio_cli.imageio.COMPRESSION`.
+COMPRESSION_NAMES = ("none", "fast", "balanced", "small")
+#: ``--mask-format``: :data:`gonio_cli.commands.halftone.MASK_WRITERS`.
+MASK_FORMAT_NAMES = ("palette", "rgb")
+
+# ------------------------------------------------------- gonio lobes, prefilter, sparkle --
+
+#: ``--samples`` (or a CSV file): :data:`gonio_cli.lobes.SAMPLE_SETS`.
+SAMPLE_SET_NAMES = ("seed001", "dense", "hemisphere")
+#: ``--channels``: :data:`gonio_cli.lobes.CHANNELS`.
+CHANNEL_NAMES = ("spectral", "xyz")
+#: ``gonio lobes fit --solver``: :data:`gonio_cli.lobes.WEIGHT_SOLVERS`.
+WEIGHT_SOLVER_NAMES = ("lp", "highs", "lp-simplex", "nnls", "lsq-clamp")
+#: ``gonio lobes basis --solver``: :data:`gonio_cli.lobes.BASIS_SOLVERS`.
+BASIS_SOLVER_NAMES = ("nnls", "lp-simplex")
+#: ``gonio prefilter --method`` (besides ``auto``): :data:`gonio_cli.prefilter.METHODS`.
+PREFILTER_METHOD_NAMES = ("brute", "ring")
+PREFILTER_AUTO = "auto"
+#: ``gonio sparkle --rule``: :data:`gonio_cli.sparkle.SEGMENTATION_RULES`.
+SPARKLE_RULE_NAMES = ("mad", "percentile")
+
+# ------------------------------------------------------------------------- gonio report --
+
+#: ``--sections``: :data:`gonio_cli.report.SECTION_NAMES` (its sections, in order).
+REPORT_SECTION_NAMES = ("fit", "lobes", "prefilter", "render", "table1", "sheets")
+
+
+def metavar(names) -> str:
+    """The metavar of a choice option: its names joined by ``|``."""
+    return "|".join(names)
