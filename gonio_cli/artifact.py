@@ -52,8 +52,12 @@ def sha256_file(path: str | os.PathLike) -> str:
 
 
 def input_records(paths: Iterable[str | os.PathLike]) -> list[dict[str, str]]:
-    """Provenance of input files: ``[{"path": ..., "sha256": ...}, ...]``."""
-    return [{"path": os.fspath(p), "sha256": sha256_file(p)} for p in paths]
+    """Provenance of input files: ``[{"path": ..., "sha256": ...}, ...]``. An input this
+    command wrote itself and still holds back (a turntable's frames) is hashed where it is
+    staged (:func:`gonio_cli.outputs.readable`)."""
+    from .outputs import readable
+
+    return [{"path": os.fspath(p), "sha256": sha256_file(readable(p))} for p in paths]
 
 
 def image_metadata(schema: str, schema_version: int, *,

@@ -335,6 +335,6 @@ def test_ink_options_come_from_inks_toml(tree):
         assert flags == expected + ["--summary"]
         assert argv[1:argv.index("-o")] == [str(p.relative_to(tree.root)) for p in ink.files]
     fits = [a for a in commands if a[0] == "fit"]
-    assert len(fits) == 6 and all(a[-2:] == ["--exclude-theta-i", "70"] for a in fits)
+    assert len(fits) == 6 and all(a[-2:] == ["--exclude-theta-i-deg", "70"] for a in fits)
     tree.touch("sample_data/inks.toml")
     assert {f"rgbink/{i}.measurement.json" for i in inks} <= tree.plan("rgbink")

@@ -52,7 +52,7 @@ def test_the_demo_inks_are_the_shipped_files_with_their_options():
 @pytest.mark.parametrize("args, out", [
     (["ingest-args", "green"], "--quantity ratio-to-white --white-reflectance 0.99"),
     (["ingest-args", "red"], ""),
-    (["fit-args"], "--exclude-theta-i 70"),
+    (["fit-args"], "--exclude-theta-i-deg 70"),
 ])
 def test_the_makefile_reads_the_same_options(args, out):
     r = subprocess.run([sys.executable, "-m", "gonio_cli.samples", *args],
