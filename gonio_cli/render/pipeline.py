@@ -20,6 +20,13 @@ in the run report only if it ran ("leave out what the scene does not need"):
 
 The frame time of the issue is rasterize + shade + downsample + tonemap; the total is
 scene loading to images written (the CLI measures it from before ``load_scene``).
+
+Writing the frame out (images, their metadata, the run report) is
+:mod:`gonio_cli.render.output`, re-exported here. Why one module for the rest: loading
+(meshes, materials, textures, lobes, maps), the memory check and the stages of
+:func:`render_scene` share one scene and its caches, and each stage is a short call into
+its own module (:mod:`.raster`, :mod:`.shade`, :mod:`.tonemap`); what is left here is the
+order they run in.
 """
 
 from __future__ import annotations
@@ -34,29 +41,11 @@ import numpy as np
 
 from .. import log
 from ..errors import ArtifactError, GonioError, InputError
-# the run report's schema and version (its fields: schemas.render_report_spec)
-from ..schemas import RENDER_REPORT_SCHEMA as REPORT_SCHEMA
-from ..schemas import RENDER_REPORT_VERSION as REPORT_VERSION
 from . import Stats
 from .scene import Scene
 
 #: Stages whose sum is the frame time (acceptance: rasterize, shade, tone map).
 FRAME_STAGES = ("rasterize", "shade", "downsample", "tonemap")
-
-#: Schema of the rendered images' metadata (``gonio:schema`` of the PNG and the EXR).
-IMAGE_SCHEMA = "gonio.render"
-IMAGE_SCHEMA_VERSION = 1
-#: Schema of a turntable's animated PNG (``gonio render --turntable``, ``gonio batch``).
-TURNTABLE_SCHEMA = "gonio.turntable"
-TURNTABLE_SCHEMA_VERSION = 1
-
-
-def turntable_metadata(frames, **fields) -> dict:
-    """The metadata of a turntable's animated PNG: its frames (hashed) and ``fields``."""
-    from ..artifact import image_metadata
-
-    return image_metadata(TURNTABLE_SCHEMA, TURNTABLE_SCHEMA_VERSION, inputs=frames,
-                          turntable_frames=len(frames), **fields)
 
 
 @dataclass
@@ -624,150 +613,11 @@ def resolve(rows: np.ndarray, pixels: np.ndarray, object_id: np.ndarray, ssaa: i
     return xyz.reshape(hh // ssaa, ww // ssaa, channels), coverage.astype(np.float64)
 
 
-# ----------------------------------------------------------------------------- output --
+# ------------------------------------------------------------------------- re-exports --
+# Writing the frame out (images, metadata, the run report) is gonio_cli.render.output; it
+# imports Frame and the stages above, hence these imports at the end.
 
-def settings(scene: Scene) -> dict[str, Any]:
-    """The render settings, as written into the EXR metadata and the run report."""
-    cam = scene.camera
-    out = scene.output
-    white = scene_white(scene)
-    white = [round(float(v), 6) for v in white] if white is not None else None
-    return {"scene": str(scene.path), "vars": scene.variables,
-            "camera": {"eye": cam.eye.tolist(), "target": cam.target.tolist(),
-                       "up": cam.up.tolist(), "fov_deg": cam.fov_deg,
-                       "width": cam.width, "height": cam.height},
-            "ssaa": out.ssaa, "spectral": out.spectral, "exposure": out.exposure,
-            "tonemap": out.tonemap, "adapt": out.adapt, "scene_white_xyz": white,
-            "display_white": "D65 (sRGB)", "grid_nm": out.grid_nm,
-            "objects": [{"name": o.name, "kind": o.kind, "mesh": o.mesh} for o in scene.objects],
-            "lights": [{"name": l.name, "kind": l.kind} for l in scene.lights],
-            "environment": (str(scene.environment.prefiltered) if scene.environment else None)}
-
-
-#: The colour that marks out-of-gamut pixels in the gamut-warning image: the mid grey
-#: (sRGB 128) that image editors use for their gamut warning, unlike any ink's colour.
-GAMUT_WARNING_RGB = (128, 128, 128)
-
-
-def gamut_warning_image(frame: Frame) -> np.ndarray:
-    """The PNG image with every out-of-gamut pixel painted :data:`GAMUT_WARNING_RGB`."""
-    out = frame.display.copy()
-    if frame.out_of_gamut is not None:
-        out[frame.out_of_gamut] = GAMUT_WARNING_RGB
-    return out
-
-
-#: What the values of the spectral EXR are (its ``gonio:radiance_units`` attribute).
-SPECTRAL_UNITS = ("spectral radiance L(λ) in the scene's irradiance units (the lights' E, "
-                  "I / d²) per steradian, per wavelength sample of the grid: each light's "
-                  "spectrum is scaled so that Σλ S ȳ / Σλ ȳ = 1, so Y = Σλ L ȳ / Σλ ȳ and "
-                  "XYZ = Σλ L cmf / Σλ ȳ (CIE 1931 2°) is the colour EXR's XYZ before "
-                  "adaptation; a white Lambertian surface lit at normal incidence by E = π "
-                  "has L(λ) = S(λ) (docs/conventions.md)")
-
-
-def exr_pixels(frame: Frame, scene: Scene, space: str = "srgb") -> np.ndarray:
-    """The colour EXR's (H, W, 3) float32 in ``space`` (:data:`.tonemap.EXR_SPACES`):
-    the frame's linear sRGB for ``srgb``, else its XYZ through
-    :func:`.tonemap.xyz_to_exr_matrix` (same adaptation) plus the background."""
-    from .tonemap import get_exr_space, xyz_to_exr_matrix, xyz_to_linear
-
-    get_exr_space(space)
-    if space == "srgb":
-        return frame.linear
-    m = xyz_to_exr_matrix(space, scene.output.adapt, scene_white(scene))
-    out = xyz_to_linear(frame.xyz, m)
-    background = np.asarray(scene.output.background, float)
-    if np.any(background != 0):              # given in linear sRGB, the display's space
-        to_space = get_exr_space(space).matrix() @ np.linalg.inv(
-            get_exr_space("srgb").matrix())
-        out += ((1.0 - frame.coverage)[..., None] * (to_space @ background)).astype(np.float32)
-    return out
-
-
-def write_outputs(frame: Frame, scene: Scene, stats: Stats, *, png, exr=None,
-                  start: float | None = None, gamut_warning=None, exr_space: str = "srgb",
-                  spectral_exr=None) -> None:
-    """Write the EXR (scene-linear float32 in ``exr_space``, default linear sRGB; the
-    space in its ``chromaticities`` and ``gonio:exr_space``; settings and time in its
-    metadata), the PNG (8-bit sRGB), if asked the gamut-warning PNG and the spectral EXR
-    (:func:`gonio_cli.imageio.write_spectral_exr`, the frame's ``spectra``), atomically."""
-    from ..artifact import image_metadata
-    from ..imageio import write_exr, write_png
-    from .tonemap import get_exr_space
-
-    elapsed = time.perf_counter() - start if start is not None else None
-    space = get_exr_space(exr_space)
-    # the envelope of the EXRs (inputs hashed once); the PNG's leaves the inputs out: a
-    # re-fitted material of the same parameters (new file, new hash) must give the same
-    # PNG bytes, so gonio batch can skip what depends on the frame (docs/batch.md)
-    base = image_metadata(IMAGE_SCHEMA, IMAGE_SCHEMA_VERSION, inputs=scene.inputs)
-    png_base = {k: v for k, v in base.items() if k != "inputs"}
-    meta = {**base, "settings": settings(scene),
-            "render_time_s": elapsed if elapsed is not None else
-            sum(v for k, v in stats.time_s.items() if "." not in k),
-            "frame_time_s": frame_time(stats), "exr_space": exr_space,
-            "colour": f"scene-referred {space.help}, after chromatic adaptation "
-                      "(settings.adapt: scene_white_xyz → D65), before exposure and tone "
-                      "mapping"}
-    if exr is not None:
-        with _Stage(stats, "write_exr"):
-            write_exr(exr, exr_pixels(frame, scene, exr_space), meta,
-                      chromaticities=space.chromaticities(), channel_names=space.channels)
-    if spectral_exr is not None:
-        if frame.spectra is None:
-            raise ValueError("the frame has no spectra: render_scene(..., spectra=True)")
-        from ..spectra import grid_spec
-
-        with _Stage(stats, "write_spectral_exr"):
-            from ..imageio import write_spectral_exr
-
-            write_spectral_exr(
-                spectral_exr, frame.spectra, scene.grid_nm, frame.linear,
-                {**base, "schema": "gonio.render-spectra", "settings": settings(scene),
-                 "grid_nm": grid_spec(scene.grid_nm) or [float(v) for v in scene.grid_nm],
-                 "radiance_units": SPECTRAL_UNITS,
-                 "preview": "R, G, B: the colour EXR's linear sRGB (after adaptation)",
-                 "render_time_s": meta["render_time_s"]})
-    with _Stage(stats, "write_png"):
-        write_png(png, frame.display, {**png_base, "settings": settings(scene)})
-        if gamut_warning is not None:
-            write_png(gamut_warning, gamut_warning_image(frame),
-                      {**png_base, "schema": "gonio.render-gamut-warning",
-                       "settings": settings(scene),
-                       "marked": f"pixels outside sRGB painted sRGB {GAMUT_WARNING_RGB}",
-                       "out_of_gamut_pixels": stats.counts.get("out_of_gamut_pixels")})
-
-
-def frame_time(stats: Stats) -> float:
-    return float(sum(stats.time_s.get(k, 0.0) for k in FRAME_STAGES))
-
-
-def write_report(path, scene: Scene, stats: Stats, *, total_s: float, png, exr=None,
-                 gamut_warning=None, spectral_exr=None) -> dict:
-    """The run report (``gonio.render-report`` v1): each stage that ran with its
-    ``time_s`` (in order), the frame time and the total (scene loading to images
-    written), counters, settings and the inputs with their sha256."""
-    from ..artifact import make_document, write_json
-
-    order = ["scene", "meshes", "materials", "textures", "sparkles", "lobes", "environment",
-             "rasterize", "shade", "spectra", "downsample", "tonemap", "write_exr",
-             "write_spectral_exr", "write_png"]
-    names = [k for k in order if k in stats.time_s]
-    names += [k for k in stats.time_s if k not in names and "." not in k]
-    stages = [{"stage": k, "time_s": stats.time_s[k]} for k in names]
-    substages = [{"stage": k, "time_s": v} for k, v in stats.time_s.items() if "." in k]
-    outputs = {"png": str(png), "exr": str(exr) if exr is not None else None,
-               "gamut_warning": str(gamut_warning) if gamut_warning is not None else None}
-    if spectral_exr is not None:
-        outputs["spectral_exr"] = str(spectral_exr)
-    doc = make_document(
-        REPORT_SCHEMA, REPORT_VERSION,
-        {"stages": stages, "substages": substages, "frame_time_s": frame_time(stats),
-         "frame_stages": [k for k in FRAME_STAGES if k in stats.time_s],
-         "outputs": outputs,
-         "image": {"width": scene.camera.width, "height": scene.camera.height},
-         "counts": stats.counts},
-        inputs=scene.inputs, parameters=settings(scene), time_s=total_s)
-    write_json(path, doc)
-    return doc
+from .output import (GAMUT_WARNING_RGB, IMAGE_SCHEMA, IMAGE_SCHEMA_VERSION,  # noqa: E402
+                     REPORT_SCHEMA, REPORT_VERSION, SPECTRAL_UNITS, TURNTABLE_SCHEMA,
+                     TURNTABLE_SCHEMA_VERSION, exr_pixels, frame_time, gamut_warning_image,
+                     settings, turntable_metadata, write_outputs, write_report)
