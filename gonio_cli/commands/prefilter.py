@@ -6,7 +6,7 @@ first into a temporary folder beside OUTDIR and are moved into OUTDIR one by one
 :func:`os.replace`, ``index.json`` last, when the command succeeds (the outputs'
 transaction, :mod:`gonio_cli.outputs`). A failure before that point (bad input, a bad
 option, an interrupted run) leaves OUTDIR untouched; ``index.json`` only ever lists maps
-that are complete.
+that are complete. Reading the map and writing the maps: :mod:`gonio_cli.prefilter_files`.
 """
 
 from __future__ import annotations
@@ -17,22 +17,6 @@ from typing import Optional
 import typer
 
 from ..names import PREFILTER_AUTO, PREFILTER_METHOD_NAMES, metavar
-
-#: Digits of a non-integer exponent in its file name (``prefiltered_E12p5.exr``).
-NAME_DIGITS = 6
-
-
-def map_name(exponent: float) -> str:
-    """File name of the map of exponent E: ``prefiltered_E64.exr``, ``prefiltered_E12p5.exr``."""
-    import numpy as np
-
-    if float(exponent).is_integer():
-        tag = str(int(exponent))
-    else:
-        tag = np.format_float_positional(exponent, precision=NAME_DIGITS, unique=True,
-                                         trim="-").replace(".", "p")
-    return f"prefiltered_E{tag}.exr"
-
 
 def parse_exponents(text: str) -> list[float]:
     """``"1,8,64"`` → [1.0, 8.0, 64.0]; a bad item is an error naming it."""
@@ -87,7 +71,7 @@ def prefilter(
     from .. import log
     from .. import prefilter as core
     from ..errors import InputError
-    from ..imageio import read_image
+    from ..prefilter_files import map_name, read_envmap, write_maps
     from ..schemas import read_lobe_exponents
     from . import require_files
 
@@ -104,14 +88,7 @@ def prefilter(
     declare({"-o": output}, [envmap_path, lobes], folders=["-o"])
     exps = parse_exponents(exponents) if exponents is not None else read_lobe_exponents(lobes)
     exps = core.validate_exponents(exps, path=lobes)
-    image = read_image(envmap_path)
-    if not image.is_float:
-        raise InputError(f"is a {image.format} image, not HDR", path=envmap_path,
-                         fix="pass a linear EXR or HDR (RGBE) map")
-    pixels = image.pixels
-    if pixels.shape[2] == 4:  # RGBA: the alpha of an environment map is not light
-        pixels = pixels[:, :, :3]
-    pixels, replaced = core.validate_map(pixels, fix_invalid=fix_invalid, path=envmap_path)
+    pixels, replaced = read_envmap(envmap_path, fix_invalid)
     if replaced:
         log.warn(f"{envmap_path}: replaced {replaced} NaN, inf or negative texels "
                  "(negative → 0, NaN/inf → the mean of their row)")
@@ -131,8 +108,8 @@ def prefilter(
     parameters = {"exponents": exps, "lobes": str(lobes) if lobes else None,
                   "method": method, "resolution": resolution, "fix_invalid": fix_invalid,
                   "check": check}
-    _write(output, envmap_path, lobes, pixels.shape, results, names, parameters,
-           replaced, t["time_s"])
+    write_maps(output, envmap_path, lobes, pixels.shape, results, names, parameters,
+               replaced, t["time_s"])
     log.info(summary_line(output, results, t["time_s"]))
 
 
@@ -144,41 +121,6 @@ def summary_line(output: Path, results, time_s: float) -> str:
     worst = max(r.error_estimate for r in results)
     return (f"{output}: {len(results)} maps, E = {exps} ({methods}), spot-checked error "
             f"<= {worst:.2g}, {time_s:.2f} s (each map in {output / 'index.json'})")
-
-
-def _write(output: Path, envmap_path: Path, lobes, shape, results, names, parameters,
-           replaced: int, time_s: float) -> None:
-    """Write the maps and index.json through a temporary folder beside OUTDIR."""
-    from ..artifact import image_metadata
-    from ..imageio import write_exr
-    from ..outputs import folder_output
-    from ..schemas import PrefilterIndex, write_prefilter_index
-
-    # staged as a whole, moved into OUTDIR when the command succeeds, index.json last
-    with folder_output(output, merge=True) as tmp:
-        inputs = [envmap_path] + ([lobes] if lobes else [])
-        base = image_metadata(PrefilterIndex.SCHEMA, PrefilterIndex.VERSION, inputs=inputs,
-                              parameters=parameters)
-        entries = []
-        for r, name in zip(results, names):
-            meta = {**base, "exponent": r.exponent, "method": r.method,
-                    "error_estimate": r.error_estimate, "time_s": r.time_s,
-                    "layout": "lat-long, Mitsuba 3 envmap (docs/conventions.md)"}
-            write_exr(tmp / name, r.pixels, meta)
-            entries.append({"exponent": r.exponent, "path": name, "width": r.width,
-                            "height": r.height, "method": r.method,
-                            "error_estimate": r.error_estimate,
-                            "checked_texels": r.checked_texels,
-                            "working_width": r.working_shape[1],
-                            "working_height": r.working_shape[0],
-                            "time_s": r.time_s})
-        index = PrefilterIndex(
-            source={"width": int(shape[1]), "height": int(shape[0]),
-                    "channels": int(shape[2]), "invalid_texels_replaced": int(replaced)},
-            diffuse=names[0], maps=entries)
-        # checked against the reader's definition before writing (gonio_cli.schemas)
-        write_prefilter_index(tmp / "index.json", index, inputs=inputs,
-                              parameters=parameters, time_s=time_s)
 
 
 EXAMPLE = "gonio prefilter sky.exr --exponents 8,64,512 -o sky.prefiltered"
