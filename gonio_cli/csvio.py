@@ -475,7 +475,7 @@ def _floats(table: Table, cols: Sequence[int]) -> np.ndarray:
     return out
 
 
-def _number(text: str) -> float | None:
+def header_wavelength(text: str) -> float | None:
     """A header cell as a wavelength in nm, or None if it is a name."""
     try:
         value = float(text)
@@ -486,8 +486,8 @@ def _number(text: str) -> float | None:
 
 def _wavelength_columns(table: Table) -> tuple[list[int], np.ndarray]:
     """Indices and values (nm) of the numeric header cells, checked increasing."""
-    idx = [k for k, h in enumerate(table.header) if _number(h) is not None]
-    wl = np.array([_number(table.header[k]) for k in idx], dtype=float)
+    idx = [k for k, h in enumerate(table.header) if header_wavelength(h) is not None]
+    wl = np.array([header_wavelength(table.header[k]) for k in idx], dtype=float)
     _check_wavelengths(wl, [table.header[k] for k in idx], table.path, table.header_line)
     return idx, wl
 
@@ -524,7 +524,7 @@ def _check_header(table: Table, layout: Layout) -> None:
                if layout.wide else layout.example)
     allowed = set(layout.columns)
     for h in table.header:
-        is_wl = layout.wide and _number(h) is not None
+        is_wl = layout.wide and header_wavelength(h) is not None
         if not is_wl and h.lower() not in allowed:
             raise InputError(f"unknown column {h!r} in the {layout.name} layout",
                              path=table.path, row=table.header_line, column=h or "(empty)",
@@ -538,7 +538,7 @@ def _check_header(table: Table, layout: Layout) -> None:
     if dup:
         raise InputError(f"column {dup[0]!r} appears twice", path=table.path,
                          row=table.header_line, fix=layout.example)
-    if layout.wide and not any(_number(h) is not None for h in table.header):
+    if layout.wide and not any(header_wavelength(h) is not None for h in table.header):
         raise InputError("has no wavelength columns", path=table.path, row=table.header_line,
                          fix=layout.example)
 
@@ -569,7 +569,7 @@ def _check_angles(theta_i, theta_o, lines, path, labels=None) -> None:
                          fix="write angles in degrees (multiply by 180/pi)")
 
 
-def _rounded_keys(*cols: np.ndarray) -> np.ndarray:
+def rounded_keys(*cols: np.ndarray) -> np.ndarray:
     """(n, k) array of angle columns rounded to :data:`ANGLE_DECIMALS` (grouping keys)."""
     return np.round(np.stack(cols, axis=-1), ANGLE_DECIMALS) + 0.0  # + 0.0: −0 → 0
 
@@ -586,7 +586,7 @@ def _read_long(table: Table) -> Spectra:
                          row=int(table.lines[k]), column=WAVELENGTH,
                          fix="wavelengths are in nm, e.g. 380")
     w_u, j = np.unique(wl_r, return_inverse=True)
-    cfg_u, c = np.unique(_rounded_keys(ti, to), axis=0, return_inverse=True)
+    cfg_u, c = np.unique(rounded_keys(ti, to), axis=0, return_inverse=True)
     j, c = j.reshape(-1), c.reshape(-1)
     n_wl = w_u.size
     rep = _occurrence(c * n_wl + j)
@@ -695,7 +695,7 @@ def detect_layout(header: Sequence[str]) -> Layout:
     """The :class:`Layout` of a header: wavelength columns → wide (or multi-angle with a
     ``geometry`` column), otherwise long."""
     names = [h.strip().lower() for h in header]
-    if any(_number(h) is not None for h in names):
+    if any(header_wavelength(h) is not None for h in names):
         return LAYOUTS["multi-angle" if GEOMETRY in names else "wide"]
     return LAYOUTS["long"]
 
@@ -727,7 +727,7 @@ def read_spectra(path: str | os.PathLike, sample: str | None = None) -> Spectra:
                     "preamble_lines": table.preamble_lines,
                     "comment_lines": table.comment_lines, "empty_rows": table.empty_rows,
                     **samples,
-                    "wavelength_nm": _grid_text(spectra.wavelength_nm)}
+                    "wavelength_nm": grid_text(spectra.wavelength_nm)}
     return spectra
 
 
@@ -767,7 +767,7 @@ def read_spectrum(path: str | os.PathLike, role: str) -> tuple[np.ndarray, np.nd
     return wl, v, table
 
 
-def _grid_text(wl: np.ndarray) -> str:
+def grid_text(wl: np.ndarray) -> str:
     """``"380–780 nm step 10 (41 samples)"`` for messages and the summary."""
     steps = np.diff(wl)
     if steps.size and np.allclose(steps, steps[0], atol=WAVELENGTH_TOL_NM):

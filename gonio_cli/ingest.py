@@ -52,9 +52,9 @@ from . import log
 from .csvio import (ANGLE_DECIMALS, DELIMITERS, GEOMETRY, HEADER_SEARCH_LINES,
                     LABEL_COLUMNS, LAYOUTS, MAX_LISTED_SAMPLES, RADIAN_LIMIT, THETA_I,
                     THETA_O, VALUE, WAVELENGTH, WAVELENGTH_DECIMALS, Layout, Spectra, Table,
-                    _grid_text, _number, _rounded_keys, aspecular_angles, detect_layout,
+                    aspecular_angles, detect_layout, grid_text, header_wavelength,
                     is_layout_header, label_kind, read_columns, read_spectra, read_spectrum,
-                    read_table, select_sample, split_labels)
+                    read_table, rounded_keys, select_sample, split_labels)
 from .errors import InputError
 from .schemas import MAX_MAGNITUDE, Measurement
 from .spectra import DEFAULT_GRID_NM, WAVELENGTH_TOL_NM, covers, parse_grid, resample, same_grid
@@ -355,7 +355,7 @@ def _white_option(value: float | str | None, where: str | None) -> float | str:
     """``--white-reflectance``: a number in (0, 1] (default 0.99) or a CSV path."""
     if value is None:
         return DEFAULT_WHITE_REFLECTANCE
-    number = _number(str(value))
+    number = header_wavelength(str(value))
     if number is None:
         if not Path(str(value)).is_file():
             raise InputError(f"--white-reflectance {value!r} is neither a number nor a file",
@@ -422,8 +422,8 @@ def merge(parts: Sequence[Spectra], grids: Sequence[np.ndarray]) -> Spectra:
     for part, grid in zip(parts[1:], grids[1:]):
         if not same_grid(grid, grids[0]):
             names, line = _wavelength_column_names(part)
-            raise InputError(f"its wavelengths ({_grid_text(grid)}) differ from those of "
-                             f"{first.path} ({_grid_text(grids[0])}) from "
+            raise InputError(f"its wavelengths ({grid_text(grid)}) differ from those of "
+                             f"{first.path} ({grid_text(grids[0])}) from "
                              f"{_first_difference(grid, grids[0])} on", path=part.path,
                              row=line, column=names[0],
                              fix="ingest files from one instrument set-up together, or "
@@ -462,7 +462,7 @@ def average_repeats(theta_i_deg, theta_o_deg, values):
     std : (m, n_λ) float, sample standard deviation (ddof = 1), 0 for a single row.
     n_repeats : (m,) int.
     """
-    keys, inv = np.unique(_rounded_keys(np.asarray(theta_i_deg, float),
+    keys, inv = np.unique(rounded_keys(np.asarray(theta_i_deg, float),
                                         np.asarray(theta_o_deg, float)),
                           axis=0, return_inverse=True)
     inv = inv.reshape(-1)
@@ -697,7 +697,7 @@ def _grid_notes(parts, grids, grid, grid_spec) -> list[str]:
         if same_grid(read, grid):
             continue
         how = "trimmed to" if same_grid(part.wavelength_nm, grid) else "resampled onto"
-        notes.append(f"{part.path}: wavelengths {_grid_text(read)} {how} the working grid "
+        notes.append(f"{part.path}: wavelengths {grid_text(read)} {how} the working grid "
                      f"{grid_spec} ({grid.size} samples)")
     return notes
 

@@ -319,11 +319,11 @@ def test_in_place_forms_equal_the_shared_equations(dtype, tol):
     from gonio_cli.brdf import ggx_d_into as _ggx_d_into
     from gonio_cli.brdf import goniochromatic_exponent_arg_into as _exponent_arg_into
     from gonio_cli.geometry import cosines_from_dots_into as _cosines_into
-    from gonio_cli.render.shade import _Scratch
+    from gonio_cli.render.kernels import Scratch
 
     dots = [d.astype(dtype) for d in sweep_cosines()]
     ref = cosines_from_dots(*(d.astype(float) for d in dots))
-    got = _cosines_into(*dots, _Scratch(dtype, dots[0].size))
+    got = _cosines_into(*dots, Scratch(dtype, dots[0].size))
     # 2 + 2 ωi·ωo loses relative precision as ωo → −ωi: round-off / (2 + 2 ωi·ωo)
     sq = np.maximum(2.0 + 2.0 * dots[2].astype(float), 1e-12)
     for a, b in zip(got, ref):
@@ -331,7 +331,7 @@ def test_in_place_forms_equal_the_shared_equations(dtype, tol):
         assert np.all(np.abs(a - b) <= tol * (1.0 + 1.0 / sq))
     # ωo = −ωi: the normal stands in for the half vector (cos θh = 1, cos θd = cos θi)
     assert got.cos_theta_h[4] == 1.0 and got.cos_theta_d[4] == got.cos_theta_i[4]
-    scratch = _Scratch(dtype, dots[0].size)
+    scratch = Scratch(dtype, dots[0].size)
     x = _exponent_arg_into(got.cos_theta_i, got.cos_theta_o, scratch)
     np.testing.assert_allclose(x, goniochromatic_exponent_arg(ref.cos_theta_i, ref.cos_theta_o),
                                atol=tol, rtol=0)

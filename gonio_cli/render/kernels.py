@@ -45,7 +45,7 @@ FLOAT32_MIN_ALPHA = 0.05
 EXACT_BLOCK = 65536
 
 
-class _Scratch:
+class Scratch:
     """Named 1-D buffers of one dtype, reused by every block of the direct-light loop
     (fresh arrays would page-fault and leave the cache): ``scratch(name, m)`` is the
     first m elements of the buffer ``name`` (another dtype: its third argument)."""
@@ -142,7 +142,7 @@ class TableLookup:
         """(n,) x → (n, 3); x is clamped to [0, 1]."""
         x = np.asarray(x, dtype=float)
         out = np.zeros((self.channels, x.size))
-        self.accumulate(x, np.ones_like(x), out, _Scratch(x.dtype, x.size))
+        self.accumulate(x, np.ones_like(x), out, Scratch(x.dtype, x.size))
         return out.T
 
     def accumulate(self, x: np.ndarray, g: np.ndarray, out: np.ndarray, scratch) -> None:
@@ -211,7 +211,7 @@ def _goniochromatic_kernel(material: Material, weights: np.ndarray) -> Kernel:
     def kernel(cos, scale, directions):
         ci = np.asarray(cos.cos_theta_i)
         out = np.zeros((lookup.channels, ci.shape[0]), ci.dtype)
-        accumulate(cos, np.asarray(scale, ci.dtype), out, _Scratch(ci.dtype, ci.shape[0]))
+        accumulate(cos, np.asarray(scale, ci.dtype), out, Scratch(ci.dtype, ci.shape[0]))
         return out.T
 
     kernel.accumulate = accumulate
@@ -293,7 +293,7 @@ def make_kernel(material, weights: np.ndarray, spectral: str = "table") -> Kerne
     return _exact_kernel(material, weights)
 
 
-def _substrate_kernel(substrate: dict, weights: np.ndarray) -> Kernel:
+def substrate_kernel(substrate: dict, weights: np.ndarray) -> Kernel:
     """The dim Phong substrate of seed 000 Figure 8 (normalised Phong, ref. 27:
     :func:`gonio_cli.lobes.phong_lobe`)."""
     from ..lobes import phong_lobe

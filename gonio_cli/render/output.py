@@ -22,7 +22,7 @@ from .scene import Scene
 
 if TYPE_CHECKING:
     from .pipeline import Frame
-# The pipeline's names (FRAME_STAGES, _Stage, scene_white) are imported where used: the
+# The pipeline's names (FRAME_STAGES, Stage, scene_white) are imported where used: the
 # pipeline re-exports this module, so importing it here at the top would be circular.
 
 #: Schema of the rendered images' metadata (``gonio:schema`` of the PNG and the EXR).
@@ -114,7 +114,7 @@ def write_outputs(frame: Frame, scene: Scene, stats: Stats, *, png, exr=None,
     (:func:`gonio_cli.imageio.write_spectral_exr`, the frame's ``spectra``), atomically."""
     from ..artifact import image_metadata
     from ..imageio import write_exr, write_png
-    from .pipeline import _Stage
+    from .pipeline import Stage
     from .tonemap import get_exr_space
 
     elapsed = time.perf_counter() - start if start is not None else None
@@ -132,7 +132,7 @@ def write_outputs(frame: Frame, scene: Scene, stats: Stats, *, png, exr=None,
                       "(settings.adapt: scene_white_xyz → D65), before exposure and tone "
                       "mapping"}
     if exr is not None:
-        with _Stage(stats, "write_exr"):
+        with Stage(stats, "write_exr"):
             write_exr(exr, exr_pixels(frame, scene, exr_space), meta,
                       chromaticities=space.chromaticities(), channel_names=space.channels)
     if spectral_exr is not None:
@@ -140,7 +140,7 @@ def write_outputs(frame: Frame, scene: Scene, stats: Stats, *, png, exr=None,
             raise ValueError("the frame has no spectra: render_scene(..., spectra=True)")
         from ..spectra import grid_spec
 
-        with _Stage(stats, "write_spectral_exr"):
+        with Stage(stats, "write_spectral_exr"):
             from ..imageio import write_spectral_exr
 
             write_spectral_exr(
@@ -150,7 +150,7 @@ def write_outputs(frame: Frame, scene: Scene, stats: Stats, *, png, exr=None,
                  "radiance_units": SPECTRAL_UNITS,
                  "preview": "R, G, B: the colour EXR's linear sRGB (after adaptation)",
                  "render_time_s": meta["render_time_s"]})
-    with _Stage(stats, "write_png"):
+    with Stage(stats, "write_png"):
         write_png(png, frame.display, {**png_base, "settings": settings(scene)})
         if gamut_warning is not None:
             write_png(gamut_warning, gamut_warning_image(frame),

@@ -66,8 +66,8 @@ class Frame:
     spectra: np.ndarray | None = None
 
 
-class _Stage:
-    """``with _Stage(stats, "name"):`` adds the wall time to ``stats.time_s["name"]``."""
+class Stage:
+    """``with Stage(stats, "name"):`` adds the wall time to ``stats.time_s["name"]``."""
 
     def __init__(self, stats: Stats, name: str):
         self.stats, self.name = stats, name
@@ -179,7 +179,7 @@ def build_surfaces(scene: Scene, stats: Stats) -> list:
         return materials[path]
 
     surfaces = []
-    with _Stage(stats, "materials"):
+    with Stage(stats, "materials"):
         for o in scene.objects:
             s = Surface(name=o.name)
             where = f"[[object]] {o.index + 1}"
@@ -196,7 +196,7 @@ def build_surfaces(scene: Scene, stats: Stats) -> list:
             surfaces.append(s)
     printed = [(o, s) for o, s in zip(scene.objects, surfaces) if o.mask is not None]
     if printed:
-        with _Stage(stats, "textures"):
+        with Stage(stats, "textures"):
             pyramids: dict[Path, Any] = {}
             for o, s in printed:
                 if o.mask not in pyramids:
@@ -205,12 +205,12 @@ def build_surfaces(scene: Scene, stats: Stats) -> list:
                 s.coverage = functools.partial(pyramids[o.mask].coverage, wrap=o.wrap)
     sparkling = [(o, s) for o, s in zip(scene.objects, surfaces) if o.sparkle is not None]
     if sparkling:
-        with _Stage(stats, "sparkles"):
+        with Stage(stats, "sparkles"):
             for o, s in sparkling:
                 with _SceneKey(scene, f"[[object]] {o.index + 1} sparkle", o.sparkle):
                     s.sparkle = load_sparkle(o)
     if scene.environment is not None:
-        with _Stage(stats, "lobes"):
+        with Stage(stats, "lobes"):
             lobes: dict[Path, Any] = {}
 
             def read(p, key):
@@ -428,7 +428,7 @@ def _render_steps(scene: Scene, stats: Stats, state: dict, spectra: bool = False
     """The render as a generator that yields after each of :data:`RENDER_STEPS` steps
     (one more with ``spectra``)."""
     stats.counts["memory_estimate_bytes"] = check_memory(scene, spectra)
-    with _Stage(stats, "meshes"):
+    with Stage(stats, "meshes"):
         meshes = load_meshes(scene)
     yield "meshes"
     surfaces = build_surfaces(scene, stats)
@@ -438,14 +438,14 @@ def _render_steps(scene: Scene, stats: Stats, state: dict, spectra: bool = False
     if scene.environment is not None:
         from .environment import load_environment
 
-        with _Stage(stats, "environment"), _SceneKey(scene, "[environment] prefiltered",
+        with Stage(stats, "environment"), _SceneKey(scene, "[environment] prefiltered",
                                                      scene.environment.prefiltered):
             environment = load_environment(scene.environment.prefiltered)
     yield "materials"
     from .raster import rasterize
 
     ssaa = scene.output.ssaa
-    with _Stage(stats, "rasterize"):
+    with Stage(stats, "rasterize"):
         # compact float32 rows of covered samples; texture coordinates only when a mask
         # or a sparkle texture will read them, positions only for point lights
         gbuffer = rasterize(scene.camera, meshes, ssaa, uv=scene.needs_uvs, compact=True,
@@ -458,12 +458,12 @@ def _render_steps(scene: Scene, stats: Stats, state: dict, spectra: bool = False
     yield "shade"
     radiance = None
     if spectra:
-        with _Stage(stats, "spectra"):
+        with Stage(stats, "spectra"):
             radiance = spectral_radiance(gbuffer, surfaces, scene, environment)
         yield "spectra"
     object_id, pixels = gbuffer.object_id, gbuffer.pixels
     del gbuffer                                               # its rows are no longer needed
-    with _Stage(stats, "downsample"):
+    with Stage(stats, "downsample"):
         xyz, coverage = resolve(rows, pixels, object_id, ssaa, scene.display, stats)
         del rows
         from .tonemap import xyz_to_linear, xyz_to_linear_matrix
@@ -477,7 +477,7 @@ def _render_steps(scene: Scene, stats: Stats, state: dict, spectra: bool = False
                        * np.asarray(scene.output.background, np.float32))
     stats.counts["covered_pixels"] = int(np.count_nonzero(coverage > 0))
     yield "resolve"
-    with _Stage(stats, "tonemap"):
+    with Stage(stats, "tonemap"):
         from .tonemap import display
 
         png, shown = display(linear, scene.output.exposure, scene.output.tonemap, counts=True)

@@ -92,8 +92,8 @@ from . import GBuffer, Light, Stats
 # The spectral kernels and their registry (gonio_cli.render.kernels), importable from here.
 from .kernels import (EXACT_BLOCK, FLOAT32_MIN_ALPHA, SINGLE_PRECISION, TABLE_KERNELS,
                       TABLE_MAX_SIZE, TABLE_MIN_SIZE, TABLE_REL_TOL, Directions, Kernel,
-                      TableLookup, _Scratch, _substrate_kernel, goniochromatic_table,
-                      make_kernel, table_lookup, work_dtype, xyz_weights)
+                      Scratch, TableLookup, goniochromatic_table, make_kernel,
+                      substrate_kernel, table_lookup, work_dtype, xyz_weights)
 
 #: The spectral paths of :func:`shade` (STYLE 3: a registry, named in errors).
 from ..names import SPECTRAL_PATHS  # noqa: E402  (the names, spelled once)
@@ -231,7 +231,7 @@ def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 # and eq. 3 (GGX D). :mod:`gonio_cli.geometry` and :mod:`gonio_cli.brdf` hold them for the
 # fits: float64 whatever comes in, fresh temporaries, log forms for α down to 1e-150. The
 # ``*_into`` forms the loop uses are the same expressions in the dtype of their inputs
-# (float32 on the render's G-buffer) written into reused buffers (``_Scratch``, in
+# (float32 on the render's G-buffer) written into reused buffers (``Scratch``, in
 # :mod:`.kernels`) — measured 6× faster on a 512² frame — and tests/test_render_shade.py
 # checks them against the shared functions.
 
@@ -349,7 +349,7 @@ def shade_rows(gbuffer: GBuffer, surfaces: Sequence[Surface], lights: Sequence[L
         key = (id(material), np.asarray(light.spectrum, dtype=float).tobytes())
         if key not in kernels:
             weights = light_weights(light)
-            kernels[key] = (_substrate_kernel(material, weights) if substrate
+            kernels[key] = (substrate_kernel(material, weights) if substrate
                             else make_kernel(material, weights, spectral))
             size = getattr(kernels[key], "table_size", None)
             if size is not None:
@@ -454,14 +454,14 @@ def _direct(material, is_substrate: bool, tp: _Pixels, lights: Sequence[Light],
 
     Computed in ``dtype`` (:func:`work_dtype`) from the G-buffer's normal, view (and
     position) as (3, m) component rows, in blocks of :data:`BLOCK` pixels whose
-    temporaries are :class:`_Scratch` buffers reused by every block, so they stay in the
+    temporaries are :class:`Scratch` buffers reused by every block, so they stay in the
     CPU cache. Kernels with ``accumulate`` add into ``acc`` in place.
     """
     dtype = np.dtype(dtype)
     if acc is None:
         acc = _rows_buffer(tp.size, dtype, channels)
     acc_t = acc.T                                             # (3, n): contiguous rows
-    scratch = _Scratch(dtype, min(BLOCK, tp.size))
+    scratch = Scratch(dtype, min(BLOCK, tp.size))
     point = any(L.kind == "point" for L in lights)
     for start in range(0, tp.size, BLOCK):
         b = slice(start, start + BLOCK)
