@@ -43,6 +43,11 @@ Methods (registry :data:`METHODS`, chosen per exponent by ``auto``):
 Each exponent gets the output resolution its lobe width calls for
 (:func:`output_levels`: :data:`OUTPUT_TEXELS_PER_SIGMA` texels per lobe standard deviation
 1/√E, reduced from the input by powers of two), unless one is forced.
+
+Why one module: the two methods of :data:`METHODS` (brute force, the exact reference;
+the ring convolution) share the texel integrals, the lobe weights, the resolution rule,
+the cost models that choose between them and the spot checks of every map against brute
+force. Reading and writing the files is :mod:`gonio_cli.prefilter_files`.
 """
 
 from __future__ import annotations

@@ -26,6 +26,9 @@ renders like a CSV measurement:
 Mitsuba is the optional extra ``gonio[mitsuba]``, imported only here and only when a
 ``.bsdf`` is read. :func:`write_tensor_file` writes the format (the synthetic samples
 are made with it: sample_data/make_rgl_wrap.py).
+
+Why one module: the RGL tensor format (reading and writing, for the synthetic samples)
+and its in-plane resampling into a measurement, the only place that knows the format.
 """
 
 from __future__ import annotations

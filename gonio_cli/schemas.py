@@ -16,6 +16,10 @@ add ``to_payload()`` (fields written after the envelope of :mod:`gonio_cli.artif
 - ``gonio.render-report`` v1, :func:`render_report_spec` (``gonio render --report``)
 
 The ranges are docs/conventions.md's table "Numeric ranges".
+
+Why one module: every artifact's definition in one place, on purpose: one file to read
+to know every format gonio writes, and the JSON Schemas in docs/schemas/ are generated
+from it.
 """
 from __future__ import annotations
 

@@ -9,6 +9,10 @@ per-wavelength parameters optimal for that α). :func:`minimize_log_alpha` does 
 a coarse scan over the whole admissible range (so a stiff, near-mirror lobe or a rough one
 is bracketed, never missed by a local method started far away), then a local refinement
 with the chosen optimiser (each fitter's ``OPTIMIZERS``).
+
+Why one module: this is what every fitter shares (data, weights, the α search, the small
+vectorised solvers, error figures, result objects); split by kind, each fitter would
+import all the parts anyway.
 """
 
 from __future__ import annotations

@@ -44,6 +44,10 @@ Identifiability from in-plane data:
 Failure is a value: a wavelength with fewer than :data:`MIN_CONFIGURATIONS` usable
 readings is named in ``failed_wavelength_nm`` with kd = ks = 0 (f = 0), m = M_MAX, F0 = 1.
 Relative RMSE (seed 004 eq. 14) is among the error figures of every report.
+
+Why one module: the fit with its analytic derivatives, the F0 separability test and the
+standard errors belong to one model's equations (seed 004 eq. 11); split, the
+derivatives would sit away from the function they differentiate.
 """
 
 from __future__ import annotations

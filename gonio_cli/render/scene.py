@@ -34,6 +34,10 @@ no range are refused.
 Light spectra are CIE illuminants by name (colour-science: ``D65``, ``A``, ``FL2`` …) or
 a CSV ``wavelength_nm,value``, resampled onto the working grid (with a warning when the
 CSV is on another grid) and scaled so that Σ S ȳ / Σ ȳ = 1 (docs/conventions.md).
+
+Why one module: the scene file's validation, one error message per key with its fix,
+all through one checker (``_Checker``); the lights' spectra depend on the grid the
+objects' materials allow (:func:`choose_grid`), so the sections are read together.
 """
 
 from __future__ import annotations

@@ -2,6 +2,9 @@
 :class:`Section` (numbers, Markdown tables and plot makers). Pure: reads inputs, writes
 nothing but the scratch scenes and materials the renderer reads, into the caller's
 ``workdir`` (a temporary folder of the shell).
+
+Why one module: one function per report section, each short and independent, in the
+order the report shows them; the file is long only because there are many sections.
 """
 
 from __future__ import annotations
