@@ -17,6 +17,8 @@ from typing import Optional
 import typer
 
 from ..names import PREFILTER_AUTO, PREFILTER_METHOD_NAMES, metavar
+# the maps' file names, importable from here as before (pathlib only: a light import)
+from ..prefilter_files import NAME_DIGITS, map_name  # noqa: F401
 
 def parse_exponents(text: str) -> list[float]:
     """``"1,8,64"`` → [1.0, 8.0, 64.0]; a bad item is an error naming it."""
@@ -71,7 +73,7 @@ def prefilter(
     from .. import log
     from .. import prefilter as core
     from ..errors import InputError
-    from ..prefilter_files import map_name, read_envmap, write_maps
+    from ..prefilter_files import read_envmap, write_maps
     from ..schemas import read_lobe_exponents
     from . import require_files
 

@@ -274,8 +274,9 @@ SINGLE_PRECISION: dict[str, Callable[[Material], bool]] = {
 
 
 def work_dtype(material, spectral: str, gbuffer_dtype, substrate: bool = False) -> np.dtype:
-    """The dtype :func:`gonio_cli.render.shade._direct` computes a term in: the G-buffer's (float32 in the
-    pipeline) for a :data:`SINGLE_PRECISION` table kernel, float64 otherwise."""
+    """The dtype the direct-light loop of :mod:`gonio_cli.render.shade` computes a term in:
+    the G-buffer's (float32 in the pipeline) for a :data:`SINGLE_PRECISION` table kernel,
+    float64 otherwise."""
     if (np.dtype(gbuffer_dtype) == np.float32 and not substrate and spectral == "table"
             and isinstance(material, Material) and material.model in SINGLE_PRECISION
             and SINGLE_PRECISION[material.model](material)):
