@@ -29,7 +29,7 @@ import pytest
 
 mi = pytest.importorskip("mitsuba", reason="mitsuba is not installed (make test installs it)")
 dr = pytest.importorskip("drjit", reason="drjit is not installed (comes with mitsuba)")
-colour = pytest.importorskip("colour")
+import colour  # noqa: E402
 
 from gonio_cli import brdf  # noqa: E402
 from gonio_cli.errors import InputError  # noqa: E402

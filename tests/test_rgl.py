@@ -152,7 +152,7 @@ def test_rgb_measurement_is_mitsubas_evaluation_through_the_basis(run_gonio, tmp
     """RGB: Mitsuba's linear sRGB / cos θo, times colour-science's Mallett–Yuksel basis
     on the grid (no illuminant: a reflectance). The file's jacobian is 1 (ndf/(4 sigma) =
     2), which Mitsuba applies; gonio reads what Mitsuba returns."""
-    colour = pytest.importorskip("colour")
+    import colour
     m, doc, res = ingest(run_gonio, tmp_path, RGB, "--theta-i-deg", "20,45,60",
                          "--theta-o-deg", "-70:80:10,44,46", "--summary")
     basis = colour.recovery.MSDS_BASIS_FUNCTIONS_sRGB_MALLETT2019

@@ -18,7 +18,7 @@ from gonio_cli.imageio import read_image
 from gonio_cli.schemas import Material, write_material
 from gonio_cli.spectra import parse_grid
 
-colour = pytest.importorskip("colour")
+import colour
 
 GRID = parse_grid()
 
