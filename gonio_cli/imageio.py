@@ -57,6 +57,9 @@ class Compression:
     png_zlib_level: int
     exr_codec: str
     help: str
+    #: zlib strategy of the PNGs Pillow writes (masks, paletted and 1-bit images), or None
+    #: for zlib's default; OpenImageIO's PNG writer has no such setting
+    png_zlib_strategy: int | None = None
 
 
 #: Named compression levels, lossless all. ``balanced`` is what the libraries do by default
@@ -65,7 +68,10 @@ class Compression:
 #: for a file ~1.6× larger.
 COMPRESSION: dict[str, Compression] = {
     "none": Compression(0, "none", "stored uncompressed (largest files, least CPU)"),
-    "fast": Compression(1, "zip:1", "deflate level 1"),
+    # Z_RLE (= 3, zlib.h) matches runs only: a 4096² Floyd–Steinberg mask (2-bit
+    # paletted) deflates in 0.12 s instead of 0.17 s, for 3 % more bytes
+    "fast": Compression(1, "zip:1", "deflate level 1 (PNG masks: run-length matching)",
+                        png_zlib_strategy=3),
     "balanced": Compression(6, "zip", "deflate level 6, the libraries' default"),
     "small": Compression(9, "zip:9", "deflate level 9 (smallest, slowest)"),
 }
@@ -217,7 +223,10 @@ def write_png(path: str | os.PathLike, pixels: np.ndarray,
     """Write 8-bit PNG atomically. ``pixels``: uint8 (H, W[, C]), or float in [0, 1]
     (rounded; the caller has already encoded it, e.g. sRGB). ``compression``: a key of
     :data:`COMPRESSION`."""
-    level = get_compression(compression, "compression").png_zlib_level
+    chosen = get_compression(compression, "compression")
+    level = chosen.png_zlib_level
+    strategy = {} if chosen.png_zlib_strategy is None else {
+        "compress_type": chosen.png_zlib_strategy}
     a = np.asarray(pixels)
     if a.dtype != np.uint8:
         check_finite(a, "the image", path)
@@ -231,12 +240,16 @@ def _write_pillow_png(path: str | os.PathLike, image, metadata: Mapping[str, Any
     ``gonio:`` keys as OpenImageIO writes (so :func:`read_image` returns them)."""
     from PIL.PngImagePlugin import PngInfo
 
-    level = get_compression(compression, "compression").png_zlib_level
+    chosen = get_compression(compression, "compression")
+    level = chosen.png_zlib_level
+    strategy = {} if chosen.png_zlib_strategy is None else {
+        "compress_type": chosen.png_zlib_strategy}
     info = PngInfo()
     for key, value in _with_version(metadata).items():
         info.add_text(META_PREFIX + key, _meta_text(value))
     with atomic_path(path) as tmp:
-        image.save(tmp, format="PNG", pnginfo=info, compress_level=level, optimize=False)
+        image.save(tmp, format="PNG", pnginfo=info, compress_level=level, optimize=False,
+                   **strategy)
 
 
 def write_apng(path: str | os.PathLike, frames: Sequence[str | os.PathLike], *,
