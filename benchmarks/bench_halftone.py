@@ -81,7 +81,8 @@ def core_table(size: int, repeats: int) -> None:
             flag = " ✓" if best < TARGET_S else f" ✗ (target {TARGET_S:g} s)"
         print(f"| {name} | {method.kind} | {best:.3f}{flag} | {size * size / best / 1e6:.1f} "
               f"| {rmse:.4f} | {100 * worst:.3f} % |")
-    print(f"\nnumba import and kernel load or compile (once per process; "
+    print(f"\nkernel start-up: numba's import and load or compile, or the C build's import "
+          f"(once per process; "
           f"{diffusion.kernel_status()}): {compile_s:.2f} s; blue-noise mask: {mask_s:.2f} s "
           f"({mask_source}); drawing, decoding and gamut-mapping the test image: "
           f"{prepare_s:.2f} s (not in the times above).")
@@ -159,13 +160,14 @@ def whole_process(size: int, repeats: int) -> None:
         print("|---|---:|---:|---:|")
         print(f"| gonio halftone kernel alone (in-process, cache loaded) | {kernel.time_s:.3f} "
               f"| | {gonio_rmse:.4f} |")
-        print(f"| gonio halftone, first call (empty NUMBA_CACHE_DIR: compiles) "
+        print(f"| gonio halftone, first call (a fresh NUMBA_CACHE_DIR, which the C build "
+              f"does not use; Python may write its bytecode cache) "
               f"| {first_wall:.2f} | {first_rss:.0f} | {gonio_rmse:.4f} |")
         wall, rss = min(runs["gonio"])
         rss = max(r for _, r in runs["gonio"])
         rss_flag = "" if size < 4096 else (
             " ✓" if rss < TARGET_RSS_MB else f" ✗ (target {TARGET_RSS_MB:g})")
-        print(f"| gonio halftone, later calls (kernel from cache; best of {repeats}) "
+        print(f"| gonio halftone, later calls (best of {repeats}) "
               f"| {wall:.2f} | {rss:.0f}{rss_flag} | {gonio_rmse:.4f} |")
         if not im_cmd:
             print("| ImageMagick convert -dither FloydSteinberg -remap | skipped: not "
