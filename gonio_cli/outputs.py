@@ -82,6 +82,13 @@ def _pid_alive(pid: int) -> bool:
     return True
 
 
+#: File system types another machine may write to at the same time (``/proc/mounts``):
+#: NFS, SMB, FUSE mounts (sshfs, s3fs, …) and the parallel file systems of clusters, where
+#: a ``gonio batch`` worker on another node has pids this machine does not see.
+SHARED_FS_TYPES = ("nfs", "cifs", "smb", "fuse", "lustre", "gpfs", "beegfs", "ceph", "9p",
+                   "virtiofs", "glusterfs", "panfs", "wekafs")
+
+
 def _is_network_fs(folder: str) -> bool:
     """Is ``folder`` on NFS/CIFS (where another machine's pids are not ours)? Linux only."""
     try:
@@ -92,7 +99,7 @@ def _is_network_fs(folder: str) -> bool:
     real = os.path.realpath(folder)
     best = max((m for m in mounts if real == m[0] or real.startswith(m[0].rstrip("/") + "/")),
                key=lambda m: len(m[0]), default=None)
-    return best is not None and best[1].startswith(("nfs", "cifs", "smb", "fuse.sshfs"))
+    return best is not None and best[1].startswith(SHARED_FS_TYPES)
 
 
 #: Folders already cleaned by this process (a folder is listed once per run).
