@@ -24,6 +24,7 @@ by ∫ ȳ as gonio divides by Σ ȳ, so a white Lambertian under E = π is Y = 1
 
 from __future__ import annotations
 
+import os
 import shutil
 from dataclasses import dataclass
 from pathlib import Path
@@ -54,32 +55,9 @@ ESTIMATE_EXP_MAX = 50.0
 #: on a regular grid; gonio's grids are START:STOP:STEP, float round-off only).
 REGULAR_GRID_RTOL = 1e-6
 
-#: The sample sphere scene (sample_data/scenes/spheres.toml, seed 000 Figure 5): camera and
-#: lights used when no ``--scene`` is given.
-DEFAULT_SCENE = """\
-# seed 000 Figure 5's sphere (sample_data/scenes/spheres.toml) with the exported material
-[camera]
-eye = [0.0, 0.0, 4.0]
-target = [0.0, 0.0, 0.0]
-up = [0.0, 1.0, 0.0]
-fov_deg = 32.0
-width = 256
-height = 256
-
-[[light]]
-name = "key"
-type = "directional"
-direction = [-1.0, 1.0, 1.2]
-irradiance = 3.0
-spectrum = "D65"
-
-[[light]]
-name = "rim"
-type = "directional"
-direction = [1.0, 0.3, -0.6]
-irradiance = 3.0
-spectrum = "D65"
-"""
+#: The scene whose camera and lights are used when no ``--scene`` is given: seed 000
+#: Figure 5's sphere, with the exported material on it (in the sample data).
+DEFAULT_SCENE = "scenes/spheres.toml"
 
 
 # ------------------------------------------------------------------------- sampling --
@@ -264,24 +242,22 @@ def gonio_scene_toml(camera, lights, grid_nm, ssaa: int) -> tuple[str, dict[str,
     return "\n".join(lines) + "\n", csvs
 
 
-def scene_camera_lights(scene_path, variables=None):
-    """(camera, lights, grid, ssaa) of a gonio scene file, or of :data:`DEFAULT_SCENE`."""
-    from ..render.scene import load_scene
+def scene_camera_lights(scene_path, variables=None, material_path=None):
+    """(camera, lights, grid, ssaa) of a gonio scene file, or of the sample data's
+    :data:`DEFAULT_SCENE` with ``material_path`` on its sphere."""
+    from ..render.scene import load_scene, read_scene_toml
 
     if scene_path is not None:
         sc = load_scene(scene_path, variables=variables)
-        return sc.camera, sc.lights, sc.grid_nm, sc.output.ssaa
-    import tempfile
+    else:
+        from ..samples import sample_data_dir
 
-    with tempfile.TemporaryDirectory(prefix="gonio-export.") as tmp:
-        path = Path(tmp) / "scene.toml"
-        (Path(tmp) / "m.json").write_text("{}")   # never read: only the camera and lights
-        path.write_text(DEFAULT_SCENE + '\n[[object]]\nmesh = "builtin:sphere"\n'
-                        'measured = "m.json"\n')
-        sc = load_scene(path)
-        if not sc.lights:
-            raise InputError("the default scene has no light")  # pragma: no cover
-        return sc.camera, sc.lights, sc.grid_nm, 2
+        path = sample_data_dir() / DEFAULT_SCENE
+        doc = dict(read_scene_toml(path))
+        doc["object"] = [{"mesh": "builtin:sphere",
+                          "material": os.path.abspath(material_path)}]
+        sc = load_scene(path, doc=doc)
+    return sc.camera, sc.lights, sc.grid_nm, sc.output.ssaa
 
 
 def export_mitsuba(material, material_path, out_dir, scene_path=None, variables=None
@@ -296,7 +272,8 @@ def export_mitsuba(material, material_path, out_dir, scene_path=None, variables=
         raise InputError("wavelength_nm is not a regular grid", path=material_path,
                          fix="fit the material on a START:STOP:STEP grid (gonio ingest "
                              "--grid-nm)")
-    camera, lights, scene_grid, ssaa = scene_camera_lights(scene_path, variables)
+    camera, lights, scene_grid, ssaa = scene_camera_lights(scene_path, variables,
+                                                           material_path)
     out = make_folder(Path(out_dir))
     here = Path(__file__).resolve().parent
     written = []
