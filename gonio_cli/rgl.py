@@ -45,7 +45,7 @@ import numpy as np
 from . import log
 from .errors import InputError
 from .schemas import Measurement
-from .spectra import DEFAULT_GRID_NM, covers, parse_grid, resample, same_grid
+from .spectra import DEFAULT_GRID_NM, covers, inclusive_range, parse_grid, resample, same_grid
 
 #: The format's name in summaries and in the artifact's parameters.
 FORMAT = "rgl-bsdf"
@@ -327,12 +327,11 @@ def parse_angles(spec: str, flag: str, theta_i: bool, path=None) -> np.ndarray:
         if len(numbers) not in (1, 3) or not all(math.isfinite(x) for x in numbers):
             raise refuse(f"{item!r} is not a number or START:STOP:STEP")
         if len(numbers) == 3:
-            start, stop, step = numbers
-            n = (stop - start) / step if step > 0 else -1.0
-            if n < 0 or abs(n - round(n)) > 1e-6:
+            grid = inclusive_range(*numbers)
+            if grid is None:
                 raise refuse(f"range {item!r} needs STEP > 0, START <= STOP and STOP - START "
                              "a multiple of STEP")
-            numbers = list(start + step * np.arange(int(round(n)) + 1))
+            numbers = list(grid)
         values += numbers
     from .ingest import distinct  # np.unique without its numpy.ma import
 

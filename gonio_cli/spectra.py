@@ -30,6 +30,19 @@ WAVELENGTH_TOL_NM = 1e-6
 MAX_GRID_SAMPLES = 4001
 
 
+def inclusive_range(start: float, stop: float, step: float) -> np.ndarray | None:
+    """``START:STOP:STEP`` with both ends included (wavelength grids, angle lists), or None
+    when STOP − START is not a whole number of steps (to 1e-6 of a step) or is negative.
+
+    >>> inclusive_range(10.0, 30.0, 10.0)
+    array([10., 20., 30.])
+    """
+    n = (stop - start) / step if step > 0 else -1.0
+    if n < 0 or abs(n - round(n)) > 1e-6:
+        return None
+    return start + step * np.arange(int(round(n)) + 1)
+
+
 def parse_grid(spec: str = DEFAULT_GRID_NM) -> np.ndarray:
     """``"START:STOP:STEP"`` in nm (inclusive) → (n_λ,) float array.
 
@@ -51,10 +64,11 @@ def parse_grid(spec: str = DEFAULT_GRID_NM) -> np.ndarray:
                          fix=f"at most {MAX_GRID_SAMPLES} samples up to {WAVELENGTH_MAX_NM:g} "
                              "nm (docs/conventions.md, Numeric ranges), e.g. --grid-nm "
                              "380:780:10")
-    if abs(n - round(n)) > 1e-6:
+    grid = inclusive_range(start, stop, step)
+    if grid is None:
         raise InputError(f"--grid-nm {spec!r}: STOP - START is not a multiple of STEP",
                          fix="e.g. --grid-nm 380:780:10")
-    return start + step * np.arange(int(round(n)) + 1)
+    return grid
 
 
 def grid_spec(wavelength_nm) -> str | None:
