@@ -189,3 +189,21 @@ def test_mirroring_scale_keeps_the_front_outside():
 def test_zero_scale_is_an_error():
     with pytest.raises(InputError, match="scale"):
         M.transform(M.uv_sphere(8, 4), scale=(1.0, 0.0, 1.0))
+
+
+def test_a_mesh_file_is_read_once_per_process_until_it_changes(tmp_path):
+    """A turntable's frames and a batch worker's jobs load the same mesh: the second load
+    is the first one's arrays (read-only, so no caller can change them for the others);
+    an edited file is read again."""
+    import os
+
+    path = tmp_path / "tri.obj"
+    path.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    first = M.load_mesh(str(path))
+    assert M.load_mesh(str(path)) is first
+    assert not first.vertices.flags.writeable
+    path.write_text("v 0 0 0\nv 2 0 0\nv 0 2 0\nf 1 2 3\n")
+    later = os.stat(path).st_mtime_ns + 10**9
+    os.utime(path, ns=(later, later))
+    again = M.load_mesh(str(path))
+    assert again is not first and again.vertices[1, 0] == 2.0

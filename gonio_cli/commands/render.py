@@ -80,8 +80,6 @@ def render(
       gonio render scene.toml -o a.png --grid-nm 400:700:10
       gonio render scene.toml -o a.png --exr a.exr --exr-space acescg --spectral-exr s.exr
     """
-    if turntable is not None and frame is None:  # every frame, then the preview
-        return render_turntable(dict(locals()))  # (the options: nothing else is defined)
     import time
 
     start = time.perf_counter()  # the total: scene loading to images written
@@ -119,37 +117,60 @@ def render(
     check_turntable(turntable, frame, orbit)
 
     from ..outputs import declare
-    outs = {"-o": output, "--exr": exr, "--report": report, "--gamut-warning": gamut_warning,
-            "--spectral-exr": spectral_exr}
+
+    given = {"-o": output, "--exr": exr, "--report": report, "--gamut-warning": gamut_warning,
+             "--spectral-exr": spectral_exr}
+    whole = turntable is not None and frame is None  # every frame, then the preview
+    frames = list(range(turntable)) if whole else [frame]
+    # each frame's files: the given names, or OUT.frameK.png … for a whole turntable
+    named = [{flag: (frame_name(path, k) if whole and path is not None else path)
+              for flag, path in given.items()} for k in frames]
+    outs = {f"{flag} (frame {k})" if whole else flag: path
+            for k, names in zip(frames, named) for flag, path in names.items()}
+    if whole:
+        outs["-o"] = output  # the animated preview
     declare(outs, [scene])
     stats = Stats()
-    with log.timer() as t:
-        sc = load_scene(scene, variables=variables,
-                        overrides={"width": width, "height": height, "ssaa": ssaa,
-                                   "spectral": spectral, "exposure": exposure,
-                                   "tonemap": tonemap, "adapt": adapt, "grid_nm": grid_nm})
+    with log.timer() as t:  # once, however many frames
+        loaded = load_scene(scene, variables=variables,
+                            overrides={"width": width, "height": height, "ssaa": ssaa,
+                                       "spectral": spectral, "exposure": exposure,
+                                       "tonemap": tonemap, "adapt": adapt, "grid_nm": grid_nm})
     stats.time_s["scene"] = t["time_s"]
-    declare(outs, sc.inputs)  # the files the scene reads
-    if turntable is not None:
-        from ..render.scene import orbit as turn
+    declare(outs, loaded.inputs)  # the files the scene reads
+    for k, names in zip(frames, named):
+        if k is not None:
+            from ..render.scene import orbit as turn
 
-        sc = turn(sc, frame, turntable, orbit)
-    frame = render_scene(sc, stats, spectra=spectral_exr is not None)
-    write_outputs(frame, sc, stats, png=output, exr=exr, start=start,
-                  gamut_warning=gamut_warning, exr_space=exr_space, spectral_exr=spectral_exr)
-    total = time.perf_counter() - start
-    if report is not None:
-        write_report(report, sc, stats, total_s=total, png=output, exr=exr,
-                     gamut_warning=gamut_warning, spectral_exr=spectral_exr)
-    frame_ms = 1e3 * frame_time(stats)
-    n_out = stats.counts.get("out_of_gamut_pixels", 0)
-    n_clip = stats.counts.get("clipped_pixels", 0)
-    shown = "".join([f", {n_out} pixel(s) outside the sRGB gamut" if n_out else "",
-                     f", {n_clip} pixel(s) clipped at white" if n_clip else ""])
-    log.info(f"{output}: {sc.camera.width}x{sc.camera.height}, ssaa {sc.output.ssaa}, "
-             f"{sc.output.spectral} spectra, frame {frame_ms:.0f} ms, total {total:.2f} s"
-             f"{shown}")
+            sc = turn(loaded, k, turntable, orbit)
+        else:
+            sc = loaded
+        image = render_scene(sc, stats, spectra=names["--spectral-exr"] is not None)
+        write_outputs(image, sc, stats, png=names["-o"], exr=names["--exr"], start=start,
+                      gamut_warning=names["--gamut-warning"], exr_space=exr_space,
+                      spectral_exr=names["--spectral-exr"])
+        total = time.perf_counter() - start
+        if names["--report"] is not None:
+            write_report(names["--report"], sc, stats, total_s=total, png=names["-o"],
+                         exr=names["--exr"], gamut_warning=names["--gamut-warning"],
+                         spectral_exr=names["--spectral-exr"])
+        frame_ms = 1e3 * frame_time(stats)
+        n_out = stats.counts.get("out_of_gamut_pixels", 0)
+        n_clip = stats.counts.get("clipped_pixels", 0)
+        shown = "".join([f", {n_out} pixel(s) outside the sRGB gamut" if n_out else "",
+                         f", {n_clip} pixel(s) clipped at white" if n_clip else ""])
+        log.info(f"{names['-o']}: {sc.camera.width}x{sc.camera.height}, ssaa "
+                 f"{sc.output.ssaa}, {sc.output.spectral} spectra, frame {frame_ms:.0f} ms, "
+                 f"total {total:.2f} s{shown}")
+        start = time.perf_counter()  # the next frame's total: its render and files
+        stats = Stats()
+    if whole:
+        from ..imageio import write_apng
+        from ..render.pipeline import turntable_metadata
 
+        pngs = [names["-o"] for names in named]
+        write_apng(output, pngs, metadata=turntable_metadata(pngs, orbit=orbit))
+        log.info(f"{output}: turntable preview of {len(pngs)} frames ({orbit} orbit)")
 
 
 def check_turntable(turntable: int | None, frame: int | None, orbit: str) -> None:
@@ -174,34 +195,6 @@ def check_turntable(turntable: int | None, frame: int | None, orbit: str) -> Non
 def frame_name(path: Path, k: int) -> Path:
     """Frame ``k`` of a turntable written to ``path``: ``OUT.frame007.png`` beside it."""
     return path.with_name(f"{path.stem}.frame{k:03d}{path.suffix}")
-
-
-#: Options naming files a turntable writes once per frame (``frame_name``).
-PER_FRAME = ("output", "exr", "report", "gamut_warning", "spectral_exr")
-
-
-def render_turntable(options: dict) -> None:
-    """``--turntable N`` without ``--frame``: each frame as ``render --frame K`` writes
-    it, to ``OUT.frameK.png`` (and its EXR, report, gamut warning), then ``OUT.png``, an
-    animated PNG of the frames."""
-    from .. import log
-    from ..imageio import write_apng
-    from ..render.pipeline import turntable_metadata
-
-    from ..outputs import declare
-
-    check_turntable(options["turntable"], None, options["orbit"])
-    declare({"-o": options["output"]}, [options["scene"]])  # the preview, with the frames
-    pngs = []
-    for k in range(options["turntable"]):
-        named = {key: frame_name(options[key], k) for key in PER_FRAME
-                 if options[key] is not None}
-        render(**{**options, **named, "frame": k})
-        pngs.append(named["output"])
-    write_apng(options["output"], pngs,
-               metadata=turntable_metadata(pngs, orbit=options["orbit"]))
-    log.info(f"{options['output']}: turntable preview of {len(pngs)} frames "
-             f"({options['orbit']} orbit)")
 
 
 EXAMPLE = "gonio render sample_data/scenes/spheres.toml -o red.png --exr red.exr --report run.json"

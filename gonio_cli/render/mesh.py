@@ -344,11 +344,40 @@ def load_mesh(spec: str, base_dir: str | os.PathLike | None = None) -> Mesh:
         Unknown built-in or option, missing or unreadable file, non-finite vertices, no
         triangles left.
     """
-    if spec.startswith(BUILTIN_PREFIX):
-        return validate(_builtin(spec))
     path = Path(spec)
     if base_dir is not None and not path.is_absolute():
         path = Path(base_dir) / path
+    key: tuple = (spec,)
+    if not spec.startswith(BUILTIN_PREFIX):
+        try:
+            st = os.stat(path)
+            key = (os.path.realpath(path), st.st_mtime_ns, st.st_size)
+        except OSError:
+            key = ()  # missing: _load_file says so
+    if key and key in _LOADED:
+        _LOADED[key] = _LOADED.pop(key)  # most recently used last
+        return _LOADED[key]
+    mesh = _load_uncached(spec, path)
+    if key:
+        for a in (mesh.vertices, mesh.faces, mesh.normals, mesh.uvs):
+            if a is not None:
+                a.setflags(write=False)  # shared by every later load: never written
+        _LOADED[key] = mesh
+        while len(_LOADED) > LOADED_MESHES:
+            _LOADED.pop(next(iter(_LOADED)))
+    return mesh
+
+
+#: Meshes kept loaded in a process (most recently used): a turntable's frames and a batch
+#: worker's jobs read each mesh file once (a 1 M-triangle mesh is ~100 MB of arrays).
+LOADED_MESHES = 4
+_LOADED: dict[tuple, Mesh] = {}
+
+
+def _load_uncached(spec: str, path: Path) -> Mesh:
+    """:func:`load_mesh` without the in-process cache."""
+    if spec.startswith(BUILTIN_PREFIX):
+        return validate(_builtin(spec))
     path_s = os.fspath(path)
     vertices, faces, normals, uvs = _load_file(path_s)
     mesh = Mesh(vertices=vertices, faces=faces, normals=np.zeros_like(vertices), uvs=uvs,
