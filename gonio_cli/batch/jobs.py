@@ -76,15 +76,17 @@ def files(paths, sources=()) -> list[dict[str, Any]]:
                                                 else {})} for p in paths]
 
 
-def up_to_date(job: Job, previous: Mapping[str, Any] | None) -> list[dict] | None:
+def up_to_date(job: Job, previous: Mapping[str, Any] | None,
+               inputs: list[dict[str, Any]] | None = None) -> list[dict] | None:
     """The job's input records if ``previous`` (its record of an earlier run) still
     stands: same stamp, same input hashes and, for the user's own files
     (``job.sources``), the same modification times (``touch`` reruns, as with make; a
     file another job rewrites with the same bytes does not), every output there with its
-    recorded hash; else None."""
+    recorded hash; else None. ``inputs``: the input records if already made (:func:`files`)."""
     if not previous or previous.get("status") not in GOOD or previous.get("stamp") != stamp(job):
         return None
-    inputs = files(job.inputs, job.sources)
+    if inputs is None:
+        inputs = files(job.inputs, job.sources)
     if [(i["path"], i["sha256"], i.get("mtime_ns")) for i in inputs] != \
             [(i["path"], i["sha256"], i.get("mtime_ns")) for i in previous.get("inputs", [])]:
         return None
@@ -199,10 +201,9 @@ def execute(job: Job, outdir: str, previous: Mapping[str, Any] | None,
     if failed:
         return record(job, "blocked", attempts=attempts, worker=worker_name(),
                       error=f"not run: {', '.join(failed)} failed", failed_roots=failed)
-    kept = up_to_date(job, previous)
-    if kept is not None:
+    inputs = files(job.inputs, job.sources)  # hashed once: to judge, then to record
+    if up_to_date(job, previous, inputs) is not None:
         return {**previous, "status": "skipped", "attempts": attempts, "labels": dict(job.labels)}
-    inputs = files(job.inputs, job.sources)
     start = time.perf_counter()
     warnings: list[str] = []
     try:
