@@ -414,3 +414,37 @@ def test_compact_buffers_store_contiguous_components():
             assert a.dtype == dtype and a.T.flags["C_CONTIGUOUS"], name
             np.testing.assert_allclose(a, getattr(dense, name).reshape(-1, a.shape[1])[gb.pixels],
                                        atol=tol, rtol=0, err_msg=name)
+
+
+def test_resolve_at_ssaa_1_scatters_rows_and_defers_xyz():
+    """At ssaa 1 the resolve is a scatter: XYZ and coverage are the rows at their pixels
+    (zero and 0 elsewhere), the linear image is the rows times the matrix (float32 round-
+    off), and the frame's XYZ is made only when asked, equal to the eager one."""
+    from gonio_cli.render.pipeline import Frame, resolve
+
+    rng = np.random.default_rng(5)
+    h, w = 7, 9
+    pixels = np.sort(rng.choice(h * w, 40, replace=False))
+    object_id = np.full((h, w), -1, np.int32)
+    object_id.reshape(-1)[pixels] = 0
+    rows = np.ascontiguousarray(rng.uniform(0, 3, (3, 40)).astype(np.float32)).T
+    matrix = rng.uniform(-1, 2, (3, 3))
+    xyz, coverage = resolve(rows, pixels, object_id, 1)
+    dense = np.zeros((h * w, 3))
+    dense[pixels] = rows
+    np.testing.assert_array_equal(xyz, dense.reshape(h, w, 3))
+    np.testing.assert_array_equal(coverage, (object_id >= 0).astype(float))
+    lazy, coverage2, linear = resolve(rows, pixels, object_id, 1, matrix=matrix)
+    assert callable(lazy) and linear.dtype == np.float32
+    np.testing.assert_allclose(linear, (dense @ matrix.T).reshape(h, w, 3), rtol=1e-6,
+                               atol=1e-6 * np.abs(dense).max())
+    frame = Frame(linear, None, lazy, coverage2)
+    np.testing.assert_array_equal(frame.xyz, xyz)
+    # at ssaa 2 the same rows go through the box filter: a mean over each 2 × 2 block
+    big = np.full((2 * h, 2 * w), -1, np.int32)
+    big[::2, ::2] = object_id
+    r, c = np.divmod(pixels, w)
+    xyz2, cov2, lin2 = resolve(rows, (2 * r) * (2 * w) + 2 * c, big, 2, matrix=matrix)
+    np.testing.assert_allclose(xyz2, xyz / 4, rtol=1e-6)
+    np.testing.assert_allclose(cov2, coverage / 4)
+    np.testing.assert_allclose(lin2, linear / 4, rtol=1e-5, atol=1e-6 * np.abs(dense).max())

@@ -126,3 +126,20 @@ def test_display_table_is_within_one_code_of_the_exact_encoding(name):
     diff = np.abs(got - exact)
     assert diff.max() <= 1 and np.mean(diff > 0) < 0.01
     assert got[0] == 0 and np.all(np.diff(got) >= 0)  # monotone, black stays black
+
+
+def test_display_masks_and_guard_on_in_range_and_non_finite_frames():
+    """Masks come from two reductions when nothing reaches their bounds, and a NaN or inf
+    value (never in a valid frame) is shown black, the rest as without it."""
+    rng = np.random.default_rng(3)
+    lin = rng.uniform(0.0, 0.99, (4, 5, 3)).astype(np.float32)
+    png, masks = tonemap.display(lin, 0.0, "clip", counts=True)
+    assert not masks["out_of_gamut"].any() and not masks["clipped"].any()
+    np.testing.assert_array_equal(png, np.round(srgb_encode(lin.astype(float)) * 255))
+    bad = lin.copy()
+    bad[1, 2] = [np.nan, np.inf, -np.inf]
+    out = tonemap.display(bad, 0.0, "clip")
+    assert out[1, 2].tolist() == [0, 0, 0]
+    keep = np.ones((4, 5), bool)
+    keep[1, 2] = False
+    np.testing.assert_array_equal(out[keep], png[keep])

@@ -33,9 +33,9 @@ from __future__ import annotations
 
 import functools
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -60,10 +60,15 @@ class Frame:
 
     linear: np.ndarray
     display: np.ndarray
-    xyz: np.ndarray
+    xyz_source: np.ndarray | Callable[[], np.ndarray] = field(repr=False)
     coverage: np.ndarray
     out_of_gamut: np.ndarray | None = None
     spectra: np.ndarray | None = None
+
+    @functools.cached_property
+    def xyz(self) -> np.ndarray:
+        """(H, W, 3) float64 CIE XYZ; made on first use where :func:`resolve` deferred it."""
+        return self.xyz_source() if callable(self.xyz_source) else self.xyz_source
 
 
 class Stage:
@@ -464,14 +469,14 @@ def _render_steps(scene: Scene, stats: Stats, state: dict, spectra: bool = False
     object_id, pixels = gbuffer.object_id, gbuffer.pixels
     del gbuffer                                               # its rows are no longer needed
     with Stage(stats, "downsample"):
-        xyz, coverage = resolve(rows, pixels, object_id, ssaa, scene.display, stats)
-        del rows
-        from .tonemap import xyz_to_linear, xyz_to_linear_matrix
+        from .tonemap import xyz_to_linear_matrix
 
         # adaptation and colour matrix are linear: applied after the box filter, on output
-        # pixels, as one matrix
-        linear = xyz_to_linear(xyz, xyz_to_linear_matrix(scene.output.adapt,
-                                                          scene_white(scene)))
+        # pixels (at ssaa 1, on the covered ones), as one matrix
+        matrix = xyz_to_linear_matrix(scene.output.adapt, scene_white(scene))
+        xyz, coverage, linear = resolve(rows, pixels, object_id, ssaa, scene.display, stats,
+                                        matrix=matrix)
+        del rows
         if np.any(scene.output.background != 0):
             linear += ((1.0 - coverage)[..., None]
                        * np.asarray(scene.output.background, np.float32))
@@ -571,8 +576,10 @@ def _shade_without_overflow(scene: Scene, gbuffer, surfaces, environment, stats:
 
 
 def resolve(rows: np.ndarray, pixels: np.ndarray, object_id: np.ndarray, ssaa: int,
-            where: str = "", stats: Stats | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """The box filter of the supersampled frame: shaded rows → output XYZ and coverage.
+            where: str = "", stats: Stats | None = None, *, matrix: np.ndarray | None = None
+            ) -> tuple[np.ndarray, ...]:
+    """The box filter of the supersampled frame: shaded rows → output XYZ and coverage
+    (and, with ``matrix``, the linear image ``tonemap.xyz_to_linear(xyz, matrix)``).
 
     Parameters
     ----------
@@ -586,6 +593,13 @@ def resolve(rows: np.ndarray, pixels: np.ndarray, object_id: np.ndarray, ssaa: i
     in float32 (≤ 256 values: relative error ~1e-7);
     coverage : (H, W) float64, the fraction of covered samples. Non-finite shaded
     samples are set to black with one warning that counts them.
+    linear : (H, W, C) float32, only with ``matrix`` (C, C).
+
+    At ssaa 1 there is nothing to filter: the rows' product with the matrix (in the rows'
+    float32, ~1e-7 relative, as the G-buffer; on covered pixels only, zero elsewhere as
+    0 · M is) is scattered whole into a zeroed image, and with ``matrix`` the XYZ image
+    is returned as a function that makes it (:attr:`Frame.xyz` calls it when a report or
+    an XYZ EXR asks): the frame's time goes to what the PNG and EXR need.
     """
     n_bad = 0
     if not np.isfinite(rows.sum()):          # the per-row mask only when needed (a sum of
@@ -596,10 +610,22 @@ def resolve(rows: np.ndarray, pixels: np.ndarray, object_id: np.ndarray, ssaa: i
             rows = np.where(bad[:, None], 0.0, rows)
     if stats is not None:
         stats.counts["nonfinite_samples"] = n_bad
-    from .raster import downsample
-
     hh, ww = object_id.shape
     channels = rows.shape[1]
+    if ssaa == 1:
+        pixels = np.asarray(pixels, dtype=np.intp)
+        coverage = (object_id >= 0).astype(np.float64)
+
+        def xyz_image():
+            return _scatter_rows(rows.astype(np.float64), pixels,
+                                 hh * ww).reshape(hh, ww, channels)
+
+        if matrix is None:
+            return xyz_image(), coverage
+        linear = _scatter_rows(rows @ matrix.T.astype(rows.dtype), pixels, hh * ww)
+        return xyz_image, coverage, linear.reshape(hh, ww, channels)
+    from .raster import downsample
+
     xyz = np.empty((hh // ssaa * (ww // ssaa), channels))
     # one channel at a time through one reused float32 image (the rows' columns are
     # contiguous: shade_rows stores them so), box-filtered by downsample's strided sums
@@ -610,7 +636,23 @@ def resolve(rows: np.ndarray, pixels: np.ndarray, object_id: np.ndarray, ssaa: i
         image[pixels] = rows[:, c]
         xyz[:, c] = downsample(image.reshape(hh, ww), ssaa, np.float32).reshape(-1)
     coverage = downsample(object_id >= 0, ssaa, np.float32)
-    return xyz.reshape(hh // ssaa, ww // ssaa, channels), coverage.astype(np.float64)
+    xyz = xyz.reshape(hh // ssaa, ww // ssaa, channels)
+    if matrix is None:
+        return xyz, coverage.astype(np.float64)
+    from .tonemap import xyz_to_linear
+
+    return xyz, coverage.astype(np.float64), xyz_to_linear(xyz, matrix)
+
+
+def _scatter_rows(rows: np.ndarray, pixels: np.ndarray, size: int) -> np.ndarray:
+    """(size, C) zeros of ``rows``' dtype with ``rows`` (n, C) at ``pixels`` (n,): each
+    row moved as one C-value item (a void view), 2.5× faster than numpy's row-of-floats
+    fancy assignment."""
+    rows = np.ascontiguousarray(rows)
+    item = np.dtype((np.void, rows.dtype.itemsize * rows.shape[1]))
+    out = np.zeros((size, rows.shape[1]), rows.dtype)
+    out.view(item).reshape(-1)[pixels] = rows.view(item).reshape(-1)
+    return out
 
 
 # ------------------------------------------------------------------------- re-exports --

@@ -463,6 +463,7 @@ def _direct(material, is_substrate: bool, tp: _Pixels, lights: Sequence[Light],
     acc_t = acc.T                                             # (3, n): contiguous rows
     scratch = Scratch(dtype, min(BLOCK, tp.size))
     point = any(L.kind == "point" for L in lights)
+    light_kernels: dict[int, Kernel] = {}     # per light, made at its first lit pixel
     for start in range(0, tp.size, BLOCK):
         b = slice(start, start + BLOCK)
         n_b, v_b = tp.block_rows("normal", b, dtype), tp.block_rows("view", b, dtype)
@@ -470,7 +471,7 @@ def _direct(material, is_substrate: bool, tp: _Pixels, lights: Sequence[Light],
         co_b = _dot_rows(n_b, v_b, scratch("dot_o", m), scratch)
         seen = np.greater(co_b, 0, out=scratch("seen", m))  # 1 where N·ωo > 0, else 0
         p_b = tp.block_rows("position", b, np.float64) if point else None
-        for light in lights:
+        for li, light in enumerate(lights):
             wi, e = incident(light, None if p_b is None else p_b.T)
             if wi.ndim == 1:                                  # directional: one ωi
                 wi_b = wi.astype(dtype)
@@ -491,7 +492,9 @@ def _direct(material, is_substrate: bool, tp: _Pixels, lights: Sequence[Light],
             counts["lit_pixel_lights"] += n_lit
             if n_lit == 0:
                 continue
-            kernel = kernel_of(material, light, is_substrate)
+            kernel = light_kernels.get(li)
+            if kernel is None:
+                kernel = light_kernels[li] = kernel_of(material, light, is_substrate)
             cos = cosines_from_dots_into(cos_i, co_b, cos_io, scratch,
                                 cos_d=getattr(kernel, "needs_cos_d", True))
             accumulate = getattr(kernel, "accumulate", None)

@@ -321,19 +321,27 @@ def display(linear_srgb: np.ndarray, exposure: float = 0.0, tonemap: str = DEFAU
     ``reinhard``, which compress).
     """
     op = get_tonemap(tonemap)
-    x = np.asarray(linear_srgb, dtype=np.float32) * np.float32(2.0 ** float(exposure))
-    x[~np.isfinite(x)] = 0.0  # never reached by a valid frame; guards the cast
+    x = np.multiply(linear_srgb, np.float32(2.0 ** float(exposure)), dtype=np.float32)
+    with np.errstate(over="ignore", invalid="ignore"):
+        finite = np.isfinite(x.sum())
+    if not finite:                  # never for a valid frame (a sum of finite values that
+        x[~np.isfinite(x)] = 0.0    # overflows only costs this mask); guards the cast
     y = op(x)
     masks = None
     if counts:
         def any_channel(a):                     # faster than .any(-1) over 3 channels
             return a[..., 0] | a[..., 1] | a[..., 2]
         low = np.float32(-GAMUT_TOLERANCE * 2.0 ** float(exposure))
-        masks = {"out_of_gamut": any_channel(x < low),
-                 "clipped": any_channel((y >= 1.0) & (x > 1.0))}
-    y = np.clip(y, 0.0, 1.0)
-    index = (y * np.float32(ENCODE_TABLE_SIZE - 1) + np.float32(0.5)).astype(np.intp)
-    png = encode_table()[index]
+        none = np.zeros(x.shape[:-1], bool)
+        # the masks only where some value reaches their bounds (two reductions otherwise)
+        masks = {"out_of_gamut": any_channel(x < low) if x.min() < low else none,
+                 "clipped": (any_channel((y >= 1.0) & (x > 1.0))
+                             if x.max() > 1.0 and y.max() >= 1.0 else none.copy())}
+    # y is x or a new array: both this function's own, so the rest works in place
+    y = np.clip(y, 0.0, 1.0, out=y if y.dtype == np.float32 else None)
+    y *= np.float32(ENCODE_TABLE_SIZE - 1)
+    y += np.float32(0.5)
+    png = encode_table()[y.astype(np.intp)]
     return (png, masks) if counts else png
 
 
