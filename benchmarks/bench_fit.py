@@ -20,6 +20,10 @@ import tempfile
 import time
 from pathlib import Path
 
+from gonio_cli.__main__ import use_blas_threads
+
+use_blas_threads()  # before numpy: kernels timed as in a gonio process
+
 from gonio_cli.fit.sweep import (comparison_sweep, format_comparison, format_rows,
                                   goniochromatic_sweep)
 

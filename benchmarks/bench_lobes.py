@@ -23,6 +23,10 @@ import tempfile
 import time
 from pathlib import Path
 
+from gonio_cli.__main__ import use_blas_threads
+
+use_blas_threads()  # before numpy: kernels timed as in a gonio process
+
 import numpy as np
 
 from gonio_cli import lobes as L

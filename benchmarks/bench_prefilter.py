@@ -27,6 +27,10 @@ import contextlib
 import sys
 from pathlib import Path
 
+from gonio_cli.__main__ import use_blas_threads
+
+use_blas_threads()  # before numpy: kernels timed as in a gonio process
+
 import numpy as np
 
 from gonio_cli import envmap

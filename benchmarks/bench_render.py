@@ -30,6 +30,10 @@ import tempfile
 import time
 from pathlib import Path
 
+from gonio_cli.__main__ import use_blas_threads
+
+use_blas_threads()  # before numpy: kernels timed as in a gonio process
+
 import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent

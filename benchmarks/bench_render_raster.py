@@ -18,6 +18,10 @@ from __future__ import annotations
 import sys
 import time
 
+from gonio_cli.__main__ import use_blas_threads
+
+use_blas_threads()  # before numpy: kernels timed as in a gonio process
+
 import numpy as np
 
 from gonio_cli.render import Camera

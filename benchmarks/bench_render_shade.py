@@ -22,6 +22,10 @@ import os
 import platform
 import time
 
+from gonio_cli.__main__ import use_blas_threads
+
+use_blas_threads()  # before numpy: kernels timed as in a gonio process
+
 import numpy as np
 
 from gonio_cli.render import GBuffer, Light, Stats

@@ -23,10 +23,16 @@ BLAS_THREADS_DEFAULT = "1"
 EXIT_INTERRUPTED = 130
 
 
+def use_blas_threads() -> None:
+    """:data:`BLAS_THREADS_DEFAULT` unless the user set ``OPENBLAS_NUM_THREADS``; call
+    before numpy is imported (OpenBLAS reads it once, at load). The benchmarks call it
+    too, so the kernels they time in-process run as in a ``gonio`` process."""
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", BLAS_THREADS_DEFAULT)
+
+
 def main() -> None:
     """Console entry point: import the CLI, run it, exit with its status."""
-    # before numpy is imported (OpenBLAS reads it once, at load)
-    os.environ.setdefault("OPENBLAS_NUM_THREADS", BLAS_THREADS_DEFAULT)
+    use_blas_threads()
     try:
         from .cli import run
 
