@@ -329,3 +329,19 @@ window.addEventListener('load', function () {
         check.unlink()
     assert f'data-loaded="{n_img}/{n_img}"' in dom, dom[-400:]
     assert (tmp_path / "sheet.png").is_file(), shot.stderr[-400:]
+
+
+def test_task_keys_group_jobs_by_command_for_dask():
+    """Dask keeps one duration estimate per key prefix (``key_split``), which its work
+    stealing needs to move queued jobs to an idle worker: the prefix of every task of the
+    sample plan is its command, whatever the job's own key, and keys stay unique."""
+    from dask.utils import key_split
+
+    from gonio_cli.batch.engine import task_key
+    from gonio_cli.batch.plan import read_plan
+
+    plan = read_plan(ROOT / "sample_data" / "batch" / "turntable.toml", ROOT / "try" / "k")
+    keys = [task_key(j, "0badcafe") for j in plan.jobs]
+    assert len(set(keys)) == len(keys)
+    assert {key_split(k) for k in keys} == {"ingest", "fit", "render", "preview"}
+    assert all(key_split(k) == j.command.split()[0] for k, j in zip(keys, plan.jobs))
