@@ -110,3 +110,21 @@ def test_the_two_lobes_are_not_swapped_on_the_comparison_sweep_data():
     assert r.params["alpha_coat"] == pytest.approx(p["alpha_coat"], rel=0.02)
     assert r.params["b0"] == pytest.approx(p["b0"], rel=0.03)
     assert r.result.errors["relative_rmse_percent"] < 2.5
+
+
+def test_auto_shares_the_coat_search_and_gets_the_same_fit():
+    # --model auto fits goniochromatic-coat, then goniochromatic-backscatter on the same
+    # data: with a shared memo the second starts where the first ended, and the result is
+    # the one it finds on its own; without one (a single fit) nothing is kept.
+    ti, to = paper_geometry(10.0, theta_i_deg=(20.0, 40.0, 60.0), near_side_from_deg=0.0)
+    data = prepare(synthetic_measurement("goniochromatic-backscatter", truth(), ti, to,
+                                         noise=0.01, seed=6), residuals="compressive")
+    alone = fit(data, "goniochromatic-backscatter", FitOptions())
+    shared = FitOptions(stages={})
+    fit(data, "goniochromatic-coat", shared)
+    assert len(shared.stages) == 1
+    reused = fit(data, "goniochromatic-backscatter", shared)
+    assert len(shared.stages) == 1
+    for k in ("alpha", "alpha_coat", "k_coat", "f0_coat", "b0", "h"):
+        assert reused.params[k] == alone.params[k], k
+    np.testing.assert_array_equal(reused.params["rho_d"], alone.params["rho_d"])

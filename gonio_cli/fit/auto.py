@@ -20,7 +20,7 @@ in each candidate's notes and in ``fit.auto.criterion``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Callable
 
 import numpy as np
@@ -122,6 +122,7 @@ def fit_auto(data: FitData, options: FitOptions,
     from ..brdf import evaluate
 
     scheme, held_out = folds(data)
+    options = replace(options, stages={})   # shared by the candidates' fits of each fold
     results: list[Candidate] = []
     for model in candidates:
         sw = Stopwatch()

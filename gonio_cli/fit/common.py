@@ -688,12 +688,16 @@ class FitOptions:
     step2 : "mirror" (seed 000 eq. 7) or "all" configurations in the paper's step 2
     optimizer : a key of the fitter's ``OPTIMIZERS`` (None: its default, the first key)
     alpha : fix the roughness instead of fitting it (models with an α)
+    stages : a memo that fits of the same data within one run share (``--model auto``
+        sets it: ``goniochromatic-backscatter`` starts where ``goniochromatic-coat`` ended,
+        :mod:`.layered`); None (one fit) keeps nothing, so a fit's time is its own
     """
 
     refine: bool = True
     step2: str = "mirror"
     optimizer: str | None = None
     alpha: float | None = None
+    stages: dict | None = None
 
 
 @dataclass

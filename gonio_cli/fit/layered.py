@@ -213,17 +213,13 @@ def _search_backscatter(problem: Layered, alpha0: float, coat0):
             (float(v[4]), float(np.exp(v[5]))), count["n"], message)
 
 
-#: The outcome of the searches before the opposition effect's (α, then the coat), by data
-#: and options: ``--model auto`` fits ``goniochromatic-coat`` and then
-#: ``goniochromatic-backscatter`` on the same data (all of it, then each fold), and the
-#: second starts where the first ended instead of repeating its search.
-_STAGES: dict[bytes, tuple] = {}
-STAGE_CACHE_SIZE = 16
-
-
 def _stage_key(data: FitData, options: FitOptions, coat: bool) -> bytes:
-    """A digest of everything the first stages depend on: the data and weights, the
-    geometry, the residuals, ``--alpha``, ``--optimizer`` and whether there is a coat."""
+    """The key of :attr:`FitOptions.stages` for the searches before the opposition
+    effect's (α, then the coat): a digest of everything they depend on, the data and
+    weights, the geometry, the residuals, ``--alpha``, ``--optimizer`` and whether there is
+    a coat. ``--model auto`` fits ``goniochromatic-coat`` and then
+    ``goniochromatic-backscatter`` on the same data (all of it, then each fold): the second
+    starts where the first ended instead of repeating its search."""
     import hashlib
 
     h = hashlib.blake2b(digest_size=20)
@@ -252,9 +248,10 @@ def fit_layered(data: FitData, options: FitOptions, coat: bool,
                          fix="GGX alpha of seed 000 eq. 3 lies in (0, 1]")
     optimizer, search_alpha = choose_optimizer(model, OPTIMIZERS, options.optimizer)
     sw = Stopwatch()
+    memo = options.stages if options.stages is not None else {}
     key = _stage_key(data, options, coat)
-    if key in _STAGES:                      # this fit's first stages were just run
-        alpha, coat_params, evaluations, message, success = _STAGES[key]
+    if key in memo:                         # this run fitted the same stages already
+        alpha, coat_params, evaluations, message, success = memo[key]
     else:
         plain = Layered(data)
         if options.alpha is not None:
@@ -268,9 +265,7 @@ def fit_layered(data: FitData, options: FitOptions, coat: bool,
         if coat:
             alpha, coat_params, n, message = _search_coat(Layered(data, coat=True), alpha)
             evaluations += n
-        _STAGES[key] = (alpha, coat_params, evaluations, message, success)
-        while len(_STAGES) > STAGE_CACHE_SIZE:
-            _STAGES.pop(next(iter(_STAGES)))
+        memo[key] = (alpha, coat_params, evaluations, message, success)
     back = None
     if backscatter:
         alpha, coat_params, back, n, message = _search_backscatter(
