@@ -31,7 +31,7 @@ import process
 
 ROOT = Path(__file__).resolve().parent.parent
 MODELS = ("goniochromatic", "goniochromatic-diffuse", "goniochromatic-coat",
-          "torrance-sparrow", "cook-torrance", "auto")
+          "goniochromatic-backscatter", "torrance-sparrow", "cook-torrance", "auto")
 
 #: (label, input files, ingest options, fit options) of the whole-command table.
 DATASETS = (

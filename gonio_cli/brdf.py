@@ -348,6 +348,45 @@ def goniochromatic_coat(cos: Cosines, alpha, rho, c, rho_d, alpha_coat, k_coat,
     return goniochromatic_diffuse(cos, alpha, rho, c, rho_d) + float(k_coat) * coat
 
 
+def opposition_surge(cos_theta_d, b0, h) -> np.ndarray:
+    """Hapke's shadow-hiding opposition effect (Hapke 1986; *Theory of Reflectance and
+    Emittance Spectroscopy*, 2nd ed. 2012, eq. 9.22): B(g) = B0 / (1 + tan(g/2)/h).
+
+    g is the phase angle, between the directions to the light and to the viewer
+    (ωi·ωo = cos g; g = 0 at retro-reflection), so g/2 = θd and tan(g/2) = tan θd: the
+    light's own shadows in a porous layer are hidden from a viewer beside the light.
+    ``b0`` ≥ 0 the amplitude (B0 ≤ 1 for shadow hiding alone), ``h`` > 0 the angular width
+    (the half width at half maximum of the surge is g ≈ 2h rad for small h; h grows with
+    the layer's porosity). Written B0 h cos θd / (h cos θd + sin θd): finite everywhere,
+    B0 at retro-reflection, 0 at cos θd = 0. ``cos_theta_d``: (...,). Returns (...,).
+    """
+    cd = np.clip(np.asarray(cos_theta_d, dtype=float), 0.0, 1.0)
+    sd = np.sqrt((1.0 - cd) * (1.0 + cd))
+    hc = float(h) * cd
+    return float(b0) * hc / np.maximum(hc + sd, COS_EPS)
+
+
+def backscatter_diffuse(cos: Cosines, rho_d, b0, h) -> np.ndarray:
+    """A diffuse body with the opposition effect: ρ_d(λ)/π · (1 + B(g)), sr⁻¹, B of
+    :func:`opposition_surge` (achromatic: it multiplies the body reflection, as in Hapke's
+    model where it multiplies the single-scattering term). ``rho_d``: (..., n_λ)."""
+    return lambertian(rho_d) * _col(1.0 + opposition_surge(cos.cos_theta_d, b0, h))
+
+
+def goniochromatic_backscatter(cos: Cosines, alpha, rho, c, rho_d, alpha_coat, k_coat,
+                               f0_coat, b0, h) -> np.ndarray:
+    """:func:`goniochromatic_coat` whose diffuse term has the opposition effect, sr⁻¹:
+
+    f = ρ_d(λ)/π (1 + B0/(1 + tan(g/2)/h)) + eq. 5(α, ρ, c) + the clear coat,
+
+    for matte, porous pigment layers (a binder's surface reflection is the coat), B of
+    :func:`opposition_surge`; with B0 = 0 it is :func:`goniochromatic_coat`.
+    """
+    coat = goniochromatic_coat(cos, alpha, rho, c, np.zeros_like(np.asarray(rho_d, float)),
+                               alpha_coat, k_coat, f0_coat)
+    return backscatter_diffuse(cos, rho_d, b0, h) + coat
+
+
 # ----------------------------------------------------------------------------- registry --
 
 @dataclass(frozen=True)
@@ -378,6 +417,11 @@ MODELS: dict[str, Model] = {
                                  ("alpha", "alpha_coat", "k_coat", "f0_coat"),
                                  ("rho", "c", "rho_d"), goniochromatic_coat,
                                  "seed 000 eq. 5 + Lambertian + GGX clear coat"),
+    "goniochromatic-backscatter": Model(
+        "goniochromatic-backscatter",
+        ("alpha", "alpha_coat", "k_coat", "f0_coat", "b0", "h"), ("rho", "c", "rho_d"),
+        goniochromatic_backscatter,
+        "seed 000 eq. 5 + Lambertian with Hapke's opposition effect + GGX clear coat"),
     "cook-torrance-2": Model("cook-torrance-2", ("ks_1", "m_1", "ks_2", "m_2"), ("kd", "f0"),
                              cook_torrance_2, "seed 004 eqs. 9-12, two Beckmann lobes"),
     "cook-torrance-3": Model("cook-torrance-3", ("ks_1", "m_1", "ks_2", "m_2", "ks_3", "m_3"),

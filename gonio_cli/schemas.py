@@ -563,6 +563,7 @@ PARAM_RANGES: dict[str, Number] = {
     **{k: NON_NEGATIVE for k in ("rho", "rho_d", "kd", "ks", "ks_1", "ks_2", "ks_3",
                                  "k_coat")},
     "c": Number(-C_MAX, C_MAX),
+    "b0": NON_NEGATIVE, "h": Number(0.0, MAX_MAGNITUDE, lo_open=True),
 }
 
 

@@ -80,6 +80,12 @@ def hand_model(name, ti, to, p):
         coat = hand_model("torrance-sparrow", ti, to,
                           {"alpha": p["alpha_coat"], "f0": np.array([p["f0_coat"]])})
         return hand_model("goniochromatic-diffuse", ti, to, p) + p["k_coat"] * coat
+    if name == "goniochromatic-backscatter":
+        # Hapke's B(g) = B0/(1 + tan(g/2)/h), g the phase angle: in plane the directions
+        # to light and viewer are θi and θo apart on either side of the normal, g = |θi + θo|
+        surge = p["b0"] / (1.0 + np.tan(np.abs(ti + to) / 2.0)[:, None] / p["h"])
+        return (hand_model("goniochromatic-coat", ti, to, dict(p, rho_d=0.0))
+                + p["rho_d"] / np.pi * (1.0 + surge))
     if name in ("cook-torrance-2", "cook-torrance-3"):
         # seed 004 eq. 11 summed over the lobes (ks_j, m_j), one F0(λ)
         lobes = sum(p[f"ks_{j}"] * hand_beckmann(th, p[f"m_{j}"])
@@ -105,6 +111,9 @@ def model_params(name, rng):
         "goniochromatic-coat": lambda: {"alpha": 0.19, "rho": u(0.05, 1.0), "c": u(-5.0, 5.0),
                                         "rho_d": u(0.0, 0.8), "alpha_coat": 0.04,
                                         "k_coat": 0.7, "f0_coat": 0.05},
+        "goniochromatic-backscatter": lambda: {
+            "alpha": 0.19, "rho": u(0.05, 1.0), "c": u(-5.0, 5.0), "rho_d": u(0.0, 0.8),
+            "alpha_coat": 0.04, "k_coat": 0.7, "f0_coat": 0.05, "b0": 0.6, "h": 0.1},
         "cook-torrance-2": lambda: {"kd": u(0.0, 0.5), "f0": u(0.02, 1.0), "ks_1": 0.1,
                                     "m_1": 0.05, "ks_2": 0.6, "m_2": 0.3},
         "cook-torrance-3": lambda: {"kd": u(0.0, 0.5), "f0": u(0.02, 1.0), "ks_1": 0.1,
@@ -282,6 +291,14 @@ EXTREME_PARAMS = [
     ("goniochromatic-coat", {"alpha": 1.0, "rho": [0.0, 1.0, 1e-300], "c": [-1e4, 1e4, 0.0],
                              "rho_d": [0.0, 0.0, 0.0], "alpha_coat": 1.0, "k_coat": 0.0,
                              "f0_coat": 0.02}),
+    ("goniochromatic-backscatter", {"alpha": 1e-6, "rho": [0.0, 1.0, 1.0],
+                                    "c": [1e4, 1e4, -1e4], "rho_d": [0.0, 1.0, 0.5],
+                                    "alpha_coat": 1e-6, "k_coat": 10.0, "f0_coat": 1.0,
+                                    "b0": 1.0, "h": 0.01}),
+    ("goniochromatic-backscatter", {"alpha": 1.0, "rho": [0.0, 1.0, 1e-300],
+                                    "c": [-1e4, 1e4, 0.0], "rho_d": [1.0, 0.0, 1e-300],
+                                    "alpha_coat": 1.0, "k_coat": 0.0, "f0_coat": 0.02,
+                                    "b0": 0.0, "h": 2.0}),
 ]
 
 

@@ -321,9 +321,12 @@ def test_version_1_materials_read_and_evaluate_as_before(tmp_path):
         read_material(old)
 
 
-@pytest.mark.parametrize("model", ["goniochromatic-diffuse", "goniochromatic-coat"])
+@pytest.mark.parametrize("model", ["goniochromatic-diffuse", "goniochromatic-coat",
+                                   "goniochromatic-backscatter"])
 def test_new_models_feed_lobes_and_render(run_gonio, tmp_path, model):
-    p = layered_truth(coat=model.endswith("coat"))
+    p = layered_truth(coat=model != "goniochromatic-diffuse")
+    if model == "goniochromatic-backscatter":
+        p.update(b0=0.6, h=0.2)
     ti, to = paper_geometry(10.0, theta_i_deg=(20.0, 40.0, 60.0))
     meas = tmp_path / "m.json"
     write_measurement(meas, synthetic_measurement(model, p, ti, to, noise=0.005, seed=1))

@@ -99,8 +99,9 @@ def fit(
                        use_std=std_weights, path=measurement)
         if model == "auto":
             result, candidates = _named(fit_auto, measurement)(data, options)
-            extra["auto"] = {"criterion": "mean CIEDE2000 on each angle of incidence left "
-                                          "out in turn", "chosen": result.model,
+            from ..fit.auto import criterion
+
+            extra["auto"] = {"criterion": criterion(data), "chosen": result.model,
                              "candidates": [c.to_dict() for c in candidates]}
         else:
             result = _named(run_fit, measurement)(data, model, options)
@@ -267,7 +268,7 @@ def better_model_hint(data, result, judgement: dict, options) -> str | None:
     if best[1] == result.model:
         return None
     return (f"gonio: note: --model {best[1]} fits these data better (CIEDE2000 mean "
-            f"{best[0]:.2f} in sample); --model auto chooses by held-out angles")
+            f"{best[0]:.2f} in sample); --model auto chooses by held-out error")
 
 
 EXAMPLE = ("gonio fit red.measurement.json -o red.material.json --exclude-theta-i-deg 70 "

@@ -175,6 +175,22 @@ def goniochromatic_coat(cos, alpha, rho, c, rho_d, alpha_coat, k_coat, f0_coat):
             + k_coat * torrance_sparrow(cos, alpha_coat, f0_coat))
 
 
+def opposition_surge(cos_theta_d, b0, h):
+    """Hapke's shadow-hiding opposition effect B0 / (1 + tan θd / h); port of
+    ``gonio_cli.brdf.opposition_surge``."""
+    cd = _clip01(cos_theta_d)
+    sd = dr.sqrt((1.0 - cd) * (1.0 + cd))
+    hc = h * cd
+    return b0 * hc / dr.maximum(hc + sd, COS_EPS)
+
+
+def goniochromatic_backscatter(cos, alpha, rho, c, rho_d, alpha_coat, k_coat, f0_coat, b0, h):
+    """ρ_d/π (1 + B(g)) + eq. (5) + the clear coat; port of
+    ``gonio_cli.brdf.goniochromatic_backscatter``."""
+    return (lambertian(rho_d) * (1.0 + opposition_surge(cos[3], b0, h))
+            + goniochromatic_coat(cos, alpha, rho, c, 0.0, alpha_coat, k_coat, f0_coat))
+
+
 #: The models by ``gonio_cli.brdf.MODELS`` name, with the same keyword parameters.
 MODELS = {
     "goniochromatic": goniochromatic,
@@ -182,6 +198,7 @@ MODELS = {
     "cook-torrance": cook_torrance,
     "goniochromatic-diffuse": goniochromatic_diffuse,
     "goniochromatic-coat": goniochromatic_coat,
+    "goniochromatic-backscatter": goniochromatic_backscatter,
     "cook-torrance-2": cook_torrance_2,
     "cook-torrance-3": cook_torrance_3,
 }

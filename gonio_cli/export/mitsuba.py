@@ -100,6 +100,12 @@ LOBES: dict[str, Callable[[dict], list[Lobe]]] = {
     "goniochromatic-coat": lambda p: [
         Lobe("diffuse", 1.0, float(np.mean(p["rho_d"]))), _gonio_lobe(p),
         Lobe("ggx", float(p["alpha_coat"]), float(p["k_coat"]) * float(p["f0_coat"]))],
+    # the opposition effect multiplies the diffuse term by 1 + B ≤ 1 + B0, smoothly:
+    # sampled with it (an albedo estimate of ρ_d (1 + B0/2))
+    "goniochromatic-backscatter": lambda p: [
+        Lobe("diffuse", 1.0, float(np.mean(p["rho_d"])) * (1.0 + 0.5 * float(p["b0"]))),
+        _gonio_lobe(p),
+        Lobe("ggx", float(p["alpha_coat"]), float(p["k_coat"]) * float(p["f0_coat"]))],
     "cook-torrance-2": lambda p: [Lobe("diffuse", 1.0, float(np.mean(p["kd"])))] + [
         _ct_lobe(p[f"ks_{j}"], p[f"m_{j}"], np.asarray(p["f0"])) for j in (1, 2)],
     "cook-torrance-3": lambda p: [Lobe("diffuse", 1.0, float(np.mean(p["kd"])))] + [

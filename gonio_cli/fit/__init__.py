@@ -7,6 +7,8 @@ The registry :data:`FITTERS` maps a model name (``--model``) to its fitter; each
 - ``goniochromatic`` (default): seed 000 eq. 5; :mod:`.goniochromatic`
 - ``goniochromatic-diffuse``: eq. 5 plus a Lambertian ρ_d(λ); :mod:`.layered`
 - ``goniochromatic-coat``: eq. 5, ρ_d(λ) and an achromatic GGX clear coat; :mod:`.layered`
+- ``goniochromatic-backscatter``: the coat model with Hapke's opposition effect on ρ_d;
+  :mod:`.layered`
 - ``torrance-sparrow``: seed 000 eq. 2 with GGX, Smith G, Schlick F0(λ); :mod:`.torrance_sparrow`
 - ``cook-torrance``: seed 004 eqs. 9–12 per wavelength; :mod:`.cook_torrance`
 - ``cook-torrance-2``, ``cook-torrance-3``: seed 004 eq. 11 with two or three Beckmann lobes
@@ -30,6 +32,7 @@ FITTERS: dict[str, Callable[[FitData, FitOptions], ModelFit]] = {
     "goniochromatic": goniochromatic.fit,
     "goniochromatic-diffuse": layered.fit_diffuse,
     "goniochromatic-coat": layered.fit_coat,
+    "goniochromatic-backscatter": layered.fit_backscatter,
     "torrance-sparrow": torrance_sparrow.fit,
     "cook-torrance": cook_torrance.fit,
     "cook-torrance-2": cook_torrance_lobes.fit_2,
@@ -42,6 +45,7 @@ OPTIMIZERS_BY_MODEL: dict[str, dict[str, Callable]] = {
     "goniochromatic": goniochromatic.OPTIMIZERS,
     "goniochromatic-diffuse": layered.OPTIMIZERS,
     "goniochromatic-coat": layered.OPTIMIZERS,
+    "goniochromatic-backscatter": layered.OPTIMIZERS,
     "torrance-sparrow": torrance_sparrow.OPTIMIZERS,
     "cook-torrance": cook_torrance.OPTIMIZERS,
     "cook-torrance-2": cook_torrance_lobes.OPTIMIZERS,

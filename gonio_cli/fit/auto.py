@@ -1,17 +1,26 @@
-"""``--model auto``: every applicable model, judged on angles it did not see.
+"""``--model auto``: every applicable model, judged on configurations it did not see.
 
-Each candidate (:data:`CANDIDATES`) is fitted to all the data, then once per angle of
-incidence with that angle left out; the left-out configurations are predicted and their
-colour error measured (CIEDE2000 as in :mod:`.verdict`). The candidate with the lowest
-mean held-out colour error is kept. Judging on held-out angles, not on the data each
-model was fitted to, keeps a model with more parameters from winning only because it can
-bend to the noise. With a single angle of incidence there is nothing to hold out and the
-in-sample error decides (said in the material).
+Each candidate (:data:`CANDIDATES`) is fitted to all the data, then once per *fold* with
+that fold left out; the left-out configurations are predicted and their colour error
+measured (CIEDE2000 as in :mod:`.verdict`). The candidate with the lowest mean held-out
+colour error is kept (a tie keeps the earlier, simpler one). Judging on held-out data, not
+on the data each model was fitted to, keeps a model with more parameters from winning only
+because it can bend to the noise.
+
+The folds (:func:`folds`) are the angles of incidence when there are at least
+:data:`MIN_THETA_I_FOR_ANGLE_FOLDS` of them (leave one θi out: a model must predict a whole
+angle of incidence it did not see, between or beside the others). With fewer, leaving one
+θi out is an extrapolation from 15° to 45° and back (a multi-angle instrument's two
+angles), which says little about how well a model *interpolates* the configurations it
+is asked for; then configurations are held out instead, in :data:`CONFIGURATION_FOLDS`
+folds stratified by θi, each holding out only configurations with a fitted detector
+angle on either side (interpolation, as a fit is used). The scheme that judged is named
+in each candidate's notes and in ``fit.auto.criterion``.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Callable
 
 import numpy as np
@@ -22,7 +31,60 @@ from .verdict import colour_errors, covers_colour
 
 #: Models ``auto`` tries, cheapest first (a tie keeps the earlier, simpler one).
 CANDIDATES = ("goniochromatic", "goniochromatic-diffuse", "torrance-sparrow",
-              "cook-torrance", "cook-torrance-2", "cook-torrance-3", "goniochromatic-coat")
+              "cook-torrance", "cook-torrance-2", "cook-torrance-3", "goniochromatic-coat",
+              "goniochromatic-backscatter")
+
+
+#: With at least this many angles of incidence, auto leaves one θi out at a time; with
+#: fewer, one θi left out leaves one (or none) to fit, so the test is an extrapolation
+#: across the whole angular range rather than the interpolation a fit is used for.
+MIN_THETA_I_FOR_ANGLE_FOLDS = 3
+
+#: Folds over configurations (fewer angles of incidence). Only *interior* configurations
+#: are held out, those with a fitted detector angle on either side at the same θi: the end
+#: of a sweep left out is an extrapolation past the measured range, which neither the
+#: verdict nor a renderer asks of the fit. Fold j takes every k-th interior configuration
+#: of each θi (ordered by θo), so each fold holds out one configuration per θi when a θi has
+#: at most this many interior ones (a 12-geometry multi-angle instrument has 4 per θi:
+#: leave one out within each θi); more folds would refit more often for the same test.
+CONFIGURATION_FOLDS = 4
+
+
+def folds(data: FitData) -> tuple[str, list[tuple[str, np.ndarray]]]:
+    """(scheme, [(label, boolean rows held out)]) of the held-out test (module doc).
+
+    ``scheme`` is ``"theta_i"``, ``"configurations"`` or ``"in-sample"`` (no θi has a
+    configuration between two others: nothing can be held out and interpolated)."""
+    groups = data.theta_i_groups()
+    if len(groups) >= MIN_THETA_I_FOR_ANGLE_FOLDS:
+        return "theta_i", [(f"theta_i {t:g}", rows) for t, rows in groups]
+    interior = []
+    for _, rows in groups:
+        idx = np.flatnonzero(rows)
+        interior.append(idx[np.argsort(data.theta_o_deg[idx], kind="stable")][1:-1])
+    k = min(CONFIGURATION_FOLDS, max(idx.size for idx in interior))
+    if k < 1:
+        return "in-sample", []
+    fold = np.full(data.n_configurations, -1)
+    for idx in interior:
+        fold[idx] = np.arange(idx.size) % k
+    return "configurations", [(f"fold {j + 1} of {k}", fold == j) for j in range(k)]
+
+
+#: What judged, by scheme of :func:`folds`: each candidate's note and ``fit.auto.criterion``.
+SCHEME_NOTES = {
+    "theta_i": "held out: each angle of incidence in turn",
+    "configurations": (f"held out: configurations between two others at the same angle of "
+                       f"incidence, in up to {CONFIGURATION_FOLDS} folds (fewer than "
+                       f"{MIN_THETA_I_FOR_ANGLE_FOLDS} angles of incidence)"),
+    "in-sample": ("nothing to hold out (no configuration between two others at an angle "
+                  "of incidence): judged in sample"),
+}
+
+
+def criterion(data: FitData) -> str:
+    """``fit.auto.criterion`` of the material: the error auto minimised and how."""
+    return "mean CIEDE2000; " + SCHEME_NOTES[folds(data)[0]]
 
 
 @dataclass
@@ -59,7 +121,8 @@ def fit_auto(data: FitData, options: FitOptions,
     """The best candidate's fit by held-out error, and every candidate's figures."""
     from ..brdf import evaluate
 
-    groups = data.theta_i_groups()
+    scheme, held_out = folds(data)
+    options = replace(options, stages={})   # shared by the candidates' fits of each fold
     results: list[Candidate] = []
     for model in candidates:
         sw = Stopwatch()
@@ -74,16 +137,16 @@ def fit_auto(data: FitData, options: FitOptions,
                                                       evaluate(model, data.cos, full.params))))
         if not full.result.success:
             cand.notes.append(f"fit failed: {full.result.message}")
-        if len(groups) < 2:
+        cand.notes.append(SCHEME_NOTES[scheme])
+        if not held_out:
             cand.held_out_delta_e = cand.in_sample_delta_e
-            cand.notes.append("one angle of incidence: judged in sample")
         else:
             errors = []
-            for theta_i, rows in groups:
+            for label, rows in held_out:
                 try:
                     part = fit_one(data.subset(~rows), model, options)
                 except GonioError as exc:
-                    cand.notes.append(f"without theta_i {theta_i:g}: {exc.message}")
+                    cand.notes.append(f"without {label}: {exc.message}")
                     errors = []
                     break
                 sub = data.subset(rows)

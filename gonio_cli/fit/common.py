@@ -412,22 +412,25 @@ def nnls2(s_aa, s_ab, s_bb, s_at, s_bt, s_tt):
     return a, b, np.maximum(cost, 0.0)
 
 
-def profile_c(x, g, t, w, diffuse: bool, c_limit: float = C_LIMIT):
-    """Per wavelength, the best (ρ_d, ρ, c) of ρ_d/π + ρ g e^{c x} against targets t.
+def profile_c(x, g, t, w, diffuse: bool, c_limit: float = C_LIMIT, diffuse_shape=None):
+    """Per wavelength, the best (ρ_d, ρ, c) of ρ_d s/π + ρ g e^{c x} against targets t.
 
     ``x``, ``g``: (N,) (x = 1 − cos((θi+θo)/2), g = D/4); ``t``, ``w``: (N, L) targets and
-    weights. Without ``diffuse`` ρ_d = 0. Returns ρ_d, ρ, c, cost, each (L,).
+    weights; ``diffuse_shape`` s (N,): the diffuse term's angular shape, 1 (Lambertian) if
+    None. Without ``diffuse`` ρ_d = 0. Returns ρ_d, ρ, c, cost, each (L,).
     """
     x = np.asarray(x, dtype=float)
     g = np.asarray(g, dtype=float)
+    a = (np.ones_like(x) if diffuse_shape is None else np.asarray(diffuse_shape, float)) / np.pi
     wt = w * t
-    s_aa = np.sum(w, axis=0) / np.pi ** 2 if diffuse else np.zeros(t.shape[1])
-    s_at = np.sum(wt, axis=0) / np.pi if diffuse else np.zeros(t.shape[1])
+    wa = w * a[:, None]
+    s_aa = np.sum(wa * a[:, None], axis=0) if diffuse else np.zeros(t.shape[1])
+    s_at = np.sum(wa * t, axis=0) if diffuse else np.zeros(t.shape[1])
     s_tt = np.sum(wt * t, axis=0)
 
     def sums_grid(cs):                                       # (G,) → (G, L) each
         E = g[None, :] * np.exp(np.minimum(np.outer(cs, x), _EXP_CAP))
-        return (E @ w / np.pi if diffuse else np.zeros((cs.size, t.shape[1])),
+        return (E @ wa if diffuse else np.zeros((cs.size, t.shape[1])),
                 (E * E) @ w, E @ wt)
 
     def solve(s_ab, s_bb, s_bt):
@@ -441,7 +444,7 @@ def profile_c(x, g, t, w, diffuse: bool, c_limit: float = C_LIMIT):
 
     def sums_per_column(c):                                   # (L,) → (L,) each
         B = g[:, None] * np.exp(np.minimum(x[:, None] * c[None, :], _EXP_CAP))
-        return (np.sum(w * B, axis=0) / np.pi if diffuse else np.zeros(c.size),
+        return (np.sum(wa * B, axis=0) if diffuse else np.zeros(c.size),
                 np.sum(w * B * B, axis=0), np.sum(wt * B, axis=0))
 
     c = parabolic_minimum(lambda c: solve(*sums_per_column(c))[2],
@@ -685,12 +688,16 @@ class FitOptions:
     step2 : "mirror" (seed 000 eq. 7) or "all" configurations in the paper's step 2
     optimizer : a key of the fitter's ``OPTIMIZERS`` (None: its default, the first key)
     alpha : fix the roughness instead of fitting it (models with an α)
+    stages : a memo that fits of the same data within one run share (``--model auto``
+        sets it: ``goniochromatic-backscatter`` starts where ``goniochromatic-coat`` ended,
+        :mod:`.layered`); None (one fit) keeps nothing, so a fit's time is its own
     """
 
     refine: bool = True
     step2: str = "mirror"
     optimizer: str | None = None
     alpha: float | None = None
+    stages: dict | None = None
 
 
 @dataclass

@@ -26,7 +26,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..brdf import evaluate, goniochromatic_d4, goniochromatic_exponent_arg, torrance_sparrow
+from ..brdf import (evaluate, goniochromatic_d4, goniochromatic_exponent_arg,
+                    opposition_surge, torrance_sparrow)
 from ..errors import InputError
 from .common import (ALPHA_MAX, ALPHA_MIN, C_LIMIT, FitData, FitOptions, FitReport,
                      ModelFit, Stopwatch, choose_optimizer, error_figures,
@@ -41,6 +42,27 @@ F0_COAT_START = 0.04
 #: 20-fold towards grazing) against k_coat, and overshoots the grazing peaks of real
 #: coated samples by 2× (measured on an RGL vinyl wrap).
 F0_COAT_MIN = 0.02
+
+#: Bounds of the opposition effect's amplitude B0 and width h
+#: (:func:`gonio_cli.brdf.opposition_surge`). B0 ≤ 1 is shadow hiding's own limit (Hapke
+#: 2012 §9.5: B0 = 1 when the particles are opaque); h from 0.01 (a surge a degree wide,
+#: finer than any goniometer's angular step) to 2 (a surge wider than the hemisphere: the
+#: term then tilts the whole body reflection towards the light).
+B0_MAX = 1.0
+H_MIN, H_MAX = 0.01, 2.0
+
+#: (B0, h) tried from the coated fit before the 6-D refinement: none, a narrow and a
+#: broad surge.
+BACKSCATTER_STARTS = ((0.0, 0.1), (0.5, 0.05), (0.5, 0.3), (0.5, 1.0))
+
+#: Evaluations allowed to the 6-D BOBYQA refinement with the opposition effect.
+BACKSCATTER_MAXEVAL = 400
+
+#: Start values of eq. 5's α tried with each coat start, beside the α of the fit without a
+#: coat: that fit gives its lobe the sharpest peak in the data, which may be the coat's, and
+#: BOBYQA from there does not swap the two lobes (on eq. 5 α 0.15 under a coat α 0.03 with
+#: an opposition surge it ended at α 0.036, α_coat 0.19 with 24 % RMS error).
+ALPHA_STARTS = (0.03, 0.1, 0.3)
 
 #: Start values of α_coat and k_coat scanned before the 4-D refinement.
 ALPHA_COAT_STARTS = (0.003, 0.01, 0.03, 0.1, 0.3)
@@ -61,8 +83,8 @@ COAT_MAXEVAL = 300
 class Layered:
     """The separable problem of one data set: (ρ_d, ρ, c)(λ) for any fixed roughnesses."""
 
-    def __init__(self, data: FitData, coat: bool = False):
-        self.data, self.coat = data, coat
+    def __init__(self, data: FitData, coat: bool = False, backscatter: bool = False):
+        self.data, self.coat, self.backscatter = data, coat, backscatter
         self.x = goniochromatic_exponent_arg(data.cos.cos_theta_i, data.cos.cos_theta_o)
         # every wavelength with some weighted signal can be fitted
         self.signal = np.any((data.w > 0) & (data.y > 0), axis=0)
@@ -74,9 +96,11 @@ class Layered:
         """The clear coat's BRDF (N,): k · Torrance–Sparrow with an achromatic F0."""
         return k_coat * torrance_sparrow(self.data.cos, alpha_coat, np.array([f0_coat]))[:, 0]
 
-    def solve(self, alpha: float, coat: tuple[float, float, float] | None = None):
+    def solve(self, alpha: float, coat: tuple[float, float, float] | None = None,
+              back: tuple[float, float] | None = None):
         """Returns (params dict, cost (L,), ok (L,)) for fixed roughnesses; ``coat`` is
-        (α_coat, k_coat, F0_coat) for the coated model."""
+        (α_coat, k_coat, F0_coat) for the coated model, ``back`` (B0, h) of the opposition
+        effect for ``goniochromatic-backscatter`` (the diffuse column's shape 1 + B)."""
         d = self.data
         t = d.y
         params: dict = {"alpha": float(alpha)}
@@ -85,17 +109,23 @@ class Layered:
             t = d.y - self.coat_term(alpha_coat, k_coat, f0_coat)[:, None]
             params.update(alpha_coat=float(alpha_coat), k_coat=float(k_coat),
                           f0_coat=float(f0_coat))
+        shape = None
+        if self.backscatter:
+            b0, h = back
+            shape = 1.0 + opposition_surge(d.cos.cos_theta_d, b0, h)
+            params.update(b0=float(b0), h=float(h))
         g = goniochromatic_d4(d.cos.cos_theta_h, alpha)
-        rho_d, rho, c, cost = profile_c(self.x, g, t, self.w, diffuse=True)
+        rho_d, rho, c, cost = profile_c(self.x, g, t, self.w, diffuse=True,
+                                        diffuse_shape=shape)
         ok = self.signal & np.isfinite(cost) & (np.abs(c) < C_LIMIT * (1 - 1e-6))
         params.update(rho=np.where(ok, rho, 0.0), c=np.where(ok, c, 0.0),
                       rho_d=np.where(ok, rho_d, 0.0))
         return params, cost, ok
 
-    def cost(self, alpha, coat=None) -> float:
+    def cost(self, alpha, coat=None, back=None) -> float:
         """Total cost over the wavelengths with signal (a c at its bound still counts:
         leaving it out would make the worst roughness look the best)."""
-        _, cost, _ = self.solve(alpha, coat)
+        _, cost, _ = self.solve(alpha, coat, back)
         return float(np.sum(cost[self.signal]))
 
 
@@ -118,9 +148,10 @@ def _search_coat(problem: Layered, alpha0: float):
             best["x"], best["f"] = np.array(v, dtype=float), f
         return f
 
-    for ac in ALPHA_COAT_STARTS:
-        for k in K_COAT_STARTS:
-            cost([np.log(alpha0), np.log(ac), k, F0_COAT_START])
+    for a in (alpha0,) + ALPHA_STARTS:
+        for ac in ALPHA_COAT_STARTS:
+            for k in K_COAT_STARTS:
+                cost([np.log(a), np.log(ac), k, F0_COAT_START])
     opt = nlopt.opt(nlopt.LN_BOBYQA, 4)
     opt.set_min_objective(lambda v, grad: cost(v))
     opt.set_lower_bounds(lo.tolist())
@@ -140,6 +171,64 @@ def _search_coat(problem: Layered, alpha0: float):
             count["n"], message)
 
 
+def _search_backscatter(problem: Layered, alpha0: float, coat0):
+    """(α, coat, (B0, h), evaluations, message): from the coated fit (``alpha0``, ``coat0``),
+    a look at :data:`BACKSCATTER_STARTS`, then BOBYQA in (log α, log α_coat, k_coat,
+    F0_coat, B0, log h)."""
+    import nlopt
+
+    lo = np.array([np.log(ALPHA_MIN), np.log(ALPHA_MIN), 0.0, F0_COAT_MIN, 0.0, np.log(H_MIN)])
+    hi = np.array([np.log(ALPHA_MAX), np.log(ALPHA_MAX), K_COAT_MAX, 1.0, B0_MAX, np.log(H_MAX)])
+    best = {"x": None, "f": np.inf}
+    count = {"n": 0}
+
+    def cost(v):
+        count["n"] += 1
+        f = problem.cost(float(np.exp(v[0])), (float(np.exp(v[1])), float(v[2]), float(v[3])),
+                         (float(v[4]), float(np.exp(v[5]))))
+        f = f if np.isfinite(f) else 1e300
+        if f < best["f"]:
+            best["x"], best["f"] = np.array(v, dtype=float), f
+        return f
+
+    start = [np.log(alpha0), np.log(coat0[0]), coat0[1], coat0[2]]
+    for b0, h in BACKSCATTER_STARTS:
+        cost(start + [b0, np.log(h)])
+    opt = nlopt.opt(nlopt.LN_BOBYQA, 6)
+    opt.set_min_objective(lambda v, grad: cost(v))
+    opt.set_lower_bounds(lo.tolist())
+    opt.set_upper_bounds(hi.tolist())
+    opt.set_xtol_abs([1e-6, 1e-6, 1e-7, 1e-7, 1e-6, 1e-6])
+    opt.set_maxeval(BACKSCATTER_MAXEVAL)
+    opt.set_initial_step([0.2, 0.3, 0.1, 0.02, 0.1, 0.5])
+    message = "converged"
+    try:
+        opt.optimize(np.clip(best["x"], lo, hi).tolist())
+        if opt.last_optimize_result() == nlopt.MAXEVAL_REACHED:
+            message = f"stopped after {BACKSCATTER_MAXEVAL} evaluations"
+    except nlopt.RoundoffLimited:
+        message = "stopped at round-off; kept the best point evaluated"
+    v = best["x"]
+    return (float(np.exp(v[0])), (float(np.exp(v[1])), float(v[2]), float(v[3])),
+            (float(v[4]), float(np.exp(v[5]))), count["n"], message)
+
+
+def _stage_key(data: FitData, options: FitOptions, coat: bool) -> bytes:
+    """The key of :attr:`FitOptions.stages` for the searches before the opposition
+    effect's (α, then the coat): a digest of everything they depend on, the data and
+    weights, the geometry, the residuals, ``--alpha``, ``--optimizer`` and whether there is
+    a coat. ``--model auto`` fits ``goniochromatic-coat`` and then
+    ``goniochromatic-backscatter`` on the same data (all of it, then each fold): the second
+    starts where the first ended instead of repeating its search."""
+    import hashlib
+
+    h = hashlib.blake2b(digest_size=20)
+    for a in (data.y, data.w, data.theta_i_deg, data.theta_o_deg, *data.cos):
+        h.update(np.ascontiguousarray(a, dtype=float).tobytes())
+    h.update(repr((data.residuals, options.alpha, options.optimizer, coat)).encode())
+    return h.digest()
+
+
 #: ``--optimizer``: the search of the layer-free α (the coat's own search is BOBYQA);
 #: the first is the default.
 OPTIMIZERS = {
@@ -148,29 +237,42 @@ OPTIMIZERS = {
 }
 
 
-def fit_layered(data: FitData, options: FitOptions, coat: bool) -> ModelFit:
-    """Fit ``goniochromatic-diffuse`` (``coat=False``) or ``goniochromatic-coat``."""
-    model = "goniochromatic-coat" if coat else "goniochromatic-diffuse"
+def fit_layered(data: FitData, options: FitOptions, coat: bool,
+                backscatter: bool = False) -> ModelFit:
+    """Fit ``goniochromatic-diffuse`` (``coat=False``), ``goniochromatic-coat`` or, with
+    ``backscatter``, ``goniochromatic-backscatter`` (the coat and the opposition effect)."""
+    model = ("goniochromatic-backscatter" if backscatter else
+             "goniochromatic-coat" if coat else "goniochromatic-diffuse")
     if options.alpha is not None and not (ALPHA_MIN <= options.alpha <= ALPHA_MAX):
         raise InputError(f"--alpha {options.alpha:g} is outside [{ALPHA_MIN:g}, {ALPHA_MAX:g}]",
                          fix="GGX alpha of seed 000 eq. 3 lies in (0, 1]")
     optimizer, search_alpha = choose_optimizer(model, OPTIMIZERS, options.optimizer)
     sw = Stopwatch()
-    plain = Layered(data)
-    if options.alpha is not None:
-        alpha, evaluations, message, success = options.alpha, 0, "alpha fixed", True
+    memo = options.stages if options.stages is not None else {}
+    key = _stage_key(data, options, coat)
+    if key in memo:                         # this run fitted the same stages already
+        alpha, coat_params, evaluations, message, success = memo[key]
     else:
-        search = search_alpha(lambda g: plain.cost(float(np.exp(g))), optimizer,
-                              points=LAYERED_ALPHA_POINTS)
-        alpha, evaluations, message, success = (search.alpha, search.evaluations,
-                                                search.message, search.success)
-    if coat:
-        problem = Layered(data, coat=True)
-        alpha, coat_params, n, message = _search_coat(problem, alpha)
+        plain = Layered(data)
+        if options.alpha is not None:
+            alpha, evaluations, message, success = options.alpha, 0, "alpha fixed", True
+        else:
+            search = search_alpha(lambda g: plain.cost(float(np.exp(g))), optimizer,
+                                  points=LAYERED_ALPHA_POINTS)
+            alpha, evaluations, message, success = (search.alpha, search.evaluations,
+                                                    search.message, search.success)
+        coat_params = None
+        if coat:
+            alpha, coat_params, n, message = _search_coat(Layered(data, coat=True), alpha)
+            evaluations += n
+        memo[key] = (alpha, coat_params, evaluations, message, success)
+    back = None
+    if backscatter:
+        alpha, coat_params, back, n, message = _search_backscatter(
+            Layered(data, coat=True, backscatter=True), alpha, coat_params)
         evaluations += n
-        params, _, ok = problem.solve(alpha, coat_params)
-    else:
-        params, _, ok = plain.solve(alpha)
+    params, _, ok = Layered(data, coat=coat, backscatter=backscatter).solve(
+        alpha, coat_params, back)
     failed = [float(w) for w in data.wavelength_nm[~ok]]
     status = "success" if success and not failed else "failed"
     if failed:
@@ -188,3 +290,7 @@ def fit_diffuse(data: FitData, options: FitOptions) -> ModelFit:
 
 def fit_coat(data: FitData, options: FitOptions) -> ModelFit:
     return fit_layered(data, options, coat=True)
+
+
+def fit_backscatter(data: FitData, options: FitOptions) -> ModelFit:
+    return fit_layered(data, options, coat=True, backscatter=True)
