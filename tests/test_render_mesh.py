@@ -207,3 +207,25 @@ def test_a_mesh_file_is_read_once_per_process_until_it_changes(tmp_path):
     os.utime(path, ns=(later, later))
     again = M.load_mesh(str(path))
     assert again is not first and again.vertices[1, 0] == 2.0
+
+
+def test_closed_surface_needs_every_edge_paired_and_the_faces_outwards():
+    """Closed and outwards (the rasterizer may skip back faces seen from outside): the
+    sphere (its seam and poles repeat positions under other indices, which count as one
+    vertex), also split per face as an OBJ with per-corner normals is; not the plane, a
+    sphere with a hole, one turned inside out, one with a single face turned."""
+    s = M.uv_sphere(24, 12)
+    assert M.closed_surface(s.vertices, s.faces)
+    split = s.vertices[s.faces].reshape(-1, 3)                # 3 vertices per face
+    assert M.closed_surface(split, np.arange(len(split)).reshape(-1, 3))
+    assert not M.closed_surface(*(lambda p: (p.vertices, p.faces))(M.plane(2)))
+    assert not M.closed_surface(s.vertices, s.faces[1:])                 # a hole
+    assert not M.closed_surface(s.vertices, np.concatenate([s.faces, s.faces]))  # 4 per edge
+    assert not M.closed_surface(s.vertices, s.faces[:, ::-1])            # inside out
+    turned = s.faces.copy()
+    turned[5] = turned[5, ::-1]
+    assert not M.closed_surface(s.vertices, turned)
+    # the flag comes with the loaded mesh and survives placement, a mirror included
+    assert M.load_mesh("builtin:sphere?segments=24").closed
+    assert not M.load_mesh("builtin:plane").closed
+    assert M.transform(M.load_mesh("builtin:sphere?segments=24"), scale=(1, -2, 1)).closed

@@ -448,3 +448,56 @@ def test_resolve_at_ssaa_1_scatters_rows_and_defers_xyz():
     np.testing.assert_allclose(xyz2, xyz / 4, rtol=1e-6)
     np.testing.assert_allclose(cov2, coverage / 4)
     np.testing.assert_allclose(lin2, linear / 4, rtol=1e-5, atol=1e-6 * np.abs(dense).max())
+
+
+def _culled_and_keys(cam, meshes):
+    verts, _, faces, obj, _ = R._concat(meshes)
+    eye, r, u, f = R.camera_basis(cam)
+    st, w, h, F = setup_of(cam, meshes)
+    culled = R._closed_back_faces(meshes, st, obj, (verts - eye) @ np.stack([r, u, f], 1), eye)
+    return st, culled, R._visibility(st, w, h, F, culled=culled), brute_force_keys(st, w, h, F)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_closed_meshes_seen_from_outside_skip_their_back_faces_and_keep_every_key(seed):
+    """Back faces of closed surfaces seen from outside are not tested at all, and every
+    key still equals the float32 test at every pixel of every box: a sphere and a
+    mirrored, squashed second one from random eyes around them (measured: 0 differing
+    pixels in 160 such scenes, OBJ spheres included)."""
+    rng = np.random.default_rng(seed)
+    d = rng.normal(size=3)
+    cam = camera(eye=tuple(d / np.linalg.norm(d) * rng.uniform(2.5, 6.0)), w=72, h=60,
+                 fov=rng.uniform(25.0, 60.0))
+    s = M.load_mesh("builtin:sphere?segments=32")
+    meshes = [s, M.transform(s, translate=tuple(rng.uniform(-1, 1, 3)), scale=(0.6, -0.3, 0.5))]
+    st, culled, keys, truth = _culled_and_keys(cam, meshes)
+    assert culled is not None and culled.sum() > 0.4 * st["back"].sum()
+    assert (truth != R._KEY_EMPTY).sum() > 200
+    np.testing.assert_array_equal(keys, truth)
+
+
+def test_closed_mesh_around_the_eye_or_through_the_near_plane_keeps_its_back_faces():
+    """Inside a closed sphere (the eye within its box) its back faces are all one sees;
+    a sphere cut by the near plane shows its inside through the cut: neither is culled."""
+    s = M.load_mesh("builtin:sphere?segments=32")
+    inside = M.transform(s, scale=10.0)
+    st, culled, keys, truth = _culled_and_keys(camera(eye=(0, 0, 4.0)), [inside])
+    assert culled is None and st["back"][keys[keys != R._KEY_EMPTY] & R._TRI_INDEX_MASK].all()
+    np.testing.assert_array_equal(keys, truth)
+    cut = M.transform(s, translate=(0.0, 0.0, 3.5))          # the eye at z 4: 0.5 away
+    st, culled, keys, truth = _culled_and_keys(camera(eye=(0, 0, 4.0), fov=90.0), [cut])
+    assert culled is None
+    np.testing.assert_array_equal(keys, truth)
+
+
+def test_a_chunk_of_spans_without_sure_pixels_is_skipped():
+    """A chunk of row spans whose every pixel lies within round-off of an edge (so all are
+    tested, none taken as sure) has no sure hits to scatter: it once raised on the empty
+    array. Two spheres, one seen past the other, from the eye that found it."""
+    s = M.load_mesh("builtin:sphere?segments=48")
+    meshes = [s, M.transform(s, translate=(-1.6480751708556527, 0.16746474422274113,
+                                           0.10901408782154753), scale=0.7)]
+    cam = camera(eye=(-0.3412587284677959, 1.846145120338649, 0.5844547556699414), w=96,
+                 h=80, fov=41.143570530400865)
+    st, w, h, F = setup_of(cam, meshes)
+    np.testing.assert_array_equal(R._visibility(st, w, h, F), brute_force_keys(st, w, h, F))

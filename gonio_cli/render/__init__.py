@@ -54,6 +54,9 @@ class Mesh:
     vertices : (V, 3) float64 ; faces : (F, 3) int64 (counter-clockwise = front)
     normals : (V, 3) unit vertex normals (smooth) ; uvs : (V, 2) or None
     (OpenGL convention: v = 0 is the bottom row of a texture image).
+    closed : the faces form closed surfaces facing outwards
+    (:func:`gonio_cli.render.mesh.closed_surface`), so from outside only front faces can
+    be seen; False when unknown (the rasterizer then tests every face).
     """
 
     vertices: np.ndarray
@@ -61,6 +64,7 @@ class Mesh:
     normals: np.ndarray
     uvs: np.ndarray | None = None
     name: str = ""
+    closed: bool = False
 
 
 @dataclass

@@ -38,7 +38,10 @@ mantissa, like a hardware depth buffer. The depth test is a scatter-min
 bit << 31 | triangle), which resolves depth and the winning triangle at once and prefers
 a front face on an exact tie (a silhouette edge shared with a back face). Front faces go
 first; a back face whose box lies behind them on a min-pyramid of their 1/z (hierarchical
-z) is skipped — same keys, most back faces of a closed mesh never tested. Only the
+z) is skipped — same keys, most back faces of a closed mesh never tested. The back faces
+of a mesh that is a closed surface facing outwards (checked once at load,
+``Mesh.closed``), seen from outside it and wholly beyond the near plane, are not tested
+at all: there every ray enters through a front face first (:func:`_closed_back_faces`). Only the
 winners are then interpolated, in the G-buffer's dtype (the pipeline: float32), into
 (c, n) component arrays: normal, view, and position, uv and its footprint when asked.
 On this project's shared 2-core machine (loaded by other jobs), a 512² frame of the
@@ -208,7 +211,8 @@ def _setup(pc: np.ndarray, faces: np.ndarray, handedness: float, w: int, h: int,
             "bw": (x1 - x0 + 1)[tri].astype(np.int64), "bh": (y1 - y0 + 1)[tri].astype(np.int64)}
 
 
-def _visibility(st, w, h, F, hiz: bool = True) -> np.ndarray:
+def _visibility(st, w, h, F, hiz: bool = True, culled: np.ndarray | None = None
+                ) -> np.ndarray:
     """Depth test over all candidate pixels: (H·W,) int64 keys, _KEY_EMPTY where empty.
 
     Keys are (0x7FFFFFFF − float32 bits of 1/z) << 32 | back << 31 | kept triangle
@@ -219,6 +223,9 @@ def _visibility(st, w, h, F, hiz: bool = True) -> np.ndarray:
     of their 1/z (hierarchical z, :func:`_hidden_back_faces`) shows it behind them over
     its whole box — on a closed mesh seen from outside, most back faces (70 % of the
     default sphere's). The keys are the same either way.
+
+    ``culled`` (n,) bool: back faces not to test at all, those of closed surfaces seen
+    from outside (:func:`_closed_back_faces`), which can never be the nearest hit.
     """
     keys = np.full(h * w, _KEY_EMPTY, dtype=np.int64)
     coef = (st["C"].astype(np.float32),                             # (3 edges, 3, n)
@@ -228,14 +235,43 @@ def _visibility(st, w, h, F, hiz: bool = True) -> np.ndarray:
     f32 = np.float32
     dx_col = (np.arange(w, dtype=f32) - f32(w / 2.0 - 0.5)) * f32(1.0 / F)  # dx of each column
     hits = _HitBuffers(dx_col)                                # shared by the two passes
-    back = st["back"]
-    if hiz and back.any() and not back.all():
-        _scan(st, keys, np.flatnonzero(~back), coef, hits, w, h, F)
-        hidden = _hidden_back_faces(st, keys, w, h, F)
+    front = ~st["back"]
+    back = st["back"] if culled is None else st["back"] & ~culled
+    if hiz and back.any() and front.any():
+        _scan(st, keys, np.flatnonzero(front), coef, hits, w, h, F)
+        hidden = _hidden_back_faces(st, keys, w, h, F, back)
         _scan(st, keys, np.flatnonzero(back & ~hidden), coef, hits, w, h, F)
     else:
-        _scan(st, keys, np.arange(len(back)), coef, hits, w, h, F)
+        _scan(st, keys, np.flatnonzero(front | back), coef, hits, w, h, F)
     return keys
+
+
+def _closed_back_faces(meshes: list[Mesh], st, obj: np.ndarray, pc: np.ndarray,
+                       eye: np.ndarray) -> np.ndarray | None:
+    """(n,) bool over the kept triangles: the back faces of meshes that are closed
+    surfaces facing outwards (``Mesh.closed``) seen from outside — the eye outside the
+    mesh's bounding box and every vertex beyond the near plane (no hit of the mesh is
+    discarded there, which would show its inside). None when there are none.
+
+    From outside a closed surface every ray that meets it enters through a front face
+    before it leaves through a back face; in the rasterizer's arithmetic too, as a
+    silhouette edge is the same numbers in the front and the back face that share it. So
+    those back faces never win a pixel: not testing them changes no key (a test compares
+    against testing every pixel) and saves their scan, ~20 % of the visibility pass on a
+    closed mesh.
+    """
+    cull = np.zeros(len(meshes), bool)
+    start = 0
+    for i, m in enumerate(meshes):
+        stop = start + len(m.vertices)
+        if m.closed and stop > start:
+            v = np.asarray(m.vertices)
+            outside = bool(np.any(eye < v.min(axis=0)) or np.any(eye > v.max(axis=0)))
+            cull[i] = outside and bool(pc[start:stop, 2].min() > NEAR)
+        start = stop
+    if not cull.any():
+        return None
+    return st["back"] & cull[obj[st["tri"]]]
 
 
 #: Relative float32 round-off allowed for a linear form dx a + (dy b + c) of float32
@@ -244,9 +280,9 @@ def _visibility(st, w, h, F, hiz: bool = True) -> np.ndarray:
 FLOAT32_FORM_TOLERANCE = 16 * float(np.finfo(np.float32).eps)
 
 
-def _hidden_back_faces(st, keys, w, h, F) -> np.ndarray:
-    """(n,) bool: kept back faces whose every possible hit lies behind the hits already in
-    ``keys`` (hierarchical z; Greene et al. 1993).
+def _hidden_back_faces(st, keys, w, h, F, back: np.ndarray | None = None) -> np.ndarray:
+    """(n,) bool: kept back faces (of ``back``, default all) whose every possible hit lies
+    behind the hits already in ``keys`` (hierarchical z; Greene et al. 1993).
 
     The 1/z of a triangle's plane is linear on screen, so over its box grown by one pixel
     (hits just outside the box by round-off included) it is at most its largest corner
@@ -268,7 +304,7 @@ def _hidden_back_faces(st, keys, w, h, F) -> np.ndarray:
             a = np.pad(a, ((0, hh % 2), (0, ww % 2)))
         levels.append(np.minimum(np.minimum(a[0::2, 0::2], a[1::2, 0::2]),
                                  np.minimum(a[0::2, 1::2], a[1::2, 1::2])))
-    cand = np.flatnonzero(st["back"] & ~st["whole"])
+    cand = np.flatnonzero((st["back"] if back is None else back) & ~st["whole"])
     hidden = np.zeros(len(st["q"]), bool)
     if cand.size == 0:
         return hidden
@@ -453,6 +489,8 @@ class _HitBuffers:
         float32 (as a test over the box computes it), key = (0x7FFFFFFF − its bits) << 32
         | back << 31 | triangle, scatter-min into ``keys``."""
         n = run.shape[0]
+        if n == 0:                  # a chunk whose spans hold no sure pixel (every one of
+            return                  # them within round-off of an edge, so tested)
         # mode="clip" (the indices are valid): with "raise" np.take buffers its output
         rz = np.take(self.dx_col, col, out=self.buffer("rz", n, np.float32), mode="clip")
         tmp = self.buffer("tmp", n, np.float32)
@@ -549,7 +587,7 @@ def rasterize_timed(camera: Camera, meshes: list[Mesh], ssaa: int = 1, uv: bool 
         times["setup"] = time.perf_counter() - t_start
         if len(st["tri"]):
             t0 = time.perf_counter()
-            keys = _visibility(st, w, h, F)
+            keys = _visibility(st, w, h, F, culled=_closed_back_faces(meshes, st, obj, pc, eye))
             times["visibility"] = time.perf_counter() - t0
             pix = np.flatnonzero(keys != _KEY_EMPTY)
             k = keys[pix] & _TRI_INDEX_MASK                   # winning kept-triangle per pixel
