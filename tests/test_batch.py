@@ -345,3 +345,20 @@ def test_task_keys_group_jobs_by_command_for_dask():
     assert len(set(keys)) == len(keys)
     assert {key_split(k) for k in keys} == {"ingest", "fit", "render", "preview"}
     assert all(key_split(k) == j.command.split()[0] for k, j in zip(keys, plan.jobs))
+
+
+def test_local_workers_fork_from_a_preloaded_server_where_the_os_has_one():
+    """Where the OS has a fork server (Linux, macOS) the local cluster's workers start
+    from it, with gonio's job runner and CLI imported there once; elsewhere Dask's
+    default start method is kept (None)."""
+    import multiprocessing
+
+    from gonio_cli.batch import engine
+
+    method = engine.worker_start_method()
+    if "forkserver" in multiprocessing.get_all_start_methods():
+        assert method == "forkserver"
+        assert {"distributed", "gonio_cli.batch.jobs", "gonio_cli.cli"} <= set(
+            engine.WORKER_PRELOAD)
+    else:
+        assert method is None

@@ -91,11 +91,34 @@ def connect(workers: int | None, scheduler: str | None, dashboard: bool, retries
             return Client(scheduler_file=scheduler, timeout=CONNECT_TIMEOUT_S), None
         return Client(scheduler, timeout=CONNECT_TIMEOUT_S), None
     # a job whose worker dies is tried again on another, retries + 1 times in all
-    dask.config.set({"distributed.scheduler.allowed-failures": retries})
+    config: dict[str, Any] = {"distributed.scheduler.allowed-failures": retries}
+    method = worker_start_method()
+    if method:
+        config["distributed.worker.multiprocessing-method"] = method
+    dask.config.set(config)
     cluster = LocalCluster(n_workers=workers or cpu_count(), threads_per_worker=1,
                            processes=True, host="127.0.0.1",
                            dashboard_address="127.0.0.1:0" if dashboard else None)
     return Client(cluster), cluster
+
+
+#: Modules a local cluster's fork server imports once, before it forks the workers: Dask,
+#: the job runner, gonio's CLI and the render pipeline (what every worker needs first).
+WORKER_PRELOAD = ("distributed", "gonio_cli.batch.jobs", "gonio_cli.cli",
+                  "gonio_cli.render.pipeline")
+
+
+def worker_start_method() -> str | None:
+    """``"forkserver"`` where the OS has it (Linux, macOS), with :data:`WORKER_PRELOAD`
+    imported once in the server, so each worker starts from a process that has them
+    instead of importing them itself (Dask's default, ``spawn``); None elsewhere. The fork
+    server is single-threaded, so forking it is safe, unlike forking the driver."""
+    import multiprocessing
+
+    if "forkserver" not in multiprocessing.get_all_start_methods():
+        return None
+    multiprocessing.set_forkserver_preload(list(WORKER_PRELOAD))
+    return "forkserver"
 
 
 def cpu_count() -> int:
