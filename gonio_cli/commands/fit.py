@@ -230,7 +230,8 @@ def verdict_line(output: Path, result, judgement: dict) -> str:
         v = list(ratios.values())
         text.append(f"mirror peak x{min(v):.2f}-{max(v):.2f}")
     why = f" ({'; '.join(judgement['reasons'])})" if judgement["reasons"] else ""
-    return ", ".join(text) + f": {judgement['verdict']}{why}"
+    notes = "".join(f"; {n}" for n in judgement.get("notes", ()))
+    return ", ".join(text) + f": {judgement['verdict']}{why}{notes}"
 
 
 def auto_line(auto: dict) -> str:

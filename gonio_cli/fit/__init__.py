@@ -97,7 +97,7 @@ def judge(data: FitData, result: ModelFit, max_mean_delta_e: float | None = None
     """The verdict of a fit on its data (:mod:`.verdict`): a dict for the material with
     ``verdict``, ``reasons`` and the colour figures."""
     from ..brdf import evaluate
-    from .verdict import THRESHOLDS, fit_colour_errors, verdict
+    from .verdict import THRESHOLDS, fit_colour_errors, reciprocity, verdict
 
     colour = fit_colour_errors(data, evaluate(result.model, data.cos, result.params))
     word, reasons = verdict(result.result.success, colour, max_mean_delta_e)
@@ -107,6 +107,12 @@ def judge(data: FitData, result: ModelFit, max_mean_delta_e: float | None = None
                                if max_mean_delta_e is not None else {}))}
     if colour is not None:
         out.update(colour.to_dict())
+    # what the data allow: a pair no reciprocal model can match both of explains a poor fit
+    gap = reciprocity(data.wavelength_nm, data.theta_i_deg, data.theta_o_deg, data.y)
+    if gap is not None:
+        out["data_reciprocity"] = gap.to_dict()
+        if word == "poor" and gap.delta_e - gap.uncertainty > THRESHOLDS["mean_delta_e"]:
+            out["notes"] = [gap.sentence()]
     return out
 
 

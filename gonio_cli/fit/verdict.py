@@ -73,6 +73,128 @@ class ColourErrors:
         return out
 
 
+#: Reciprocal pairs (:func:`reciprocity`) are compared only this far from the mirror
+#: (|θo − θi| ≥, the same for a configuration and its reverse), where a sweep is smooth
+#: enough to interpolate; a reverse configuration that was not measured is interpolated
+#: only between measured θo at most this far apart.
+RECIPROCITY_MIN_ASPECULAR_DEG = 15.0
+RECIPROCITY_MAX_GAP_DEG = 25.0
+
+
+@dataclass
+class Reciprocity:
+    """The data's most non-reciprocal pair: f(θi, θo) against f(θi', θo'), the same two
+    directions with light and detector swapped (θi' = |θo|, θo' = θi · sign θo in the
+    goniometer's signed plane), measured or interpolated along its θo sweep;
+    ``uncertainty``: how far two interpolations of the reverse disagree (0 if measured)."""
+
+    theta_i_deg: float
+    theta_o_deg: float
+    reverse_theta_i_deg: float
+    reverse_theta_o_deg: float
+    interpolated: bool
+    delta_e: float
+    uncertainty: float = 0.0
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"theta_i_deg": self.theta_i_deg, "theta_o_deg": self.theta_o_deg,
+                "reverse_theta_i_deg": self.reverse_theta_i_deg,
+                "reverse_theta_o_deg": self.reverse_theta_o_deg,
+                "reverse_interpolated": self.interpolated, "delta_e2000": self.delta_e,
+                "interpolation_delta_e2000": self.uncertainty}
+
+    def sentence(self) -> str:
+        how = " (interpolated)" if self.interpolated else ""
+        return (f"the data are not reciprocal: theta_i {self.theta_i_deg:g}, theta_o "
+                f"{self.theta_o_deg:g} and its reverse theta_i {self.reverse_theta_i_deg:g}, "
+                f"theta_o {self.reverse_theta_o_deg:g}{how} differ by CIEDE2000 "
+                f"{self.delta_e:.2f}: no BRDF, being reciprocal, can match both (a "
+                f"calibration or alignment that differs between the sweeps?)")
+
+
+def _reverse_value(o: np.ndarray, fs: np.ndarray, target: float):
+    """The sweep (θo ascending ``o``, spectra ``fs``) at θo = ``target``: (measured or
+    log-quadratic value, log-linear value, interpolated?) — the measured spectrum twice
+    where there is one — or None where it is not bracketed by positive readings at most
+    :data:`RECIPROCITY_MAX_GAP_DEG` apart."""
+    j = int(np.searchsorted(o, target))
+    if j < o.size and abs(o[j] - target) < 1e-6:
+        return fs[j], fs[j], False
+    if not (0 < j < o.size) or o[j] - o[j - 1] > RECIPROCITY_MAX_GAP_DEG:
+        return None
+    near = [j - 1, j]
+    extra = [k for k in (j - 2, j + 1) if 0 <= k < o.size]
+    if extra:                                   # the third point nearest the target
+        near.append(min(extra, key=lambda k: abs(o[k] - target)))
+    if np.any(fs[near] <= 0):
+        return None
+    logs = np.log(fs[near])
+    w = (target - o[j - 1]) / (o[j] - o[j - 1])
+    linear = np.exp((1.0 - w) * logs[0] + w * logs[1])
+    if len(near) == 2:
+        return linear, linear, True
+    x = o[near]
+    weights = [np.prod([(target - x[m]) / (x[k] - x[m]) for m in range(3) if m != k])
+               for k in range(3)]
+    return np.exp(sum(wk * lk for wk, lk in zip(weights, logs))), linear, True
+
+
+def reciprocity(wavelength_nm, theta_i_deg, theta_o_deg, f) -> Reciprocity | None:
+    """The pair of the data whose colours most break reciprocity, f(ωi, ωo) = f(ωo, ωi),
+    which every physical BRDF (so every model here) obeys; None where the data hold no
+    pair (or colour cannot be judged).
+
+    Each configuration at least :data:`RECIPROCITY_MIN_ASPECULAR_DEG` from the mirror is
+    compared with its reverse (θi' = |θo|, θo' = θi · sign θo): measured, or interpolated
+    in log f along its sweep through the two measured θo around it and the next nearest
+    (quadratic; exact for a lobe that is Gaussian in θo), its disagreement with the
+    log-linear interpolation kept as the estimate's uncertainty. Colour as
+    :func:`colour_errors` (R = π f, D65, 10°, a pair scaled so the first's Y is at most 1).
+    The pair with the largest difference net of that uncertainty is returned. A gap
+    larger than a good fit's mean error means the data cannot be fitted that well by any
+    model: light sources calibrated apart (a multi-angle instrument's 15° and 45° lamps),
+    or a sample that moved between sweeps.
+    """
+    wl = np.asarray(wavelength_nm, dtype=float)
+    if not covers_colour(wl):
+        return None
+    ti = np.asarray(theta_i_deg, dtype=float)
+    to = np.asarray(theta_o_deg, dtype=float)
+    f = np.asarray(f, dtype=float)
+    sweeps = {}
+    for t in np.unique(ti):
+        rows = np.flatnonzero(ti == t)
+        rows = rows[np.argsort(to[rows], kind="stable")]
+        sweeps[float(t)] = (to[rows], f[rows])
+    forward, best, simple, where = [], [], [], []
+    for k in range(ti.size):
+        a, b = float(ti[k]), float(to[k])
+        if b == 0.0 or abs(b - a) < RECIPROCITY_MIN_ASPECULAR_DEG or abs(b) == a:
+            continue
+        ri, ro = abs(b), float(a * np.sign(b))
+        if ri not in sweeps:
+            continue
+        values = _reverse_value(*sweeps[ri], ro)
+        if values is None:
+            continue
+        forward.append(f[k])
+        best.append(values[0])
+        simple.append(values[1])
+        where.append((a, b, ri, ro, values[2]))
+    if not forward:
+        return None
+    white = spectra.reflectance_to_xyz(np.ones(wl.size), wl)
+    xyz_f, xyz_b, xyz_s = (spectra.reflectance_to_xyz(np.pi * np.asarray(v), wl)
+                           for v in (forward, best, simple))
+    y = xyz_f[:, 1]
+    scale = np.where(y > 1.0, 1.0 / np.where(y > 1.0, y, 1.0), 1.0)[:, None]
+    lab_f, lab_b, lab_s = (spectra.xyz_to_lab(v * scale, white) for v in (xyz_f, xyz_b, xyz_s))
+    de = spectra.delta_e_2000(lab_f, lab_b)
+    spread = spectra.delta_e_2000(lab_b, lab_s)
+    k = int(np.argmax(de - spread))
+    return Reciprocity(*where[k], float(de[k]), float(spread[k]))
+
+
 def covers_colour(wavelength_nm) -> bool:
     """True when the grid spans :data:`COLOUR_RANGE_NM` (colour can be judged)."""
     wl = np.asarray(wavelength_nm, dtype=float)
