@@ -215,8 +215,16 @@ def main() -> None:
              ("--width-px", "2048", "--height-px", "2048"), False)]
     results = {}
     run_process(s20k, out, env=env)       # first use: colour tables into the fresh cache
+    def forget_meshes() -> None:          # the parsed-OBJ arrays only (colour tables stay)
+        for cached in (tmp / "cache").glob("obj-*.npz"):
+            cached.unlink()
+
     for label, scene, args, error in rows:
-        runs = [run_process(scene, out, *args, env=env) for _ in range(1 if quick else 3)]
+        runs = []
+        for _ in range(1 if quick else 3):
+            if "cold" in label:
+                forget_meshes()
+            runs.append(run_process(scene, out, *args, env=env))
         r = min(runs, key=lambda x: x["wall_s"])            # best of: load from others
         results[label] = r
         err = "" if not error else "{:.3f} / {:.3f}".format(*error_vs_reference(
