@@ -491,6 +491,49 @@ def parabolic_minimum(fun, left, mid, right, f_left, f_mid, f_right, steps: int)
     return m
 
 
+class BestPoint:
+    """A cost function that counts its calls and keeps the best point it was given (a
+    non-finite cost counts as 1e300), and BOBYQA over it from that point."""
+
+    def __init__(self, cost):
+        self.cost, self.n, self.x, self.f = cost, 0, None, np.inf
+
+    def __call__(self, v) -> float:
+        self.n += 1
+        f = self.cost(v)
+        f = f if np.isfinite(f) else 1e300
+        if f < self.f:
+            self.x, self.f = np.array(v, dtype=float), f
+        return f
+
+    def bobyqa(self, lo, hi, step, maxeval: int, *, xtol_abs=None, xtol_rel=None,
+               ftol_rel=None) -> str:
+        """Refine from the best point so far within [lo, hi]; how it stopped, in words
+        (the best point evaluated is kept either way)."""
+        import nlopt
+
+        opt = nlopt.opt(nlopt.LN_BOBYQA, len(lo))
+        opt.set_min_objective(lambda v, grad: self(v))
+        opt.set_lower_bounds(list(lo))
+        opt.set_upper_bounds(list(hi))
+        if xtol_abs is not None:
+            opt.set_xtol_abs(list(xtol_abs))
+        if xtol_rel is not None:
+            opt.set_xtol_rel(xtol_rel)
+        if ftol_rel is not None:
+            opt.set_ftol_rel(ftol_rel)
+        opt.set_maxeval(maxeval)
+        opt.set_initial_step(list(step))
+        try:
+            opt.optimize(np.clip(self.x, lo, hi).tolist())
+            if opt.last_optimize_result() == nlopt.MAXEVAL_REACHED:
+                return f"stopped after {maxeval} evaluations"
+        except nlopt.RoundoffLimited:
+            return "stopped at round-off; kept the best point evaluated"
+        return "converged"
+
+
+
 # ------------------------------------------------------------------------ the α search --
 
 #: The nlopt algorithm of :func:`minimize_log_alpha`, by ``--optimizer`` name. The nlopt

@@ -43,8 +43,8 @@ import numpy as np
 
 from ..brdf import cook_torrance_specular_geometry, schlick_fresnel
 from ..errors import InputError
-from .common import (FitData, FitOptions, FitReport, ModelFit, Stopwatch, choose_optimizer,
-                     error_figures, nm_list, nnls2)
+from .common import (BestPoint, FitData, FitOptions, FitReport, ModelFit, Stopwatch,
+                     choose_optimizer, error_figures, nm_list, nnls2)
 from .cook_torrance import M_MAX, M_MIN
 
 #: Model name by number of lobes.
@@ -188,44 +188,19 @@ def _from_m(m) -> list[float]:
 
 def _search(problem: Lobes):
     """(m (J,), ks (J,), evaluations, message): the best coarse start, then BOBYQA."""
-    import nlopt
-
     n = problem.n_lobes
-    best = {"x": None, "f": np.inf}
-    count = {"n": 0}
-
-    def cost(v):
-        count["n"] += 1
-        f = problem.cost(_to_m(v, n), np.asarray(v[n:], float))
-        f = f if np.isfinite(f) else 1e300
-        if f < best["f"]:
-            best["x"], best["f"] = np.array(v, dtype=float), f
-        return f
-
+    search = BestPoint(lambda v: problem.cost(_to_m(v, n), np.asarray(v[n:], float)))
     for m in m_starts(n):
-        cost(_from_m(m) + problem.start_ks(np.array(m)).tolist())
-    x0 = best["x"]
+        search(_from_m(m) + problem.start_ks(np.array(m)).tolist())
+    x0 = search.x
     lo = [np.log(M_MIN)] + [0.0] * (n - 1) + [0.0] * n
     hi = [np.log(M_MAX)] + [1.0] * (n - 1) + [KS_MAX] * n
-    opt = nlopt.opt(nlopt.LN_BOBYQA, 2 * n)
-    opt.set_min_objective(lambda v, grad: cost(v))
-    opt.set_lower_bounds(lo)
-    opt.set_upper_bounds(hi)
-    opt.set_xtol_rel(XTOL_REL)
-    opt.set_ftol_rel(FTOL_REL)
-    maxeval = MAXEVAL_PER_VARIABLE * 2 * n
-    opt.set_maxeval(maxeval)
-    opt.set_initial_step([0.3] + [0.1] * (n - 1)
-                         + [max(KS_STEP_FRACTION * k, KS_STEP_FLOOR) for k in x0[n:]])
-    message = "converged"
-    try:
-        opt.optimize(np.clip(x0, lo, hi).tolist())
-        if opt.last_optimize_result() == nlopt.MAXEVAL_REACHED:
-            message = f"stopped after {maxeval} evaluations"
-    except nlopt.RoundoffLimited:
-        message = "stopped at round-off; kept the best point evaluated"
-    v = best["x"]
-    return _to_m(v, n), np.asarray(v[n:], float), count["n"], message
+    message = search.bobyqa(
+        lo, hi, [0.3] + [0.1] * (n - 1) + [max(KS_STEP_FRACTION * k, KS_STEP_FLOOR)
+                                           for k in x0[n:]],
+        MAXEVAL_PER_VARIABLE * 2 * n, xtol_rel=XTOL_REL, ftol_rel=FTOL_REL)
+    v = search.x
+    return _to_m(v, n), np.asarray(v[n:], float), search.n, message
 
 
 #: ``--optimizer``: the lobes' joint search (:func:`_search`); the first is the default.

@@ -29,8 +29,8 @@ import numpy as np
 from ..brdf import (evaluate, goniochromatic_d4, goniochromatic_exponent_arg,
                     opposition_surge, torrance_sparrow)
 from ..errors import InputError
-from .common import (ALPHA_MAX, ALPHA_MIN, C_LIMIT, FitData, FitOptions, FitReport,
-                     ModelFit, Stopwatch, choose_optimizer, error_figures,
+from .common import (ALPHA_MAX, ALPHA_MIN, C_LIMIT, BestPoint, FitData, FitOptions,
+                     FitReport, ModelFit, Stopwatch, choose_optimizer, error_figures,
                      minimize_log_alpha, nm_list, profile_c)
 
 #: The clear coat's F0 for a dielectric of refractive index 1.5 ((n − 1)/(n + 1))², the
@@ -133,84 +133,38 @@ def _search_coat(problem: Layered, alpha0: float):
     """(α, (α_coat, k_coat, F0_coat), evaluations, message) minimising the profile cost:
     a coarse look at the coat from ``alpha0`` (the fit without it), then BOBYQA in
     (log α, log α_coat, k_coat, F0_coat)."""
-    import nlopt
-
     lo = np.array([np.log(ALPHA_MIN), np.log(ALPHA_MIN), 0.0, F0_COAT_MIN])
     hi = np.array([np.log(ALPHA_MAX), np.log(ALPHA_MAX), K_COAT_MAX, 1.0])
-    best = {"x": None, "f": np.inf}
-    count = {"n": 0}
-
-    def cost(v):
-        count["n"] += 1
-        f = problem.cost(float(np.exp(v[0])), (float(np.exp(v[1])), float(v[2]), float(v[3])))
-        f = f if np.isfinite(f) else 1e300
-        if f < best["f"]:
-            best["x"], best["f"] = np.array(v, dtype=float), f
-        return f
-
+    search = BestPoint(lambda v: problem.cost(
+        float(np.exp(v[0])), (float(np.exp(v[1])), float(v[2]), float(v[3]))))
     for a in (alpha0,) + ALPHA_STARTS:
         for ac in ALPHA_COAT_STARTS:
             for k in K_COAT_STARTS:
-                cost([np.log(a), np.log(ac), k, F0_COAT_START])
-    opt = nlopt.opt(nlopt.LN_BOBYQA, 4)
-    opt.set_min_objective(lambda v, grad: cost(v))
-    opt.set_lower_bounds(lo.tolist())
-    opt.set_upper_bounds(hi.tolist())
-    opt.set_xtol_abs([1e-6, 1e-6, 1e-7, 1e-7])
-    opt.set_maxeval(COAT_MAXEVAL)
-    opt.set_initial_step([0.3, 0.5, 0.1, 0.02])
-    message = "converged"
-    try:
-        opt.optimize(np.clip(best["x"], lo, hi).tolist())
-        if opt.last_optimize_result() == nlopt.MAXEVAL_REACHED:
-            message = f"stopped after {COAT_MAXEVAL} evaluations"
-    except nlopt.RoundoffLimited:
-        message = "stopped at round-off; kept the best point evaluated"
-    v = best["x"]
+                search([np.log(a), np.log(ac), k, F0_COAT_START])
+    message = search.bobyqa(lo, hi, [0.3, 0.5, 0.1, 0.02], COAT_MAXEVAL,
+                            xtol_abs=[1e-6, 1e-6, 1e-7, 1e-7])
+    v = search.x
     return (float(np.exp(v[0])), (float(np.exp(v[1])), float(v[2]), float(v[3])),
-            count["n"], message)
+            search.n, message)
 
 
 def _search_backscatter(problem: Layered, alpha0: float, coat0):
     """(α, coat, (B0, h), evaluations, message): from the coated fit (``alpha0``, ``coat0``),
     a look at :data:`BACKSCATTER_STARTS`, then BOBYQA in (log α, log α_coat, k_coat,
     F0_coat, B0, log h)."""
-    import nlopt
-
     lo = np.array([np.log(ALPHA_MIN), np.log(ALPHA_MIN), 0.0, F0_COAT_MIN, 0.0, np.log(H_MIN)])
     hi = np.array([np.log(ALPHA_MAX), np.log(ALPHA_MAX), K_COAT_MAX, 1.0, B0_MAX, np.log(H_MAX)])
-    best = {"x": None, "f": np.inf}
-    count = {"n": 0}
-
-    def cost(v):
-        count["n"] += 1
-        f = problem.cost(float(np.exp(v[0])), (float(np.exp(v[1])), float(v[2]), float(v[3])),
-                         (float(v[4]), float(np.exp(v[5]))))
-        f = f if np.isfinite(f) else 1e300
-        if f < best["f"]:
-            best["x"], best["f"] = np.array(v, dtype=float), f
-        return f
-
+    search = BestPoint(lambda v: problem.cost(
+        float(np.exp(v[0])), (float(np.exp(v[1])), float(v[2]), float(v[3])),
+        (float(v[4]), float(np.exp(v[5])))))
     start = [np.log(alpha0), np.log(coat0[0]), coat0[1], coat0[2]]
     for b0, h in BACKSCATTER_STARTS:
-        cost(start + [b0, np.log(h)])
-    opt = nlopt.opt(nlopt.LN_BOBYQA, 6)
-    opt.set_min_objective(lambda v, grad: cost(v))
-    opt.set_lower_bounds(lo.tolist())
-    opt.set_upper_bounds(hi.tolist())
-    opt.set_xtol_abs([1e-6, 1e-6, 1e-7, 1e-7, 1e-6, 1e-6])
-    opt.set_maxeval(BACKSCATTER_MAXEVAL)
-    opt.set_initial_step([0.2, 0.3, 0.1, 0.02, 0.1, 0.5])
-    message = "converged"
-    try:
-        opt.optimize(np.clip(best["x"], lo, hi).tolist())
-        if opt.last_optimize_result() == nlopt.MAXEVAL_REACHED:
-            message = f"stopped after {BACKSCATTER_MAXEVAL} evaluations"
-    except nlopt.RoundoffLimited:
-        message = "stopped at round-off; kept the best point evaluated"
-    v = best["x"]
+        search(start + [b0, np.log(h)])
+    message = search.bobyqa(lo, hi, [0.2, 0.3, 0.1, 0.02, 0.1, 0.5], BACKSCATTER_MAXEVAL,
+                            xtol_abs=[1e-6, 1e-6, 1e-7, 1e-7, 1e-6, 1e-6])
+    v = search.x
     return (float(np.exp(v[0])), (float(np.exp(v[1])), float(v[2]), float(v[3])),
-            (float(v[4]), float(np.exp(v[5]))), count["n"], message)
+            (float(v[4]), float(np.exp(v[5]))), search.n, message)
 
 
 def _stage_key(data: FitData, options: FitOptions, coat: bool) -> bytes:
