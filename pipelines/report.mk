@@ -1,5 +1,5 @@
 # report: error against run time of every stage and seed 000's Table 1 on the demo's inks
-# (gonio report, docs/report.md). The demo writes the quick report (20–24 s measured); the full
+# (gonio report, docs/report.md). The demo writes the quick report (15–20 s measured); the full
 # sweeps (about 76 s): `make report REPORT_FLAGS= -B`.
 # Included by the top Makefile (GONIO, OUT, STAMP, INKS, RGBINK).
 
