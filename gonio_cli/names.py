@@ -12,7 +12,8 @@ from __future__ import annotations
 
 #: ``--model``: the fitters of :data:`gonio_cli.fit.FITTERS`, in that order.
 FIT_MODEL_NAMES = ("goniochromatic", "goniochromatic-diffuse", "goniochromatic-coat",
-                   "goniochromatic-backscatter", "torrance-sparrow", "cook-torrance", "cook-torrance-2", "cook-torrance-3")
+                   "goniochromatic-backscatter", "torrance-sparrow", "cook-torrance",
+                   "cook-torrance-2", "cook-torrance-3")
 #: The ``--model`` value that chooses among the fitters by held-out error.
 AUTO_MODEL = "auto"
 FIT_MODEL_CHOICES = FIT_MODEL_NAMES + (AUTO_MODEL,)

@@ -41,14 +41,13 @@ first; a back face whose box lies behind them on a min-pyramid of their 1/z (hie
 z) is skipped — same keys, most back faces of a closed mesh never tested. The back faces
 of a mesh that is a closed surface facing outwards (checked once at load,
 ``Mesh.closed``), seen from outside it and wholly beyond the near plane, are not tested
-at all: there every ray enters through a front face first (:func:`_closed_back_faces`). Only the
-winners are then interpolated, in the G-buffer's dtype (the pipeline: float32), into
-(c, n) component arrays: normal, view, and position, uv and its footprint when asked.
-On this project's shared 2-core machine (loaded by other jobs), a 512² frame of the
-20 448-triangle OBJ sphere (warm process, median of 9) took ~5 ms set-up, ~17 ms
-visibility and ~7 ms interpolation at ssaa 1, ~4, ~31 and ~19 ms at ssaa 2: 0.89× and
-0.56× (visibility), 0.50× and 0.39× (interpolation) the earlier windowed, float64-
-interpolating rasterizer's, measured beside it.
+at all: there every ray enters through a front face first (:func:`_closed_back_faces`).
+Only the winners are then interpolated, in the G-buffer's dtype (the pipeline: float32),
+into (c, n) component arrays: normal, view, and position, uv and its footprint when asked.
+On this project's 2-core machine, a 512² frame of the 20 448-triangle OBJ sphere (warm
+process, median of 9, ``benchmarks/bench_render.py``) takes 3–5 ms set-up, 7–11 ms
+visibility (16–17 ms before closed meshes' back faces were skipped) and 5–8 ms
+interpolation at ssaa 1, ~5, ~25 and ~25 ms at ssaa 2.
 
 The uv footprint is max(|∂uv/∂x|, |∂uv/∂y|) in uv units per pixel, from the analytic
 screen derivatives of the perspective-correct barycentrics (exact, not finite differences
@@ -587,7 +586,8 @@ def rasterize_timed(camera: Camera, meshes: list[Mesh], ssaa: int = 1, uv: bool 
         times["setup"] = time.perf_counter() - t_start
         if len(st["tri"]):
             t0 = time.perf_counter()
-            keys = _visibility(st, w, h, F, culled=_closed_back_faces(meshes, st, obj, pc, eye))
+            culled = _closed_back_faces(meshes, st, obj, pc, eye)
+            keys = _visibility(st, w, h, F, culled=culled)
             times["visibility"] = time.perf_counter() - t0
             pix = np.flatnonzero(keys != _KEY_EMPTY)
             k = keys[pix] & _TRI_INDEX_MASK                   # winning kept-triangle per pixel
