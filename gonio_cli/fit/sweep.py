@@ -154,8 +154,10 @@ def comparison_sweep(noise: float = 0.02, repeats: int = 5,
         for optimizer in [o for o in own if optimizers is None or o in optimizers]:
             run = lambda: fit(prepare(m, residuals=residuals), model,  # noqa: E731
                               FitOptions(optimizer=optimizer))
-            result, t = _timed(run, 1)        # the warm-up, kept when a fit is slow enough
-            if repeats > 1 or t < WARM_UP_ENOUGH_S:   # (≥ 0.2 s) that first-call costs vanish
+            # a warm-up run, kept as the measure when a single repeat is asked for and
+            # the fit is slow enough for first-call costs to vanish in it
+            result, t = _timed(run, 1)
+            if repeats > 1 or t < WARM_UP_ENOUGH_S:
                 result, t = _timed(run, repeats)
             errs = {k: 100 * float(np.sqrt(np.mean((np.asarray(result.params[k]) / v - 1) ** 2)))
                     for k, v in truth.items() if k != "c"}
