@@ -252,10 +252,18 @@ def _write_pillow_png(path: str | os.PathLike, image, metadata: Mapping[str, Any
                    **strategy)
 
 
+#: The level of animated previews (:func:`write_apng`): a preview is looked at, not kept
+#: as the record (the frames are), and deflate level 1 writes four 1024² frames in 0.19 s
+#: instead of 0.47 s, for a file 1.5× larger.
+PREVIEW_COMPRESSION = "fast"
+
+
 def write_apng(path: str | os.PathLike, frames: Sequence[str | os.PathLike], *,
-               frame_ms: int = 250, metadata: Mapping[str, Any] | None = None) -> None:
+               frame_ms: int = 250, metadata: Mapping[str, Any] | None = None,
+               compression: str = PREVIEW_COMPRESSION) -> None:
     """Write an animated PNG (APNG, looping) of the PNG files ``frames``, in order,
-    atomically; browsers show it in an ``<img>``. ``frame_ms``: each frame's duration."""
+    atomically; browsers show it in an ``<img>``. ``frame_ms``: each frame's duration;
+    ``compression``: a key of :data:`COMPRESSION`."""
     from PIL import Image as PILImage
     from PIL.PngImagePlugin import PngInfo
 
@@ -270,7 +278,8 @@ def write_apng(path: str | os.PathLike, frames: Sequence[str | os.PathLike], *,
         info.add_text(META_PREFIX + key, _meta_text(value))
     with atomic_path(path) as tmp:
         images[0].save(tmp, format="PNG", save_all=True, append_images=images[1:],
-                       duration=frame_ms, loop=0, pnginfo=info)
+                       duration=frame_ms, loop=0, pnginfo=info,
+                       compress_level=get_compression(compression).png_zlib_level)
 
 
 def write_png_1bit(path: str | os.PathLike, mask: np.ndarray,

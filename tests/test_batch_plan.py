@@ -232,6 +232,32 @@ def test_render_turntable_writes_frames_and_an_animated_preview(run_gonio, tmp_p
             assert np.array_equal(np.asarray(im.convert("RGB")), pixels(f"spin.frame{k:03d}.png"))
 
 
+def test_animated_previews_are_lossless_at_every_compression_level(tmp_path):
+    """A preview deflates at level 1 by default (imageio.PREVIEW_COMPRESSION, quick to
+    write); any level gives the same frames back, and level 9 a file no larger."""
+    from PIL import Image
+
+    from gonio_cli.imageio import write_apng
+
+    rng = np.random.default_rng(2)
+    frames = []
+    for k in range(3):
+        path = tmp_path / f"f{k}.png"
+        smooth = np.linspace(0, 255, 64 * 48 * 3).reshape(48, 64, 3)
+        Image.fromarray((smooth + rng.integers(0, 8, smooth.shape)).clip(0, 255)
+                        .astype(np.uint8)).save(path)
+        frames.append(path)
+    for level in ("fast", "small"):
+        write_apng(tmp_path / f"{level}.png", frames, compression=level)
+        with Image.open(tmp_path / f"{level}.png") as im:
+            assert im.n_frames == 3
+            for k, f in enumerate(frames):
+                im.seek(k)
+                with Image.open(f) as src:
+                    assert np.array_equal(np.asarray(im.convert("RGB")), np.asarray(src))
+    assert (tmp_path / "small.png").stat().st_size <= (tmp_path / "fast.png").stat().st_size
+
+
 def test_help_and_plan_errors_do_not_import_dask(tmp_path):
     """Dask is imported only when a cluster is needed (``gonio --version`` stays light:
     tests/test_cli.py)."""
