@@ -191,7 +191,10 @@ def reciprocity(wavelength_nm, theta_i_deg, theta_o_deg, f) -> Reciprocity | Non
     lab_f, lab_b, lab_s = (spectra.xyz_to_lab(v * scale, white) for v in (xyz_f, xyz_b, xyz_s))
     de = spectra.delta_e_2000(lab_f, lab_b)
     spread = spectra.delta_e_2000(lab_b, lab_s)
-    k = int(np.argmax(de - spread))
+    net = np.where(np.isfinite(de) & np.isfinite(spread), de - spread, -np.inf)
+    if not np.isfinite(net).any():
+        return None
+    k = int(np.argmax(net))
     return Reciprocity(*where[k], float(de[k]), float(spread[k]))
 
 
