@@ -28,6 +28,7 @@ import numpy as np
 from . import __version__
 from .artifact import atomic_path, check_finite
 from .errors import InputError
+from .names import pick
 
 #: Prefix of gonio's metadata attributes in image headers.
 META_PREFIX = "gonio:"
@@ -83,10 +84,7 @@ DEFAULT_COMPRESSION = "balanced"
 
 def get_compression(name: str, flag: str = "--compress") -> Compression:
     """The level called ``name``; an unknown name gets the list of valid ones."""
-    if name not in COMPRESSION:
-        raise InputError(f"{flag} {name!r} is unknown",
-                         fix=f"use one of {', '.join(COMPRESSION)}")
-    return COMPRESSION[name]
+    return pick(COMPRESSION, name, flag)
 
 
 def header_date_time(source_date_epoch: int | str | None = None) -> str | None:

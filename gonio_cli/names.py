@@ -86,3 +86,17 @@ REPORT_SECTION_NAMES = ("fit", "lobes", "prefilter", "render", "table1", "sheets
 def metavar(names) -> str:
     """The metavar of a choice option: its names joined by ``|``."""
     return "|".join(names)
+
+
+# ------------------------------------------------------------------------- the lookup --
+
+def pick(registry, name: str, what: str):
+    """``registry[name]`` (``name`` itself where ``registry`` is a tuple of names); a name
+    it lacks is one line that lists the ones it has (``{what} 'name' is unknown; use one
+    of …``), the same wording for every registry and option."""
+    if name not in registry:
+        from .errors import InputError
+
+        raise InputError(f"{what} {name!r} is unknown",
+                         fix=f"use one of {', '.join(registry)}")
+    return registry[name] if isinstance(registry, dict) else name

@@ -48,6 +48,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from .errors import InputError
+from .names import pick
 
 #: Bits of the packed texture (eq. 16 packs into one byte).
 N_BITS = 8
@@ -119,10 +120,7 @@ RULE_PARAMETER_RANGES: dict[str, tuple[float, float]] = {"mad": (0.0, 1e3),
 
 
 def get_rule(name: str):
-    if name not in SEGMENTATION_RULES:
-        raise InputError(f"segmentation rule {name!r} is unknown",
-                         fix=f"use one of {', '.join(SEGMENTATION_RULES)}")
-    return SEGMENTATION_RULES[name]
+    return pick(SEGMENTATION_RULES, name, "segmentation rule")
 
 
 # -------------------------------------------------------------------------- packing --

@@ -16,6 +16,7 @@ import functools
 import numpy as np
 
 from .errors import InputError
+from .names import pick
 from .schemas import WAVELENGTH_MAX_NM
 
 DEFAULT_GRID_NM = "380:780:10"
@@ -334,10 +335,7 @@ def chromatic_adaptation_matrix(white_src_xyz, white_dst_xyz, method: str = "bra
     their corresponding colours under ``white_dst_xyz`` (3,): M⁻¹ diag(M w_dst / M w_src) M
     with M = :data:`CAT_MATRICES` [method] (complete adaptation, D = 1). Apply as
     ``xyz @ A.T``; the source white maps to the destination white exactly."""
-    if method not in CAT_MATRICES:
-        raise InputError(f"chromatic adaptation {method!r} is unknown",
-                         fix=f"use one of {', '.join(CAT_MATRICES)}")
-    m = CAT_MATRICES[method]
+    m = pick(CAT_MATRICES, method, "chromatic adaptation")
     gain = (m @ np.asarray(white_dst_xyz, float)) / (m @ np.asarray(white_src_xyz, float))
     return np.linalg.solve(m, gain[:, None] * m)
 

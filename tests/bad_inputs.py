@@ -145,3 +145,19 @@ def assert_refused(code: int, err: str, *, names: tuple[str, ...], outputs=()) -
         assert n in lines[0], f"{n!r} not named in: {lines[0]}"
     for out in outputs:
         assert not Path(out).exists(), f"{out} was written"
+
+
+def refused_ingest_line(res, tmp_path, out) -> str:
+    """The one line of a refused ``gonio ingest`` run ``res`` that was to write ``out``
+    (its ``tmp_path`` prefix removed): exit 2, one ``gonio: error:`` line with a fix
+    (``; ``), no traceback, nothing written in ``out``'s folder."""
+    lines = res.stderr.strip().splitlines()
+    assert res.exit_code == 2, res.stderr
+    assert len(lines) == 1, res.stderr
+    line = lines[0].replace(str(tmp_path) + "/", "")
+    assert line.startswith("gonio: error: "), line
+    assert "Traceback" not in res.stderr
+    assert "; " in line, f"no fix in: {line}"
+    assert not out.exists()
+    assert not (out.parent.exists() and any(out.parent.iterdir()))
+    return line

@@ -22,8 +22,7 @@ from __future__ import annotations
 
 from typing import Any, Callable
 
-from ..errors import InputError
-from ..names import AUTO_MODEL, FIT_MODEL_CHOICES, OPTIMIZER_NAMES
+from ..names import AUTO_MODEL, FIT_MODEL_CHOICES, OPTIMIZER_NAMES, pick
 from ..schemas import Material
 from . import cook_torrance, cook_torrance_lobes, goniochromatic, layered, torrance_sparrow
 from .common import FitData, FitOptions, ModelFit, choose_optimizer
@@ -63,15 +62,11 @@ def check_options(model: str, optimizer: str | None) -> None:
     """Refuse an unknown ``--model`` or an ``--optimizer`` that ``model`` does not take
     (before any file is read); ``auto`` takes any name, its candidates that lack it are
     skipped with a note."""
-    if model not in MODEL_CHOICES:
-        raise InputError(f"--model {model!r} is unknown",
-                         fix=f"use one of {', '.join(MODEL_CHOICES)}")
+    pick(MODEL_CHOICES, model, "--model")
     if optimizer is None:
         return
     if model == AUTO:
-        if optimizer not in OPTIMIZER_NAMES:
-            raise InputError(f"--optimizer {optimizer!r} is unknown",
-                             fix=f"use one of {', '.join(OPTIMIZER_NAMES)}")
+        pick(OPTIMIZER_NAMES, optimizer, "--optimizer")
         return
     choose_optimizer(model, OPTIMIZERS_BY_MODEL[model], optimizer)
 
@@ -80,8 +75,7 @@ def fit(data: FitData, model: str = "goniochromatic",
         options: FitOptions | None = None) -> ModelFit:
     """Fit ``model`` (a key of :data:`FITTERS`) to prepared data."""
     if model not in FITTERS:
-        raise InputError(f"--model {model!r} is unknown",
-                         fix=f"use one of {', '.join(MODEL_CHOICES)}")
+        pick(MODEL_CHOICES, model, "--model")
     return FITTERS[model](data, options or FitOptions())
 
 

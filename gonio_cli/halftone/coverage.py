@@ -15,6 +15,7 @@ import re
 import numpy as np
 
 from ..errors import InputError
+from ..names import pick
 from ..schemas import MAX_MAGNITUDE
 from ..spectra import srgb_decode
 
@@ -59,9 +60,7 @@ def _check_channels(px: np.ndarray, path) -> None:
 
 
 def check_encoding(encoding: str, is_float: bool) -> str:
-    if encoding not in INPUT_ENCODINGS:
-        raise InputError(f"--input-encoding {encoding!r} is unknown",
-                         fix=f"use one of {', '.join(INPUT_ENCODINGS)}")
+    pick(INPUT_ENCODINGS, encoding, "--input-encoding")
     return ("linear" if is_float else "srgb") if encoding == "auto" else encoding
 
 

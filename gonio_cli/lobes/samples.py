@@ -14,6 +14,7 @@ from typing import Sequence
 import numpy as np
 
 from ..errors import InputError
+from ..names import pick
 from ..geometry import cosines, in_plane_directions, reflect
 from . import GLOBAL_VIEW_ANGLES_DEG, HEMISPHERE_POINTS, HORIZON_DEG
 
@@ -232,8 +233,7 @@ CHANNELS = {"spectral": "one channel per wavelength of the working grid",
 
 
 def check_channels(kind: str) -> str:
-    if kind not in CHANNELS:
-        raise InputError(f"--channels {kind!r} is unknown", fix=f"use one of {', '.join(CHANNELS)}")
+    pick(CHANNELS, kind, "--channels")
     return kind
 
 

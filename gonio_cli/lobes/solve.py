@@ -13,7 +13,8 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from ..errors import FitError, InputError
+from ..errors import FitError
+from ..names import pick
 from . import LP_TIME_LIMIT_S, UNSEEN_COLUMN, check_exponents, design_matrix, split_weights
 from .samples import Samples, target_values
 
@@ -198,9 +199,7 @@ DEFAULT_SOLVER = "lp"
 
 
 def check_solver(name: str) -> str:
-    if name not in WEIGHT_SOLVERS:
-        raise InputError(f"--solver {name!r} is unknown",
-                         fix=f"use one of {', '.join(WEIGHT_SOLVERS)}")
+    pick(WEIGHT_SOLVERS, name, "--solver")
     return name
 
 

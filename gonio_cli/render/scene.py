@@ -54,6 +54,7 @@ import numpy as np
 
 from ..artifact import read_toml
 from ..errors import InputError
+from ..names import pick
 from ..schemas import EXPONENT_RANGE, EXPOSURE_MAX_STOPS, MAX_MAGNITUDE
 from ..spectra import grid_spec
 from . import Camera, Light
@@ -742,8 +743,7 @@ def orbit(scene: Scene, frame: int, frames: int, mode: str = "camera") -> Scene:
     """
     from .mesh import rotation_matrix
 
-    if mode not in ORBITS:
-        raise InputError(f"orbit {mode!r} is unknown", fix=f"use one of {', '.join(ORBITS)}")
+    pick(ORBITS, mode, "orbit")
     cam = scene.camera
     angle = 360.0 * frame / frames
     if mode == "camera":

@@ -96,7 +96,7 @@ from .kernels import (EXACT_BLOCK, FLOAT32_MIN_ALPHA, SINGLE_PRECISION, TABLE_KE
                       substrate_kernel, table_lookup, work_dtype, xyz_weights)
 
 #: The spectral paths of :func:`shade` (STYLE 3: a registry, named in errors).
-from ..names import SPECTRAL_PATHS  # noqa: E402  (the names, spelled once)
+from ..names import SPECTRAL_PATHS, pick  # noqa: E402  (the names, spelled once)
 
 #: Pixels per block of the direct-light loop: its ~16 reused scratch arrays of 16 384
 #: float32 (1 MB; 2 MB in float64) stay in a typical L2 cache, whole-image arrays (262k
@@ -320,9 +320,7 @@ def shade_rows(gbuffer: GBuffer, surfaces: Sequence[Surface], lights: Sequence[L
     shows Y = 1). Only covered rows are shaded.
     """
     start = time.perf_counter()
-    if spectral not in SPECTRAL_PATHS:
-        raise InputError(f"spectral path {spectral!r} is unknown",
-                         fix=f"use one of {', '.join(SPECTRAL_PATHS)}")
+    pick(SPECTRAL_PATHS, spectral, "spectral path")
     wl = np.asarray(wavelength_nm, dtype=float)
     channels = 3 if observer is None else np.shape(observer)[1]
     out = _rows_buffer(gbuffer.rows, dtype, channels)

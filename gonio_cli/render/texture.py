@@ -25,6 +25,7 @@ import os
 import numpy as np
 
 from ..errors import InputError
+from ..names import pick
 
 #: A mask value counts as 0 or 1 when within this of it: 8- and 16-bit PNGs decode to
 #: exact k / 255 or k / 65535, so anything further off is a grey level, not a halftone.
@@ -71,10 +72,7 @@ DEFAULT_WRAP = "clamp"
 
 def get_wrap(name: str):
     """The addressing pair called ``name``; an unknown name gets the valid ones."""
-    if name not in WRAP_MODES:
-        raise InputError(f"wrap mode {name!r} is unknown",
-                         fix=f"use one of {', '.join(WRAP_MODES)}")
-    return WRAP_MODES[name]
+    return pick(WRAP_MODES, name, "wrap mode")
 
 
 def validate_mask(mask: np.ndarray, path: str | os.PathLike | None = None) -> np.ndarray:

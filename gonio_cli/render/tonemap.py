@@ -36,7 +36,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..errors import InputError
+from ..names import pick
 
 
 def clip(x: np.ndarray) -> np.ndarray:
@@ -114,9 +114,7 @@ DEFAULT_TONEMAP = "neutral"
 
 def get_tonemap(name: str) -> Callable[[np.ndarray], np.ndarray]:
     """The tone map called ``name``; an unknown name gets the list of valid ones."""
-    if name not in TONEMAPS:
-        raise InputError(f"tone map {name!r} is unknown", fix=f"use one of {', '.join(TONEMAPS)}")
-    return TONEMAPS[name]
+    return pick(TONEMAPS, name, "tone map")
 
 
 def _von_kries(method: str) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
@@ -148,10 +146,7 @@ DEFAULT_ADAPTATION = "bradford"
 
 def get_adaptation(name: str) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
     """The adaptation called ``name``; an unknown name gets the list of valid ones."""
-    if name not in ADAPTATIONS:
-        raise InputError(f"chromatic adaptation {name!r} is unknown",
-                         fix=f"use one of {', '.join(ADAPTATIONS)}")
-    return ADAPTATIONS[name]
+    return pick(ADAPTATIONS, name, "chromatic adaptation")
 
 
 def scene_white_xyz(lights, grid_nm, target) -> np.ndarray | None:
@@ -255,10 +250,7 @@ DEFAULT_EXR_SPACE = "srgb"
 
 def get_exr_space(name: str) -> ExrSpace:
     """The EXR colour space called ``name``; an unknown name gets the list of valid ones."""
-    if name not in EXR_SPACES:
-        raise InputError(f"EXR colour space {name!r} is unknown",
-                         fix=f"use one of {', '.join(EXR_SPACES)}")
-    return EXR_SPACES[name]
+    return pick(EXR_SPACES, name, "EXR colour space")
 
 
 def xyz_to_exr_matrix(space: str = DEFAULT_EXR_SPACE, adapt: str = DEFAULT_ADAPTATION,
