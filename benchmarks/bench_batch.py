@@ -13,10 +13,13 @@ processes timed by :mod:`process` (GNU time), best of ``--repeats``:
 3. the same 30 gonio commands (3 ingests, 3 fits, 24 renders) as separate processes one
    after the other, as a shell loop or ``make -j1`` runs them.
 
-Prints the wall times, the speed-up of 2 workers over 1 (target ≥ 1.6 on 2 idle cores)
-and the per-job overhead of a separate process: (3 − the jobs' own time in 2) / 30. At
-384² the jobs take ~3 s in all and a run's fixed cost (~2 s: Dask's import and local
-cluster, each worker's first gonio import) caps the speed-up; at 1024² the work dominates.
+Prints the wall times, the speed-up of 2 workers over 1 (target ≥ 1.6 on 2 idle cores;
+best of each, and each alternated pair's ratio), what two renders at once cost each other
+on the machine at that moment (in-process medians: one render alone, then two processes
+at once; their ratio bounds the speed-up), and the per-job overhead of a separate
+process: (3 − the jobs' own time in 2) / 30. At 384² the jobs take ~3 s in all and a
+run's fixed cost (~1.3 s: Dask's import and local cluster, each worker's first gonio
+import) caps the speed-up; at 1024² the work dominates.
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ from __future__ import annotations
 import argparse
 import json
 import shutil
+import statistics
 import sys
 import tempfile
 from pathlib import Path
@@ -57,6 +61,44 @@ def batch_wall(gonio: str, plan: Path, out: Path, workers: int) -> tuple[float, 
     return wall, rss, sum(r["time_s"] for r in records)
 
 
+#: One render repeated in one process: (median s of the repeats after the first), printed.
+_RENDER_LOOP = """
+import statistics, sys, time
+from gonio_cli.__main__ import use_blas_threads
+use_blas_threads()
+from gonio_cli import cli
+times = []
+for _ in range(6):
+    start = time.perf_counter()
+    cli.run(sys.argv[1:])
+    times.append(time.perf_counter() - start)
+print(statistics.median(times[1:]))
+"""
+
+
+def contention(warm: Path, size: int) -> tuple[float, float]:
+    """(s alone, s each with two at once) of the plan's sphere render at ``size``² ssaa 2,
+    in-process medians: how much two jobs at once slow each other on this machine now (on
+    a virtual machine this moves with the host's load, and bounds the speed-up)."""
+    import subprocess
+
+    scene = warm.parent / f"data{size}" / "batch" / "scenes" / "sphere.toml"
+    material = next(warm.glob("*/*.material.json"))
+
+    def start(k: int):
+        argv = ["-q", "render", str(scene), "-o", str(warm / f"contention{k}.png"),
+                "--width", str(size), "--height", str(size), "--ssaa", "2",
+                "--var", f"material={material}"]
+        return subprocess.Popen([sys.executable, "-c", _RENDER_LOOP, *argv],
+                                stdout=subprocess.PIPE, text=True,
+                                env=process.user_environment())
+
+    alone = float(start(0).communicate()[0])
+    pair = [start(0), start(1)]
+    together = sum(float(p.communicate()[0]) for p in pair) / 2
+    return alone, together
+
+
 def one_size(gonio: str, tmp: Path, size: int, repeats: int) -> None:
     from gonio_cli.batch.plan import read_plan
 
@@ -67,6 +109,7 @@ def one_size(gonio: str, tmp: Path, size: int, repeats: int) -> None:
         for workers in (2, 1):
             runs[workers].append(batch_wall(gonio, plan, tmp / f"out{workers}", workers))
     walls = {w: min(r) for w, r in runs.items()}
+    pairs = sorted(one[0] / two[0] for one, two in zip(runs[1], runs[2]))
     jobs = [j for j in read_plan(plan, tmp / f"separate{size}").jobs if j.runner == "gonio"]
     for j in jobs:
         for o in j.outputs:
@@ -84,7 +127,13 @@ def one_size(gonio: str, tmp: Path, size: int, repeats: int) -> None:
     print(f"  {n} processes        {separate:6.2f} s  (one after the other)")
     speedup = walls[1][0] / walls[2][0]
     print(f"  speed-up 2 vs 1 worker: {speedup:.2f}x (target >= {TARGET_SPEEDUP}x on 2 idle "
-          f"cores): {'met' if speedup >= TARGET_SPEEDUP else 'NOT met'}")
+          f"cores): {'met' if speedup >= TARGET_SPEEDUP else 'NOT met'}; alternated pairs "
+          f"{', '.join(f'{r:.2f}' for r in pairs)} (median {statistics.median(pairs):.2f}x)")
+    alone, together = contention(tmp / "warm", size)
+    print(f"  the machine now: one {size}² render {alone * 1e3:.0f} ms alone, "
+          f"{together * 1e3:.0f} ms each with two at once ({together / alone:.2f}x; on idle "
+          f"cores only what the two share slows them: memory bandwidth and caches), so 2 "
+          f"workers can be at most {2 * alone / together:.2f}x as fast as 1 on the renders")
     print(f"  per-job overhead of a separate process: {(separate - job_s) / n * 1e3:.0f} ms "
           f"({n} processes {separate:.2f} s against {job_s:.2f} s of work in the workers)")
 
