@@ -22,7 +22,7 @@ from typing import Callable
 import numpy as np
 
 from .errors import InputError
-from .geometry import Cosines, cos_half_sum
+from .geometry import Cosines, cos_half_sum, refracted_cosines
 
 #: Exponent ceiling for exp(): exp(700) ≈ 1e304 is still finite in float64, so a huge c
 #: or a tiny α gives a huge but finite value instead of inf (and inf·0 = NaN downstream).
@@ -387,6 +387,42 @@ def goniochromatic_backscatter(cos: Cosines, alpha, rho, c, rho_d, alpha_coat, k
     return backscatter_diffuse(cos, rho_d, b0, h) + coat
 
 
+#: Refractive index of the clear layer over ``goniochromatic-undercoat``'s colour layer:
+#: clear coats, binders, varnishes and waxes are 1.45–1.6; 1.5 gives F0 = 0.04.
+UNDERCOAT_INDEX = 1.5
+
+
+def coat_transmission(cos: Cosines, n: float = UNDERCOAT_INDEX) -> np.ndarray:
+    """T(θi) T(θo) (...,): the share of light a smooth layer of index ``n`` lets in at θi
+    and out at θo, T = 1 − F with Schlick's F (seed 004 eq. 12) at F0 = ((n − 1)/(n + 1))²."""
+    f0 = np.array([((n - 1.0) / (n + 1.0)) ** 2])
+    return ((1.0 - schlick_fresnel(cos.cos_theta_i, f0)[..., 0])
+            * (1.0 - schlick_fresnel(cos.cos_theta_o, f0)[..., 0]))
+
+
+def goniochromatic_undercoat(cos: Cosines, alpha, rho, c, rho_d, alpha_coat, k_coat,
+                             f0_coat) -> np.ndarray:
+    """Seed 000 eq. (5) and a Lambertian term *under* a clear coat, seen through it, sr⁻¹:
+
+    f = T(θi) T(θo) [ρ_d(λ)/π + eq. 5(α, ρ, c) at θi', θo'] + the coat of
+    :func:`goniochromatic_coat`,
+
+    θ' the directions refracted into the coat (index :data:`UNDERCOAT_INDEX`, Snell;
+    :func:`gonio_cli.geometry.refracted_cosines`) and T = 1 − F the Fresnel transmission
+    in and out (:func:`coat_transmission`). This is how a colour layer under a clear coat
+    is seen (the car-paint models of Ershov et al. 2001 and Rump et al. 2008 evaluate the
+    flake layer at the refracted angles): at grazing incidence the coat reflects more and
+    lets less through, and the layer sees the light at ≤ 42°, so the grazing highlight is
+    the coat's colour, not the layer's. Radiance crossing the interface in and out gives
+    f = T T f_inner / n²; the constant 1/n² is taken into ρ and ρ_d. Reciprocal (every
+    factor is symmetric in θi, θo); with T ≤ 1 the layer's share is never more than its own.
+    """
+    under = goniochromatic_diffuse(refracted_cosines(cos, UNDERCOAT_INDEX), alpha, rho, c,
+                                   rho_d)
+    coat = torrance_sparrow(cos, alpha_coat, np.atleast_1d(np.asarray(f0_coat, dtype=float)))
+    return _col(coat_transmission(cos)) * under + float(k_coat) * coat
+
+
 # ----------------------------------------------------------------------------- registry --
 
 @dataclass(frozen=True)
@@ -422,6 +458,10 @@ MODELS: dict[str, Model] = {
         ("alpha", "alpha_coat", "k_coat", "f0_coat", "b0", "h"), ("rho", "c", "rho_d"),
         goniochromatic_backscatter,
         "seed 000 eq. 5 + Lambertian with Hapke's opposition effect + GGX clear coat"),
+    "goniochromatic-undercoat": Model(
+        "goniochromatic-undercoat", ("alpha", "alpha_coat", "k_coat", "f0_coat"),
+        ("rho", "c", "rho_d"), goniochromatic_undercoat,
+        "seed 000 eq. 5 + Lambertian under a GGX clear coat, at refracted angles"),
     "cook-torrance-2": Model("cook-torrance-2", ("ks_1", "m_1", "ks_2", "m_2"), ("kd", "f0"),
                              cook_torrance_2, "seed 004 eqs. 9-12, two Beckmann lobes"),
     "cook-torrance-3": Model("cook-torrance-3", ("ks_1", "m_1", "ks_2", "m_2", "ks_3", "m_3"),

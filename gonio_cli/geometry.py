@@ -84,6 +84,24 @@ def cosines_from_dots(cos_i, cos_o, cos_io) -> Cosines:
     return Cosines(clip(cos_i), clip(cos_o), clip(cos_h), clip(cos_d))
 
 
+def refracted_cosines(cos: Cosines, n: float) -> Cosines:
+    """The :class:`Cosines` of both directions refracted into a smooth layer of index ``n``
+    (Snell: sin θ' = sin θ / n, the azimuths kept), from the four cosines alone.
+
+    The tangential parts of ωi and ωo shrink by 1/n, so ωi'·ωo' = (ωi·ωo − cos θi cos θo)/n²
+    + cos θi' cos θo', with ωi·ωo = 2 cos²θd − 1 (θd is half the angle between them); then
+    :func:`cosines_from_dots`. Shape (...,) as the input's.
+    """
+    ci = np.clip(np.asarray(cos.cos_theta_i, dtype=float), 0.0, 1.0)
+    co = np.clip(np.asarray(cos.cos_theta_o, dtype=float), 0.0, 1.0)
+    cd = np.asarray(cos.cos_theta_d, dtype=float)
+    inv_n2 = 1.0 / (float(n) * float(n))
+    ci_r = np.sqrt(1.0 - (1.0 - ci * ci) * inv_n2)
+    co_r = np.sqrt(1.0 - (1.0 - co * co) * inv_n2)
+    dot = (2.0 * cd * cd - 1.0 - ci * co) * inv_n2 + ci_r * co_r
+    return cosines_from_dots(ci_r, co_r, dot)
+
+
 def cosines_from_dots_into(cos_i, cos_o, cos_io, scratch, cos_d: bool = True) -> Cosines:
     """:func:`cosines_from_dots` (seed 000 eq. 1) in the inputs' dtype (float32 in the
     renderer's hot path, ~6× faster than the float64 form), into buffers from

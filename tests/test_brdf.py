@@ -86,6 +86,17 @@ def hand_model(name, ti, to, p):
         surge = p["b0"] / (1.0 + np.tan(np.abs(ti + to) / 2.0)[:, None] / p["h"])
         return (hand_model("goniochromatic-coat", ti, to, dict(p, rho_d=0.0))
                 + p["rho_d"] / np.pi * (1.0 + surge))
+    if name == "goniochromatic-undercoat":
+        # the layer at the angles refracted into the coat (Snell, n = 1.5; signed, so the
+        # half and difference angles above hold inside too), times the Fresnel
+        # transmission (1 − Schlick at F0 = 0.04) in and out, plus the coat outside
+        n = 1.5
+        ti_r, to_r = np.arcsin(np.sin(ti) / n), np.arcsin(np.sin(to) / n)
+        t = lambda a: 1.0 - hand_schlick(a, 0.04)  # noqa: E731
+        under = hand_model("goniochromatic-diffuse", ti_r, to_r, p)
+        coat = hand_model("torrance-sparrow", ti, to,
+                          {"alpha": p["alpha_coat"], "f0": np.array([p["f0_coat"]])})
+        return (t(ti) * t(to))[:, None] * under + p["k_coat"] * coat
     if name in ("cook-torrance-2", "cook-torrance-3"):
         # seed 004 eq. 11 summed over the lobes (ks_j, m_j), one F0(λ)
         lobes = sum(p[f"ks_{j}"] * hand_beckmann(th, p[f"m_{j}"])
@@ -114,6 +125,9 @@ def model_params(name, rng):
         "goniochromatic-backscatter": lambda: {
             "alpha": 0.19, "rho": u(0.05, 1.0), "c": u(-5.0, 5.0), "rho_d": u(0.0, 0.8),
             "alpha_coat": 0.04, "k_coat": 0.7, "f0_coat": 0.05, "b0": 0.6, "h": 0.1},
+        "goniochromatic-undercoat": lambda: {
+            "alpha": 0.12, "rho": u(0.05, 1.0), "c": u(-5.0, 5.0), "rho_d": u(0.0, 0.8),
+            "alpha_coat": 0.04, "k_coat": 0.7, "f0_coat": 0.05},
         "cook-torrance-2": lambda: {"kd": u(0.0, 0.5), "f0": u(0.02, 1.0), "ks_1": 0.1,
                                     "m_1": 0.05, "ks_2": 0.6, "m_2": 0.3},
         "cook-torrance-3": lambda: {"kd": u(0.0, 0.5), "f0": u(0.02, 1.0), "ks_1": 0.1,
@@ -299,6 +313,12 @@ EXTREME_PARAMS = [
                                     "c": [-1e4, 1e4, 0.0], "rho_d": [1.0, 0.0, 1e-300],
                                     "alpha_coat": 1.0, "k_coat": 0.0, "f0_coat": 0.02,
                                     "b0": 0.0, "h": 2.0}),
+    ("goniochromatic-undercoat", {"alpha": 1e-6, "rho": [0.0, 1.0, 1.0],
+                                  "c": [1e4, 1e4, -1e4], "rho_d": [0.0, 1.0, 0.5],
+                                  "alpha_coat": 1e-6, "k_coat": 10.0, "f0_coat": 1.0}),
+    ("goniochromatic-undercoat", {"alpha": 1.0, "rho": [0.0, 1.0, 1e-300],
+                                  "c": [-1e4, 1e4, 0.0], "rho_d": [1.0, 0.0, 1e-300],
+                                  "alpha_coat": 1.0, "k_coat": 0.0, "f0_coat": 0.02}),
 ]
 
 

@@ -77,6 +77,8 @@ def furnace_material(model: str) -> Material:
                                 "f0_coat": 0.04},
         "goniochromatic-backscatter": {**gonio, "rho_d": rho_d, "alpha_coat": 0.2,
                                        "k_coat": 1.0, "f0_coat": 0.04, "b0": 0.5, "h": 0.3},
+        "goniochromatic-undercoat": {**gonio, "rho_d": rho_d, "alpha_coat": 0.2,
+                                     "k_coat": 1.0, "f0_coat": 0.04},
         "torrance-sparrow": {"alpha": 0.25, "f0": f0},
         "cook-torrance": ct,
         "cook-torrance-2": {"kd": ct["kd"], "f0": f0, "ks_1": 0.3, "m_1": 0.2, "ks_2": 0.2,

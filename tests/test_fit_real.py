@@ -322,7 +322,7 @@ def test_version_1_materials_read_and_evaluate_as_before(tmp_path):
 
 
 @pytest.mark.parametrize("model", ["goniochromatic-diffuse", "goniochromatic-coat",
-                                   "goniochromatic-backscatter"])
+                                   "goniochromatic-backscatter", "goniochromatic-undercoat"])
 def test_new_models_feed_lobes_and_render(run_gonio, tmp_path, model):
     p = layered_truth(coat=model != "goniochromatic-diffuse")
     if model == "goniochromatic-backscatter":

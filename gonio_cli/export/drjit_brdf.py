@@ -191,6 +191,41 @@ def goniochromatic_backscatter(cos, alpha, rho, c, rho_d, alpha_coat, k_coat, f0
             + goniochromatic_coat(cos, alpha, rho, c, 0.0, alpha_coat, k_coat, f0_coat))
 
 
+#: Same as ``gonio_cli.brdf.UNDERCOAT_INDEX``: the clear coat's refractive index.
+UNDERCOAT_INDEX = 1.5
+
+
+def refracted_cosines(cos, n):
+    """The four cosines of both directions refracted into a layer of index ``n`` (Snell);
+    port of ``gonio_cli.geometry.refracted_cosines`` (through ``cosines_from_dots``)."""
+    ci, co, _, cd = cos
+    inv_n2 = 1.0 / (n * n)
+    ci_r = dr.sqrt(dr.maximum(1.0 - (1.0 - ci * ci) * inv_n2, 0.0))
+    co_r = dr.sqrt(dr.maximum(1.0 - (1.0 - co * co) * inv_n2, 0.0))
+    dot = (2.0 * cd * cd - 1.0 - ci * co) * inv_n2 + ci_r * co_r
+    sq = 2.0 + 2.0 * dot
+    safe = sq > 1e-12
+    inv = dr.rsqrt(dr.select(safe, sq, 1.0))
+    ch = dr.select(safe, (ci_r + co_r) * inv, 1.0)
+    cd_r = dr.select(safe, (1.0 + dot) * inv, ci_r)
+    return _clip01(ci_r), _clip01(co_r), _clip01(ch), _clip01(cd_r)
+
+
+def coat_transmission(cos, n=UNDERCOAT_INDEX):
+    """T(θi) T(θo) = (1 − F(θi))(1 − F(θo)), Schlick at F0 = ((n − 1)/(n + 1))²; port of
+    ``gonio_cli.brdf.coat_transmission``."""
+    f0 = ((n - 1.0) / (n + 1.0)) ** 2
+    return (1.0 - schlick_fresnel(cos[0], f0)) * (1.0 - schlick_fresnel(cos[1], f0))
+
+
+def goniochromatic_undercoat(cos, alpha, rho, c, rho_d, alpha_coat, k_coat, f0_coat):
+    """T T [ρ_d/π + eq. (5)] at the refracted angles + the clear coat; port of
+    ``gonio_cli.brdf.goniochromatic_undercoat``."""
+    under = goniochromatic_diffuse(refracted_cosines(cos, UNDERCOAT_INDEX), alpha, rho, c,
+                                   rho_d)
+    return coat_transmission(cos) * under + k_coat * torrance_sparrow(cos, alpha_coat, f0_coat)
+
+
 #: The models by ``gonio_cli.brdf.MODELS`` name, with the same keyword parameters.
 MODELS = {
     "goniochromatic": goniochromatic,
@@ -199,6 +234,7 @@ MODELS = {
     "goniochromatic-diffuse": goniochromatic_diffuse,
     "goniochromatic-coat": goniochromatic_coat,
     "goniochromatic-backscatter": goniochromatic_backscatter,
+    "goniochromatic-undercoat": goniochromatic_undercoat,
     "cook-torrance-2": cook_torrance_2,
     "cook-torrance-3": cook_torrance_3,
 }

@@ -33,7 +33,7 @@ from typing import Callable
 import numpy as np
 
 from ..artifact import atomic_path, make_folder, write_artifact
-from ..brdf import goniochromatic_exponent_arg
+from ..brdf import UNDERCOAT_INDEX, goniochromatic_exponent_arg
 from ..errors import InputError
 
 SCHEMA = "gonio.mitsuba-bsdf"
@@ -105,6 +105,12 @@ LOBES: dict[str, Callable[[dict], list[Lobe]]] = {
     "goniochromatic-backscatter": lambda p: [
         Lobe("diffuse", 1.0, float(np.mean(p["rho_d"])) * (1.0 + 0.5 * float(p["b0"]))),
         _gonio_lobe(p),
+        Lobe("ggx", float(p["alpha_coat"]), float(p["k_coat"]) * float(p["f0_coat"]))],
+    # under the coat: the layer's lobe seen through it is ~n times wider than α (Snell
+    # near the normal); the lobes only importance-sample, the plugin evaluates the model
+    "goniochromatic-undercoat": lambda p: [
+        Lobe("diffuse", 1.0, float(np.mean(p["rho_d"]))),
+        _gonio_lobe(dict(p, alpha=min(1.0, UNDERCOAT_INDEX * float(p["alpha"])))),
         Lobe("ggx", float(p["alpha_coat"]), float(p["k_coat"]) * float(p["f0_coat"]))],
     "cook-torrance-2": lambda p: [Lobe("diffuse", 1.0, float(np.mean(p["kd"])))] + [
         _ct_lobe(p[f"ks_{j}"], p[f"m_{j}"], np.asarray(p["f0"])) for j in (1, 2)],

@@ -32,7 +32,7 @@ from .verdict import colour_errors, covers_colour
 #: Models ``auto`` tries, cheapest first (a tie keeps the earlier, simpler one).
 CANDIDATES = ("goniochromatic", "goniochromatic-diffuse", "torrance-sparrow",
               "cook-torrance", "cook-torrance-2", "cook-torrance-3", "goniochromatic-coat",
-              "goniochromatic-backscatter")
+              "goniochromatic-undercoat", "goniochromatic-backscatter")
 
 
 #: With at least this many angles of incidence, auto leaves one θi out at a time; with

@@ -6,6 +6,10 @@ Models (in :mod:`gonio_cli.brdf`):
   base coat under the structural-colour layer.
 - ``goniochromatic-coat``: the same plus an achromatic clear coat, a Torrance–Sparrow lobe
   (GGX α_coat, Smith G, Schlick F with one F0_coat for every wavelength) scaled by k_coat.
+- ``goniochromatic-undercoat``: the same three terms with eq. 5 and ρ_d *under* the coat,
+  seen through it: at the angles refracted into it and times its Fresnel transmission in
+  and out (:func:`gonio_cli.brdf.goniochromatic_undercoat`). Both depend only on the
+  geometry, so the fit is the coat's with other columns.
 
 The fit keeps the separable structure of the default model. For fixed roughnesses (α and,
 with a coat, α_coat, k_coat and F0_coat) the coat is a known offset o(θ), and each wavelength is
@@ -26,9 +30,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..brdf import (evaluate, goniochromatic_d4, goniochromatic_exponent_arg,
-                    opposition_surge, torrance_sparrow)
+from ..brdf import (UNDERCOAT_INDEX, coat_transmission, evaluate, goniochromatic_d4,
+                    goniochromatic_exponent_arg, opposition_surge, torrance_sparrow)
 from ..errors import InputError
+from ..geometry import refracted_cosines
 from .common import (ALPHA_MAX, ALPHA_MIN, C_LIMIT, BestPoint, FitData, FitOptions,
                      FitReport, ModelFit, Stopwatch, choose_optimizer, error_figures,
                      minimize_log_alpha, nm_list, profile_c)
@@ -83,9 +88,16 @@ COAT_MAXEVAL = 300
 class Layered:
     """The separable problem of one data set: (ρ_d, ρ, c)(λ) for any fixed roughnesses."""
 
-    def __init__(self, data: FitData, coat: bool = False, backscatter: bool = False):
+    def __init__(self, data: FitData, coat: bool = False, backscatter: bool = False,
+                 undercoat: bool = False):
         self.data, self.coat, self.backscatter = data, coat, backscatter
-        self.x = goniochromatic_exponent_arg(data.cos.cos_theta_i, data.cos.cos_theta_o)
+        # eq. 5's geometry: the measured angles, or those refracted into the coat
+        self.lobe_cos = (refracted_cosines(data.cos, UNDERCOAT_INDEX) if undercoat
+                         else data.cos)
+        #: the share the coat lets through, in and out (1 without one over the layer)
+        self.through = coat_transmission(data.cos) if undercoat else None
+        self.x = goniochromatic_exponent_arg(self.lobe_cos.cos_theta_i,
+                                             self.lobe_cos.cos_theta_o)
         # every wavelength with some weighted signal can be fitted
         self.signal = np.any((data.w > 0) & (data.y > 0), axis=0)
         # log residuals to first order: (f − y)/y, i.e. linear ones weighted by 1/y²
@@ -109,12 +121,14 @@ class Layered:
             t = d.y - self.coat_term(alpha_coat, k_coat, f0_coat)[:, None]
             params.update(alpha_coat=float(alpha_coat), k_coat=float(k_coat),
                           f0_coat=float(f0_coat))
-        shape = None
+        shape = self.through
         if self.backscatter:
             b0, h = back
             shape = 1.0 + opposition_surge(d.cos.cos_theta_d, b0, h)
             params.update(b0=float(b0), h=float(h))
-        g = goniochromatic_d4(d.cos.cos_theta_h, alpha)
+        g = goniochromatic_d4(self.lobe_cos.cos_theta_h, alpha)
+        if self.through is not None:
+            g = g * self.through
         rho_d, rho, c, cost = profile_c(self.x, g, t, self.w, diffuse=True,
                                         diffuse_shape=shape)
         ok = self.signal & np.isfinite(cost) & (np.abs(c) < C_LIMIT * (1 - 1e-6))
@@ -167,11 +181,11 @@ def _search_backscatter(problem: Layered, alpha0: float, coat0):
             (float(v[4]), float(np.exp(v[5]))), search.n, message)
 
 
-def _stage_key(data: FitData, options: FitOptions, coat: bool) -> bytes:
+def _stage_key(data: FitData, options: FitOptions, coat: str) -> bytes:
     """The key of :attr:`FitOptions.stages` for the searches before the opposition
     effect's (α, then the coat): a digest of everything they depend on, the data and
-    weights, the geometry, the residuals, ``--alpha``, ``--optimizer`` and whether there is
-    a coat. ``--model auto`` fits ``goniochromatic-coat`` and then
+    weights, the geometry, the residuals, ``--alpha``, ``--optimizer`` and the coat (none,
+    over or under the layer). ``--model auto`` fits ``goniochromatic-coat`` and then
     ``goniochromatic-backscatter`` on the same data (all of it, then each fold): the second
     starts where the first ended instead of repeating its search."""
     import hashlib
@@ -192,22 +206,26 @@ OPTIMIZERS = {
 
 
 def fit_layered(data: FitData, options: FitOptions, coat: bool,
-                backscatter: bool = False) -> ModelFit:
-    """Fit ``goniochromatic-diffuse`` (``coat=False``), ``goniochromatic-coat`` or, with
-    ``backscatter``, ``goniochromatic-backscatter`` (the coat and the opposition effect)."""
-    model = ("goniochromatic-backscatter" if backscatter else
+                backscatter: bool = False, undercoat: bool = False) -> ModelFit:
+    """Fit ``goniochromatic-diffuse`` (``coat=False``), ``goniochromatic-coat``, with
+    ``backscatter`` ``goniochromatic-backscatter`` (the coat and the opposition effect), or
+    with ``undercoat`` ``goniochromatic-undercoat`` (the layer seen through the coat)."""
+    model = ("goniochromatic-undercoat" if undercoat else
+             "goniochromatic-backscatter" if backscatter else
              "goniochromatic-coat" if coat else "goniochromatic-diffuse")
+    kind = "under" if undercoat else "over" if coat else "none"
+    coat = coat or undercoat
     if options.alpha is not None and not (ALPHA_MIN <= options.alpha <= ALPHA_MAX):
         raise InputError(f"--alpha {options.alpha:g} is outside [{ALPHA_MIN:g}, {ALPHA_MAX:g}]",
                          fix="GGX alpha of seed 000 eq. 3 lies in (0, 1]")
     optimizer, search_alpha = choose_optimizer(model, OPTIMIZERS, options.optimizer)
     sw = Stopwatch()
     memo = options.stages if options.stages is not None else {}
-    key = _stage_key(data, options, coat)
+    key = _stage_key(data, options, kind)
     if key in memo:                         # this run fitted the same stages already
         alpha, coat_params, evaluations, message, success = memo[key]
     else:
-        plain = Layered(data)
+        plain = Layered(data, undercoat=undercoat)
         if options.alpha is not None:
             alpha, evaluations, message, success = options.alpha, 0, "alpha fixed", True
         else:
@@ -217,7 +235,8 @@ def fit_layered(data: FitData, options: FitOptions, coat: bool,
                                                     search.message, search.success)
         coat_params = None
         if coat:
-            alpha, coat_params, n, message = _search_coat(Layered(data, coat=True), alpha)
+            alpha, coat_params, n, message = _search_coat(
+                Layered(data, coat=True, undercoat=undercoat), alpha)
             evaluations += n
         memo[key] = (alpha, coat_params, evaluations, message, success)
     back = None
@@ -225,8 +244,8 @@ def fit_layered(data: FitData, options: FitOptions, coat: bool,
         alpha, coat_params, back, n, message = _search_backscatter(
             Layered(data, coat=True, backscatter=True), alpha, coat_params)
         evaluations += n
-    params, _, ok = Layered(data, coat=coat, backscatter=backscatter).solve(
-        alpha, coat_params, back)
+    params, _, ok = Layered(data, coat=coat, backscatter=backscatter,
+                            undercoat=undercoat).solve(alpha, coat_params, back)
     failed = [float(w) for w in data.wavelength_nm[~ok]]
     status = "success" if success and not failed else "failed"
     if failed:
@@ -248,3 +267,7 @@ def fit_coat(data: FitData, options: FitOptions) -> ModelFit:
 
 def fit_backscatter(data: FitData, options: FitOptions) -> ModelFit:
     return fit_layered(data, options, coat=True, backscatter=True)
+
+
+def fit_undercoat(data: FitData, options: FitOptions) -> ModelFit:
+    return fit_layered(data, options, coat=True, undercoat=True)
