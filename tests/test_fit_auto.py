@@ -75,3 +75,49 @@ def test_auto_on_two_angles_keeps_a_model_with_the_diffuse_term():
     assert best.model == "goniochromatic-diffuse"
     assert scores["goniochromatic"] > 2 * scores["goniochromatic-diffuse"]
     assert all("configurations" in c.notes[-1] for c in cands)
+
+
+def test_candidates_fitted_in_two_processes_give_the_same_figures_as_in_one():
+    # --jobs: the candidates' fits are deterministic, so forking them out changes nothing
+    # but the time; the coat and backscatter models stay in one process (the second
+    # starts from the first's searches) and the candidates come back in their order.
+    data = _data(MA_T12_TI, MA_T12_TO, noise=0.01, seed=4)
+    models = ("goniochromatic", "goniochromatic-coat", "torrance-sparrow",
+              "goniochromatic-backscatter")
+    one = fit_auto(data, FitOptions(), fit, candidates=models, jobs=1)
+    two = fit_auto(data, FitOptions(), fit, candidates=models, jobs=2)
+    assert [c.model for c in two[1]] == list(models)
+    for a, b in zip(one[1], two[1]):
+        assert a.held_out_delta_e == b.held_out_delta_e
+        assert a.in_sample_delta_e == b.in_sample_delta_e
+        assert a.notes == b.notes
+        for name, v in a.fit.params.items():
+            np.testing.assert_array_equal(v, b.fit.params[name])
+    assert one[0].model == two[0].model
+
+
+def test_groups_keep_coat_and_backscatter_together_costliest_first():
+    from gonio_cli.fit.auto import CANDIDATES, _groups
+
+    groups = _groups(CANDIDATES)
+    assert ("goniochromatic-coat", "goniochromatic-backscatter") == groups[0]
+    assert sorted(m for g in groups for m in g) == sorted(CANDIDATES)
+    assert _groups(("goniochromatic-backscatter",)) == [("goniochromatic-backscatter",)]
+
+
+def test_a_daemonic_process_fits_in_itself(monkeypatch):
+    # a Dask worker of gonio batch is daemonic: it may not fork children, and has one core
+    import multiprocessing
+
+    from gonio_cli.fit import auto
+
+    monkeypatch.setattr(multiprocessing.current_process(), "_config",
+                        {**multiprocessing.current_process()._config, "daemon": True})
+    assert not auto.can_fork_workers()
+    calls = []
+    monkeypatch.setattr("multiprocessing.pool.Pool.__init__",
+                        lambda *a, **k: calls.append(1) or (_ for _ in ()).throw(AssertionError))
+    data = _data(MA_T12_TI, MA_T12_TO, noise=0.01, seed=4)
+    best, cands = fit_auto(data, FitOptions(), fit,
+                           candidates=("goniochromatic", "torrance-sparrow"), jobs=2)
+    assert not calls and len(cands) == 2

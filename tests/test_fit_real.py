@@ -394,3 +394,12 @@ def test_reciprocity_of_the_data_is_measured_and_explains_a_poor_fit(run_gonio, 
     assert ": poor (" in line and "the data are not reciprocal: theta_i 15, theta_o 45" in line
     rec = read_material(tmp_path / "f.json").fit["verdict"]["data_reciprocity"]
     assert rec["reverse_interpolated"] and rec["delta_e2000"] > 1.0
+
+
+def test_jobs_below_one_is_refused_in_one_line(run_gonio, tmp_path):
+    meas = ingest_fixture(run_gonio, tmp_path, "rgl_wrap_inplane.csv")
+    out = tmp_path / "m.json"
+    res = run_gonio("fit", str(meas), "-o", str(out), "--model", "auto", "--jobs", "0")
+    assert res.exit_code == 2 and not out.exists()
+    assert res.stderr.strip().splitlines() == [
+        "gonio: error: --jobs 0 is not a number of processes; give N >= 1"]

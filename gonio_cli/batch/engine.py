@@ -18,6 +18,7 @@ import os
 import shutil
 from typing import Any, Callable, Mapping
 
+from ..machine import cpu_count
 from . import MANIFEST_NAME
 from .jobs import ATTEMPTS_DIR, execute, failed_roots, record, up_to_date
 from .plan import Plan, check_graph, dependencies
@@ -129,13 +130,6 @@ def worker_start_method() -> str | None:
     multiprocessing.set_forkserver_preload(list(WORKER_PRELOAD))
     forkserver.ensure_running()
     return "forkserver"
-
-
-def cpu_count() -> int:
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not Linux
-        return os.cpu_count() or 1
 
 
 def run_plan(plan: Plan, *, workers: int | None = None, scheduler: str | None = None,

@@ -55,6 +55,10 @@ def fit(
              "it (or otherwise poor) exits 3 and writes nothing."),
     plot: Optional[Path] = typer.Option(None, "--plot", metavar="FIT.png",
                                         help="Also draw seed 000 Figure 4 for this fit (PNG)."),
+    jobs: Optional[int] = typer.Option(
+        None, "--jobs", "-j", metavar="N",
+        help="Processes that fit --model auto's candidates at once [default: one per "
+             "core]; the result does not depend on it."),
     on_failure: str = typer.Option(
         "error", "--on-failure", metavar="error|write",
         help="error: exit 2 and write nothing; write: write the material with status failed."),
@@ -84,6 +88,8 @@ def fit(
     if on_failure not in ("error", "write"):
         raise InputError(f"--on-failure {on_failure!r} is unknown", fix="use error or write")
     check_options(model, optimizer)
+    if jobs is not None and jobs < 1:
+        raise InputError(f"--jobs {jobs} is not a number of processes", fix="give N >= 1")
     if max_error is not None and not (max_error > 0 and max_error < 1e3):
         raise InputError(f"--max-error {max_error:g} is not a CIEDE2000 limit",
                          fix="give a number in (0, 1000), e.g. 1.0")
@@ -98,7 +104,10 @@ def fit(
                        exclude_theta_o_deg=exclude_theta_o, weights=w,
                        use_std=std_weights, path=measurement)
         if model == "auto":
-            result, candidates = _named(fit_auto, measurement)(data, options)
+            from ..machine import cpu_count
+
+            result, candidates = _named(fit_auto, measurement)(
+                data, options, jobs=jobs if jobs is not None else cpu_count())
             from ..fit.auto import criterion
 
             extra["auto"] = {"criterion": criterion(data), "chosen": result.model,

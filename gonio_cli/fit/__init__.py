@@ -83,11 +83,12 @@ def fit(data: FitData, model: str = "goniochromatic",
     return FITTERS[model](data, options or FitOptions())
 
 
-def fit_auto(data: FitData, options: FitOptions | None = None):
-    """(best ModelFit, candidates) of ``--model auto`` (:func:`.auto.fit_auto`)."""
+def fit_auto(data: FitData, options: FitOptions | None = None, jobs: int = 1):
+    """(best ModelFit, candidates) of ``--model auto`` (:func:`.auto.fit_auto`), its
+    candidates fitted in ``jobs`` processes."""
     from .auto import fit_auto as run
 
-    return run(data, options or FitOptions(), fit)
+    return run(data, options or FitOptions(), fit, jobs=jobs)
 
 
 def judge(data: FitData, result: ModelFit, max_mean_delta_e: float | None = None

@@ -115,46 +115,154 @@ def _score(data: FitData, rows: np.ndarray, f: np.ndarray) -> np.ndarray:
     return np.sqrt(np.mean(((f - y) / (np.abs(y) + compressive_floor(data.y))) ** 2, axis=1))
 
 
-def fit_auto(data: FitData, options: FitOptions,
-             fit_one: Callable[[FitData, str, FitOptions], ModelFit],
-             candidates=CANDIDATES) -> tuple[ModelFit, list[Candidate]]:
-    """The best candidate's fit by held-out error, and every candidate's figures."""
+def _candidate(model: str, data: FitData, options: FitOptions, fit_one, scheme: str,
+               held_out) -> Candidate:
+    """One candidate: its fit to all the data and its held-out error."""
     from ..brdf import evaluate
 
+    sw = Stopwatch()
+    try:
+        full = fit_one(data, model, options)
+    except GonioError as exc:
+        return Candidate(model, None, notes=[exc.message])
+    cand = Candidate(model, full)
+    all_rows = np.ones(data.n_configurations, dtype=bool)
+    cand.in_sample_delta_e = float(np.mean(_score(data, all_rows,
+                                                  evaluate(model, data.cos, full.params))))
+    if not full.result.success:
+        cand.notes.append(f"fit failed: {full.result.message}")
+    cand.notes.append(SCHEME_NOTES[scheme])
+    if not held_out:
+        cand.held_out_delta_e = cand.in_sample_delta_e
+    else:
+        errors = []
+        for label, rows in held_out:
+            try:
+                part = fit_one(data.subset(~rows), model, options)
+            except GonioError as exc:
+                cand.notes.append(f"without {label}: {exc.message}")
+                errors = []
+                break
+            sub = data.subset(rows)
+            errors.append(_score(data, rows, evaluate(model, sub.cos, part.params)))
+        if errors:
+            cand.held_out_delta_e = float(np.mean(np.concatenate(errors)))
+    cand.time_s = sw.lap()
+    return cand
+
+
+#: Candidates fitted one after the other in one process: the second starts from the
+#: searches the first left in ``FitOptions.stages`` (the same α and coat, :mod:`.layered`).
+TOGETHER = (("goniochromatic-coat", "goniochromatic-backscatter"),)
+
+#: Rough cost of each candidate's fits, relative (measured on the real datasets of
+#: tests/fixtures/real: the layered models with a coat search take 2-3.5 s each, the
+#: others 0.02-0.6 s): the costliest go first, so the processes end together.
+COST = {"goniochromatic-coat": 3.0, "goniochromatic-backscatter": 2.5,
+        "goniochromatic-undercoat": 3.0}
+
+
+def _groups(candidates) -> list[tuple[str, ...]]:
+    """The candidates as groups to fit in one process each (:data:`TOGETHER`), costliest
+    first (:data:`COST`)."""
+    groups: list[tuple[str, ...]] = []
+    for model in candidates:
+        together = next((t for t in TOGETHER if model in t), (model,))
+        group = tuple(m for m in together if m in candidates)
+        if group not in groups:
+            groups.append(group)
+    return sorted(groups, key=lambda g: -sum(COST.get(m, 0.5) for m in g))
+
+
+#: What the forked processes of :func:`_fit_groups` fit: (groups, work), set before the
+#: fork (inherited, never pickled) and cleared after.
+_SHARED: tuple | None = None
+
+
+def _fit_group(i: int) -> list[Candidate]:
+    groups, (data, options, fit_one, scheme, held_out) = _SHARED
+    return [_candidate(m, data, options, fit_one, scheme, held_out) for m in groups[i]]
+
+
+#: prctl(2) option: the signal a process gets when its parent dies (Linux).
+PR_SET_PDEATHSIG = 1
+
+
+def _child_start(parent: int) -> None:
+    """A forked process ignores Ctrl-C (the parent stops it: one line, no traceback)
+    and is killed with its parent (a ``kill`` or ``make`` stopping ``gonio fit`` leaves
+    no process fitting on, nor its tracebacks when the parent is gone)."""
+    import ctypes
+    import os
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        ctypes.CDLL(None).prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
+    except (OSError, AttributeError):
+        pass
+    if os.getppid() != parent:                 # the parent died before prctl took effect
+        os._exit(1)
+
+
+def can_fork_workers() -> bool:
+    """Whether this process may fit in forked processes: Linux's ``fork`` (cheap: the
+    children have numpy, scipy and the data already; elsewhere forking a process that
+    has loaded system frameworks is unsafe) and not a daemonic process (a Dask worker
+    of ``gonio batch``, which has its own core and may not have children)."""
+    import multiprocessing
+    import sys
+
+    return sys.platform.startswith("linux") and not multiprocessing.current_process().daemon
+
+
+def _fit_groups(groups, work, jobs: int) -> list[Candidate]:
+    """Every group's candidates, in ``jobs`` forked processes (in this one if 1, if there
+    is one group, or if :func:`can_fork_workers` says no). A fit is deterministic, so the
+    figures do not depend on ``jobs``. A process that dies is a one-line error, not a
+    wait without end."""
+    global _SHARED
+    jobs = min(int(jobs), len(groups))
+    if jobs <= 1 or not can_fork_workers():
+        data, options, fit_one, scheme, held_out = work
+        return [_candidate(m, data, options, fit_one, scheme, held_out)
+                for g in groups for m in g]
+    import multiprocessing
+    import os
+    from concurrent.futures import ProcessPoolExecutor
+    from concurrent.futures.process import BrokenProcessPool
+
+    _SHARED = (groups, work)
+    pool = ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("fork"),
+                               initializer=_child_start, initargs=(os.getpid(),))
+    try:
+        done = list(pool.map(_fit_group, range(len(groups))))
+    except BrokenProcessPool:
+        raise GonioError("a process fitting --model auto's candidates died (out of "
+                         "memory, or killed)", fix="run again, or with --jobs 1") from None
+    except BaseException:                      # Ctrl-C: the candidates' processes go too
+        for child in multiprocessing.active_children():
+            child.kill()
+        raise
+    finally:
+        pool.shutdown(wait=False, cancel_futures=True)
+        _SHARED = None
+    return [c for group in done for c in group]
+
+
+def fit_auto(data: FitData, options: FitOptions,
+             fit_one: Callable[[FitData, str, FitOptions], ModelFit],
+             candidates=CANDIDATES, jobs: int = 1) -> tuple[ModelFit, list[Candidate]]:
+    """The best candidate's fit by held-out error, and every candidate's figures.
+
+    ``jobs`` > 1 fits the candidates in that many processes (:func:`_fit_groups`); the
+    figures are the same as with one, only sooner."""
     scheme, held_out = folds(data)
     options = replace(options, stages={})   # shared by the candidates' fits of each fold
-    results: list[Candidate] = []
-    for model in candidates:
-        sw = Stopwatch()
-        try:
-            full = fit_one(data, model, options)
-        except GonioError as exc:
-            results.append(Candidate(model, None, notes=[exc.message]))
-            continue
-        cand = Candidate(model, full)
-        all_rows = np.ones(data.n_configurations, dtype=bool)
-        cand.in_sample_delta_e = float(np.mean(_score(data, all_rows,
-                                                      evaluate(model, data.cos, full.params))))
-        if not full.result.success:
-            cand.notes.append(f"fit failed: {full.result.message}")
-        cand.notes.append(SCHEME_NOTES[scheme])
-        if not held_out:
-            cand.held_out_delta_e = cand.in_sample_delta_e
-        else:
-            errors = []
-            for label, rows in held_out:
-                try:
-                    part = fit_one(data.subset(~rows), model, options)
-                except GonioError as exc:
-                    cand.notes.append(f"without {label}: {exc.message}")
-                    errors = []
-                    break
-                sub = data.subset(rows)
-                errors.append(_score(data, rows, evaluate(model, sub.cos, part.params)))
-            if errors:
-                cand.held_out_delta_e = float(np.mean(np.concatenate(errors)))
-        cand.time_s = sw.lap()
-        results.append(cand)
+    work = (data, options, fit_one, scheme, held_out)
+    groups = _groups(candidates)
+    found = {c.model: c for c in _fit_groups(groups, work, jobs)}
+    results = [found[m] for m in candidates]
     usable = [c for c in results if c.fit is not None and c.fit.result.success
               and np.isfinite(c.held_out_delta_e)]
     if not usable:
