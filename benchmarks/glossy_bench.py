@@ -405,19 +405,24 @@ def mirror_resolution(meas: dict, model: dict) -> dict:
 
 
 def gonio(gonio_path: str, *args):
+    # cwd = gonio_path: ``python -m`` puts the working directory first on sys.path, so a
+    # checkout there would shadow PYTHONPATH
     env = dict(os.environ, PYTHONPATH=gonio_path)
     t0 = time.perf_counter()
     p = subprocess.run([sys.executable, "-m", "gonio_cli", *args], env=env,
-                       capture_output=True, text=True)
+                       capture_output=True, text=True, cwd=gonio_path)
     return p, time.perf_counter() - t0
 
 
-def registry(gonio_path: str) -> list[str]:
+def registry(gonio_path: str) -> tuple[list[str], str]:
+    """(the models of the gonio under test, where its gonio_cli package was imported from)"""
     env = dict(os.environ, PYTHONPATH=gonio_path)
     p = subprocess.run([sys.executable, "-c",
-                        "from gonio_cli.fit import FITTERS; print(' '.join(FITTERS))"],
-                       env=env, capture_output=True, text=True, check=True)
-    return p.stdout.split()
+                        "import gonio_cli; from gonio_cli.fit import FITTERS; "
+                        "print(gonio_cli.__file__); print(' '.join(FITTERS))"],
+                       env=env, capture_output=True, text=True, check=True, cwd=gonio_path)
+    where, names = p.stdout.splitlines()[:2]
+    return names.split(), where
 
 
 def verdict_line(stderr: str) -> str:
@@ -536,8 +541,14 @@ def main(argv=None) -> int:
                     help="check the slicing against closed forms first")
     ap.add_argument("--json", help="write all results here")
     a = ap.parse_args(argv)
-    out = Path(a.out)
+    a.gonio_path = str(Path(a.gonio_path).resolve())
+    out = Path(a.out).resolve()
     out.mkdir(parents=True, exist_ok=True)
+    models, where = registry(a.gonio_path)
+    print(f"gonio under test: {where}")
+    if not where.startswith(a.gonio_path + os.sep):
+        print(f"--gonio-path {a.gonio_path} is not what Python imports ({where})")
+        return 1
     if a.check:
         fails = check()
         if fails:
@@ -546,8 +557,8 @@ def main(argv=None) -> int:
     jobs = [(n, make_csv(n, out)) for n in a.materials.split(",") if n]
     for item in a.extra_csv:
         n, _, p = item.partition("=")
-        jobs.append((n, Path(p)))
-    models = registry(a.gonio_path) if a.per_model else []
+        jobs.append((n, Path(p).resolve()))
+    models = models if a.per_model else []
     results = []
     for n, csv in jobs:
         r = run_one(n, csv, out, a.gonio_path, a.per_model, models)
@@ -558,7 +569,7 @@ def main(argv=None) -> int:
                  if m else r.get("error", "")), flush=True)
         print("   " + r.get("verdict_line", ""), flush=True)
     print()
-    print(f"gonio: {a.gonio_path}")
+    print(f"gonio: {where}")
     print(table(results))
     if a.per_model:
         print()
