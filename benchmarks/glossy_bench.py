@@ -34,7 +34,7 @@ registry is also fitted alone and scored, to see which the metric would have pre
 
 Example::
 
-    /work/main/.venv/bin/python benchmarks/glossy_bench.py --gonio-path . --out /tmp/gb \\
+    .venv/bin/python benchmarks/glossy_bench.py --gonio-path . --out /tmp/gb \\
         --per-model --check --extra-csv wrap=PATH/TO/rgl_wrap_inplane.csv
 """
 
@@ -336,7 +336,7 @@ def check(verbose=True) -> list[str]:
 
 
 class Metric:
-    """Issue 12's glossy metric (as /tmp/r12/metric.py states it): at theta_o = theta_i,
+    """Issue 12's glossy metric (as the issue states its hidden check): at theta_o = theta_i,
     theta_i + 10, theta_i - 20 per theta_i, model and data scaled so the data's Y = 0.5,
     CIEDE2000 (D65, CIE 1964 10 deg); mirror-peak Y ratio model/data at theta_o = theta_i."""
 

@@ -403,3 +403,30 @@ def test_jobs_below_one_is_refused_in_one_line(run_gonio, tmp_path):
     assert res.exit_code == 2 and not out.exists()
     assert res.stderr.strip().splitlines() == [
         "gonio: error: --jobs 0 is not a number of processes; give N >= 1"]
+
+
+def rgl_like_geometry():
+    """An RGL slice's grid (tests/fixtures/real/README.md): θi 10-70° by 10, θo −80-85° by
+    5 plus θi ± 1, 2, 3° around the mirror."""
+    ti, to = [], []
+    for t in range(10, 80, 10):
+        for o in sorted(set(range(-80, 90, 5)) | {t + d for d in (-3, -2, -1, 0, 1, 2, 3)}):
+            ti.append(float(t))
+            to.append(float(o))
+    return np.array(ti), np.array(to)
+
+
+@pytest.mark.parametrize("model", ["goniochromatic-coat", "goniochromatic-undercoat"])
+def test_a_sharp_coat_over_broad_coloured_flakes_comes_back_unswapped(model):
+    # a car paint: a smooth clear coat (α_coat 0.015) over a broad coloured lobe (α 0.25).
+    # The coat is never rougher than the lobe under it (fit.layered._coat); a free search
+    # could end with the two swapped, a broad grey "coat" over a sharp coloured lobe.
+    rho, c = ink_spectra("red")
+    p = {"alpha": 0.25, "rho": rho, "c": c, "rho_d": 0.02 + 0.05 * rho,
+         "alpha_coat": 0.015, "k_coat": 1.0, "f0_coat": 0.04}
+    ti, to = rgl_like_geometry()
+    m = synthetic_measurement(model, p, ti, to, noise=0.01, seed=5)
+    got = fit(prepare(m, residuals="compressive"), model, FitOptions()).params
+    assert got["alpha_coat"] <= got["alpha"]
+    assert got["alpha"] == pytest.approx(p["alpha"], rel=0.05)
+    assert got["alpha_coat"] == pytest.approx(p["alpha_coat"], rel=0.05)

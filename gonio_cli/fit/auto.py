@@ -27,7 +27,7 @@ import numpy as np
 
 from ..errors import GonioError
 from .common import FitData, FitOptions, ModelFit, Stopwatch, compressive_floor
-from .verdict import colour_errors, covers_colour
+from .verdict import THRESHOLDS, colour_errors, covers_colour, fit_colour_errors
 
 #: Models ``auto`` tries, cheapest first (a tie keeps the earlier, simpler one).
 CANDIDATES = ("goniochromatic", "goniochromatic-diffuse", "torrance-sparrow",
@@ -95,6 +95,8 @@ class Candidate:
     in_sample_delta_e: float = float("inf")
     time_s: float = 0.0
     notes: list[str] = field(default_factory=list)
+    #: the in-sample mirror peaks within the verdict's 0.75-1.33 (None: no mirror measured)
+    peaks_match: bool | None = None
 
     def to_dict(self) -> dict[str, Any]:
         def num(v):
@@ -102,7 +104,7 @@ class Candidate:
         return {"model": self.model, "held_out_delta_e2000_mean": num(self.held_out_delta_e),
                 "delta_e2000_mean": num(self.in_sample_delta_e), "time_s": self.time_s,
                 "status": (self.fit.result.status if self.fit else "failed"),
-                "notes": self.notes}
+                "mirror_peaks_match": self.peaks_match, "notes": self.notes}
 
 
 def _score(data: FitData, rows: np.ndarray, f: np.ndarray) -> np.ndarray:
@@ -127,8 +129,16 @@ def _candidate(model: str, data: FitData, options: FitOptions, fit_one, scheme: 
         return Candidate(model, None, notes=[exc.message])
     cand = Candidate(model, full)
     all_rows = np.ones(data.n_configurations, dtype=bool)
-    cand.in_sample_delta_e = float(np.mean(_score(data, all_rows,
-                                                  evaluate(model, data.cos, full.params))))
+    f = evaluate(model, data.cos, full.params)
+    cand.in_sample_delta_e = float(np.mean(_score(data, all_rows, f)))
+    colour = fit_colour_errors(data, f)
+    if colour is not None and colour.peak_ratio:
+        ratios = list(colour.peak_ratio.values())
+        lo, hi = THRESHOLDS["peak_ratio_min"], THRESHOLDS["peak_ratio_max"]
+        cand.peaks_match = bool(lo <= min(ratios) and max(ratios) <= hi)
+        if not cand.peaks_match:
+            cand.notes.append(f"mirror peak x{min(ratios):.2f}-{max(ratios):.2f} of the data, "
+                              f"outside {lo:g}-{hi:.2f}: ranked after the candidates within")
     if not full.result.success:
         cand.notes.append(f"fit failed: {full.result.message}")
     cand.notes.append(SCHEME_NOTES[scheme])
@@ -270,5 +280,7 @@ def fit_auto(data: FitData, options: FitOptions,
     if not usable:
         raise GonioError("no model could be fitted: " + "; ".join(
             f"{c.model}: {' '.join(c.notes)}" for c in results))
-    best = min(usable, key=lambda c: c.held_out_delta_e)
+    # a highlight off by more than the verdict allows is not one to render: such a
+    # candidate wins only if no candidate matches the mirror peaks
+    best = min(usable, key=lambda c: (c.peaks_match is False, c.held_out_delta_e))
     return best.fit, results

@@ -143,23 +143,35 @@ class Layered:
         return float(np.sum(cost[self.signal]))
 
 
-def _search_coat(problem: Layered, alpha0: float):
+def _coat(v) -> tuple[float, tuple[float, float, float]]:
+    """(α, (α_coat, k_coat, F0_coat)) of a search point (log α, log α_coat, k_coat,
+    F0_coat, …), the coat never rougher than eq. 5's lobe: α_coat = min(α_coat, α). The
+    clear coat is the smooth, achromatic surface over a rougher coloured layer; left free,
+    a search can swap the two, a broad grey "coat" over a sharp coloured lobe: on a car
+    paint of a coat α 0.015 over red flakes α 0.25 (benchmarks/glossy_bench.py,
+    paint_ml_red) it ended at α 0.016, α_coat 0.24, F0_coat 0.27 and greyed the flakes."""
+    alpha = float(np.exp(v[0]))
+    return alpha, (min(float(np.exp(v[1])), alpha), float(v[2]), float(v[3]))
+
+
+def _search_coat(problem: Layered, alpha0: float, sharpest: float | None = None):
     """(α, (α_coat, k_coat, F0_coat), evaluations, message) minimising the profile cost:
     a coarse look at the coat from ``alpha0`` (the fit without it), then BOBYQA in
-    (log α, log α_coat, k_coat, F0_coat)."""
+    (log α, log α_coat, k_coat, F0_coat). The look includes the coat as sharp as the
+    sharpest peak in the data (``sharpest``, in the measured angles; default ``alpha0``)
+    under each broader lobe: that peak is most often the coat's (a car paint's clear coat
+    over its flakes)."""
+    sharpest = alpha0 if sharpest is None else sharpest
     lo = np.array([np.log(ALPHA_MIN), np.log(ALPHA_MIN), 0.0, F0_COAT_MIN])
     hi = np.array([np.log(ALPHA_MAX), np.log(ALPHA_MAX), K_COAT_MAX, 1.0])
-    search = BestPoint(lambda v: problem.cost(
-        float(np.exp(v[0])), (float(np.exp(v[1])), float(v[2]), float(v[3]))))
+    search = BestPoint(lambda v: problem.cost(*_coat(v)))
     for a in (alpha0,) + ALPHA_STARTS:
-        for ac in ALPHA_COAT_STARTS:
+        for ac in ALPHA_COAT_STARTS + ((sharpest,) if a > sharpest else ()):
             for k in K_COAT_STARTS:
                 search([np.log(a), np.log(ac), k, F0_COAT_START])
     message = search.bobyqa(lo, hi, [0.3, 0.5, 0.1, 0.02], COAT_MAXEVAL,
                             xtol_abs=[1e-6, 1e-6, 1e-7, 1e-7])
-    v = search.x
-    return (float(np.exp(v[0])), (float(np.exp(v[1])), float(v[2]), float(v[3])),
-            search.n, message)
+    return (*_coat(search.x), search.n, message)
 
 
 def _search_backscatter(problem: Layered, alpha0: float, coat0):
@@ -168,17 +180,14 @@ def _search_backscatter(problem: Layered, alpha0: float, coat0):
     F0_coat, B0, log h)."""
     lo = np.array([np.log(ALPHA_MIN), np.log(ALPHA_MIN), 0.0, F0_COAT_MIN, 0.0, np.log(H_MIN)])
     hi = np.array([np.log(ALPHA_MAX), np.log(ALPHA_MAX), K_COAT_MAX, 1.0, B0_MAX, np.log(H_MAX)])
-    search = BestPoint(lambda v: problem.cost(
-        float(np.exp(v[0])), (float(np.exp(v[1])), float(v[2]), float(v[3])),
-        (float(v[4]), float(np.exp(v[5])))))
+    search = BestPoint(lambda v: problem.cost(*_coat(v), (float(v[4]), float(np.exp(v[5])))))
     start = [np.log(alpha0), np.log(coat0[0]), coat0[1], coat0[2]]
     for b0, h in BACKSCATTER_STARTS:
         search(start + [b0, np.log(h)])
     message = search.bobyqa(lo, hi, [0.2, 0.3, 0.1, 0.02, 0.1, 0.5], BACKSCATTER_MAXEVAL,
                             xtol_abs=[1e-6, 1e-6, 1e-7, 1e-7, 1e-6, 1e-6])
     v = search.x
-    return (float(np.exp(v[0])), (float(np.exp(v[1])), float(v[2]), float(v[3])),
-            (float(v[4]), float(np.exp(v[5]))), search.n, message)
+    return (*_coat(v), (float(v[4]), float(np.exp(v[5]))), search.n, message)
 
 
 def _stage_key(data: FitData, options: FitOptions, coat: str) -> bytes:
@@ -235,8 +244,11 @@ def fit_layered(data: FitData, options: FitOptions, coat: bool,
                                                     search.message, search.success)
         coat_params = None
         if coat:
+            # under the coat, eq. 5's α0 is a width in the refracted angles, which are
+            # 1/n of the measured ones near the normal: the peak is n α0 wide outside
             alpha, coat_params, n, message = _search_coat(
-                Layered(data, coat=True, undercoat=undercoat), alpha)
+                Layered(data, coat=True, undercoat=undercoat), alpha,
+                alpha * UNDERCOAT_INDEX if undercoat else alpha)
             evaluations += n
         memo[key] = (alpha, coat_params, evaluations, message, success)
     back = None
