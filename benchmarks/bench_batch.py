@@ -16,7 +16,7 @@ processes timed by :mod:`process` (GNU time), best of ``--repeats``:
 Prints the wall times, the speed-up of 2 workers over 1 (target ≥ 1.6 on 2 idle cores;
 best of each, and each alternated pair's ratio), what two renders at once cost each other
 on the machine at that moment (in-process medians: one render alone, then two processes
-at once; their ratio bounds the speed-up), and the per-job overhead of a separate
+at once; the speed-up follows their ratio), and the per-job overhead of a separate
 process: (3 − the jobs' own time in 2) / 30. At 384² the jobs take ~3 s in all and a
 run's fixed cost (~1.3 s: Dask's import and local cluster, each worker's first gonio
 import) caps the speed-up; at 1024² the work dominates.
@@ -133,7 +133,7 @@ def one_size(gonio: str, tmp: Path, size: int, repeats: int) -> None:
     print(f"  the machine now: one {size}² render {alone * 1e3:.0f} ms alone, "
           f"{together * 1e3:.0f} ms each with two at once ({together / alone:.2f}x; on idle "
           f"cores only what the two share slows them: memory bandwidth and caches), so 2 "
-          f"workers can be at most {2 * alone / together:.2f}x as fast as 1 on the renders")
+          f"workers can be about {2 * alone / together:.2f}x as fast as 1 on the renders")
     print(f"  per-job overhead of a separate process: {(separate - job_s) / n * 1e3:.0f} ms "
           f"({n} processes {separate:.2f} s against {job_s:.2f} s of work in the workers)")
 
