@@ -79,7 +79,7 @@ print(statistics.median(times[1:]))
 def contention(warm: Path, size: int) -> tuple[float, float]:
     """(s alone, s each with two at once) of the plan's sphere render at ``size``² ssaa 2,
     in-process medians: how much two jobs at once slow each other on this machine now (on
-    a virtual machine this moves with the host's load, and bounds the speed-up)."""
+    a virtual machine this moves with the host's load, and sets the speed-up)."""
     import subprocess
 
     scene = warm.parent / f"data{size}" / "batch" / "scenes" / "sphere.toml"
