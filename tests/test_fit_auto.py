@@ -151,7 +151,7 @@ def test_a_candidate_that_misses_the_mirror_peaks_wins_only_if_every_one_does(mo
 def test_auto_records_whether_each_candidate_matches_the_mirror_peaks():
     # the RGL-like grid has mirror configurations: every candidate says; the MA-T12 has
     # none: None
-    from tests.test_fit_real import rgl_like_geometry
+    from recovery import rgl_like_geometry
 
     rho, c = ink_spectra("green")
     p = {"alpha": 0.15, "rho": rho, "c": c, "rho_d": 0.05 + 0.1 * rho}

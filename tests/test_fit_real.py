@@ -23,6 +23,8 @@ from gonio_cli.geometry import in_plane_cosines
 from gonio_cli.schemas import read_material, write_material, write_measurement
 from gonio_cli.synthetic import ink_spectra, paper_geometry, synthetic_measurement
 
+from recovery import rgl_like_geometry
+
 FIXTURES = Path(__file__).parent / "fixtures" / "real"
 
 
@@ -403,17 +405,6 @@ def test_jobs_below_one_is_refused_in_one_line(run_gonio, tmp_path):
     assert res.exit_code == 2 and not out.exists()
     assert res.stderr.strip().splitlines() == [
         "gonio: error: --jobs 0 is not a number of processes; give N >= 1"]
-
-
-def rgl_like_geometry():
-    """An RGL slice's grid (tests/fixtures/real/README.md): θi 10-70° by 10, θo −80-85° by
-    5 plus θi ± 1, 2, 3° around the mirror."""
-    ti, to = [], []
-    for t in range(10, 80, 10):
-        for o in sorted(set(range(-80, 90, 5)) | {t + d for d in (-3, -2, -1, 0, 1, 2, 3)}):
-            ti.append(float(t))
-            to.append(float(o))
-    return np.array(ti), np.array(to)
 
 
 @pytest.mark.parametrize("model", ["goniochromatic-coat", "goniochromatic-undercoat"])
