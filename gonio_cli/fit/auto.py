@@ -165,9 +165,9 @@ def _candidate(model: str, data: FitData, options: FitOptions, fit_one, scheme: 
 #: searches the first left in ``FitOptions.stages`` (the same α and coat, :mod:`.layered`).
 TOGETHER = (("goniochromatic-coat", "goniochromatic-backscatter"),)
 
-#: Rough cost of each candidate's fits, relative (measured on the real datasets of
-#: tests/fixtures/real: the layered models with a coat search take 2-3.5 s each, the
-#: others 0.02-0.6 s): the costliest go first, so the processes end together.
+#: Rough cost of each candidate's fits, relative (measured on an MA-T12 matte pigment and
+#: an RGL wrap, all folds: the layered models with a coat search 1.8-3.5 s each, the
+#: others 0.02-0.6 s; unlisted: 0.5): the costliest go first, so the processes end together.
 COST = {"goniochromatic-coat": 3.0, "goniochromatic-backscatter": 2.5,
         "goniochromatic-undercoat": 3.0}
 
