@@ -130,8 +130,9 @@ def _candidate(model: str, data: FitData, options: FitOptions, fit_one, scheme: 
     cand = Candidate(model, full)
     all_rows = np.ones(data.n_configurations, dtype=bool)
     f = evaluate(model, data.cos, full.params)
-    cand.in_sample_delta_e = float(np.mean(_score(data, all_rows, f)))
-    colour = fit_colour_errors(data, f)
+    colour = fit_colour_errors(data, f)       # what _score gives on all rows, and the peaks
+    cand.in_sample_delta_e = float(np.mean(colour.delta_e if colour is not None
+                                           else _score(data, all_rows, f)))
     if colour is not None and colour.peak_ratio:
         ratios = list(colour.peak_ratio.values())
         lo, hi = THRESHOLDS["peak_ratio_min"], THRESHOLDS["peak_ratio_max"]
