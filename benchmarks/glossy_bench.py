@@ -194,11 +194,10 @@ def eval_rgb(spec: dict, ti_deg, to_deg) -> np.ndarray:
 
 def basis(grid_nm=GRID_NM) -> np.ndarray:
     """(n_lambda, 3) Mallett-Yuksel 2019 sRGB basis on grid_nm: spectrum = basis @ rgb
-    (what colour.recovery.RGB_to_sd_Mallett2019 computes, without an illuminant)."""
-    import colour
+    (gonio's RGB -> spectrum, :func:`gonio_cli.spectra.rgb_reflectance_basis`)."""
+    from gonio_cli.spectra import rgb_reflectance_basis
 
-    b = colour.recovery.MSDS_BASIS_FUNCTIONS_sRGB_MALLETT2019
-    return np.stack([np.interp(grid_nm, b.wavelengths, b.values[:, k]) for k in range(3)], -1)
+    return rgb_reflectance_basis(grid_nm)
 
 
 def write_csv(path: Path, note: str, ti, to, spectra) -> None:
@@ -236,14 +235,15 @@ def fresnel_dielectric(cos_i, eta):
 
 
 def ggx_d(cos_h, alpha):
-    c2 = cos_h ** 2
-    t2 = (1 - c2) / c2
-    return 1 / (math.pi * alpha ** 2 * c2 ** 2 * (1 + t2 / alpha ** 2) ** 2)
+    from gonio_cli.brdf import ggx_d as d
+
+    return d(cos_h, alpha)
 
 
 def smith_g1(cos_t, alpha):
-    t2 = (1 - cos_t ** 2) / cos_t ** 2
-    return 2 / (1 + np.sqrt(1 + alpha ** 2 * t2))
+    from gonio_cli.brdf import smith_g1_ggx
+
+    return smith_g1_ggx(cos_t, alpha)
 
 
 def internal_diffuse_reflectance(eta, n=20000):
