@@ -6,6 +6,12 @@ data and model can be compared row for row in any tool that reads ``gonio.measur
 The model is evaluated once per configuration through :meth:`Material.evaluate` (the
 one code path of :mod:`gonio_cli.brdf`); nothing is resampled: a material on another
 spectral grid is refused.
+
+A material fitted with light-source gains (:mod:`gonio_cli.fit.gains`: one per angle of
+incidence of a multi-angle instrument) models its measurement as g(θi) f: ``sweep_gain``
+``auto`` applies them where the measurement's angles of incidence all have one (the
+output then compares with the instrument's readings), ``on`` requires that, ``off`` gives
+the BRDF f alone.
 """
 
 from __future__ import annotations
@@ -42,15 +48,42 @@ def check_same_grid(material: Material, measurement: Measurement, *,
                      path=measurement_path, fix=fix)
 
 
+def gains_for(material: Material, measurement: Measurement, sweep_gain: str = "auto", *,
+              material_path=None, measurement_path=None):
+    """The material's light-source gains to apply at ``measurement`` (a
+    :class:`~gonio_cli.fit.gains.SweepGains`), or None (``sweep_gain`` as the module doc)."""
+    from .fit.gains import SweepGains
+
+    stored = (material.fit or {}).get("sweep_gain")
+    if sweep_gain == "off" or (stored is None and sweep_gain == "auto"):
+        return None
+    if stored is None:
+        raise InputError("--sweep-gain on: the material has no light-source gains (it was "
+                         "fitted without them)", path=material_path,
+                         fix="use --sweep-gain auto or off")
+    gains = SweepGains.from_dict(stored, path=material_path)
+    if gains.covers(measurement.theta_i_deg):
+        return gains
+    if sweep_gain == "on":
+        missing = sorted({float(t) for t in measurement.theta_i_deg
+                          if not gains.covers([t])})
+        raise InputError(f"--sweep-gain on: the material has gains at theta_i "
+                         f"{', '.join(f'{t:g}' for t in gains.theta_i_deg)} only, not at "
+                         f"{', '.join(f'{t:g}' for t in missing)}", path=measurement_path,
+                         fix="use --sweep-gain auto or off for the BRDF alone")
+    return None
+
+
 def evaluate_at(material: Material, measurement: Measurement, *, material_path=None,
-                measurement_path=None) -> Measurement:
+                measurement_path=None, gains=None) -> Measurement:
     """The model of ``material`` at every configuration of ``measurement``.
 
     Returns
     -------
     Measurement
         Same ``wavelength_nm`` (n_λ,), ``theta_i_deg`` and ``theta_o_deg`` (n_cfg,) as
-        ``measurement``; ``brdf`` (n_cfg, n_λ) the model in sr⁻¹ (no cosine factor);
+        ``measurement``; ``brdf`` (n_cfg, n_λ) the model in sr⁻¹ (no cosine factor),
+        times ``gains`` (:func:`gains_for`) per angle of incidence when given;
         no ``brdf_std``; ``n_repeats`` 1; quantity ``brdf``; ``summary`` naming the model.
 
     Raises
@@ -61,12 +94,15 @@ def evaluate_at(material: Material, measurement: Measurement, *, material_path=N
     check_same_grid(material, measurement, material_path=material_path,
                     measurement_path=measurement_path)
     f = material.evaluate(in_plane_cosines(measurement.theta_i_deg, measurement.theta_o_deg))
+    if gains is not None:
+        f = f * gains.per_configuration(measurement.theta_i_deg)[:, None]
     n = measurement.n_configurations
     return Measurement(measurement.wavelength_nm.copy(), measurement.theta_i_deg.copy(),
                        measurement.theta_o_deg.copy(), np.asarray(f, dtype=float), None,
                        np.ones(n, dtype=int), "brdf",
                        {"model": material.model, "material_status": material.status,
                         "configurations": n,
+                        "sweep_gain": gains.to_dict() if gains is not None else None,
                         "brdf_min_per_sr": float(np.min(f)) if f.size else 0.0,
                         "brdf_max_per_sr": float(np.max(f)) if f.size else 0.0})
 

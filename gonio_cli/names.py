@@ -36,6 +36,8 @@ OPTIMIZERS_BY_MODEL = {
 }
 #: Every ``--optimizer`` value, in order of first appearance.
 OPTIMIZER_NAMES = tuple(dict.fromkeys(n for v in OPTIMIZERS_BY_MODEL.values() for n in v))
+#: ``--sweep-gain`` (gonio fit, gonio eval): :data:`gonio_cli.fit.gains.CHOICES`.
+SWEEP_GAIN_NAMES = ("auto", "on", "off")
 
 # ------------------------------------------------------------------------- gonio render --
 

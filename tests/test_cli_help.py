@@ -176,7 +176,7 @@ def _registries():
     cores are imported here, never by the shells' help."""
     from gonio_cli import fit, imageio, lobes, names, prefilter, report, sparkle
     from gonio_cli.commands import halftone as halftone_shell
-    from gonio_cli.fit import common, goniochromatic
+    from gonio_cli.fit import common, gains, goniochromatic
     from gonio_cli.halftone import METHODS, coverage
     from gonio_cli.render import shade, scene, tonemap
 
@@ -185,6 +185,8 @@ def _registries():
         ("fit", "--model", names.FIT_MODEL_CHOICES, tuple(fit.FITTERS) + (fit.AUTO,)),
         ("fit", "--step2", names.STEP2_NAMES, goniochromatic.STEP2_MODES),
         ("fit", "--residuals", names.RESIDUAL_NAMES, common.RESIDUALS),
+        ("fit", "--sweep-gain", names.SWEEP_GAIN_NAMES, gains.CHOICES),
+        ("eval", "--sweep-gain", names.SWEEP_GAIN_NAMES, gains.CHOICES),
         ("fit", "--optimizer", names.OPTIMIZER_NAMES,
          tuple(dict.fromkeys(k for v in fit.OPTIMIZERS_BY_MODEL.values() for k in v))),
         ("render", "--spectral", names.SPECTRAL_PATHS, shade.SPECTRAL_PATHS),

@@ -7,6 +7,8 @@ from typing import Optional
 
 import typer
 
+from ..names import SWEEP_GAIN_NAMES, metavar
+
 
 def evaluate(
     material: Path = typer.Argument(..., metavar="MATERIAL.json", show_default=False,
@@ -16,6 +18,11 @@ def evaluate(
                                  "configurations and spectral grid the model is evaluated at."),
     output: Path = typer.Option(..., "--output", "-o", metavar="OUT.json",
                                 help="The gonio.measurement file to write (quantity brdf)."),
+    sweep_gain: str = typer.Option(
+        "auto", "--sweep-gain", metavar=metavar(SWEEP_GAIN_NAMES),
+        help="A material fitted with light-source gains (gonio fit --sweep-gain): auto "
+             "applies them where the measurement's angles of incidence have one, so the "
+             "output compares with the instrument; off: the BRDF alone."),
     plot: Optional[Path] = typer.Option(None, "--plot", metavar="FILE.png",
                                         help="Also draw data against model (seed 000 "
                                              "Figure 4 layout, PNG)."),
@@ -31,10 +38,12 @@ def evaluate(
     """
     from .. import log
     from ..errors import InputError
-    from ..evaluate import evaluate_at, model_parameters
+    from ..evaluate import evaluate_at, gains_for, model_parameters
+    from ..names import pick
     from ..schemas import read_material, read_measurement, write_measurement
     from . import require_files
 
+    pick(SWEEP_GAIN_NAMES, sweep_gain, "--sweep-gain")
     require_files([material], missing_fix="check the path or make it with gonio fit")
     require_files([at], missing_fix="check the path or make it with gonio ingest")
     for flag, path in (("-o", output), ("--plot", plot)):
@@ -55,16 +64,22 @@ def evaluate(
     if mat.status == "failed":  # a poor fit is what eval is for: comparing it with data
         log.warn(f"{material}: a fit with status {mat.status!r} is evaluated")
     with log.timer() as t:
-        model = evaluate_at(mat, data, material_path=material, measurement_path=at)
-    parameters = {"material": str(material), "at": str(at), **model_parameters(mat)}
+        gains = gains_for(mat, data, sweep_gain, material_path=material, measurement_path=at)
+        model = evaluate_at(mat, data, material_path=material, measurement_path=at,
+                            gains=gains)
+    parameters = {"material": str(material), "at": str(at), "sweep_gain": sweep_gain,
+                  **model_parameters(mat)}
     write_measurement(output, model, inputs=[material, at], parameters=parameters,
                       time_s=t["time_s"])
     if plot is not None:
         from ..fit.plot import plot_fit
 
-        plot_fit(plot, data, mat, title=f"{at.name} against {material.name} ({mat.model})")
+        plot_fit(plot, data, mat, title=f"{at.name} against {material.name} ({mat.model})",
+                 gains=gains)
+    applied = (f", times the material's light-source gains ({gains.text()}; --sweep-gain "
+               f"off for the BRDF alone)" if gains is not None else "")
     log.info(f"{output}: {mat.model} at {data.n_configurations} configurations x "
-             f"{data.wavelength_nm.size} wavelengths of {at}")
+             f"{data.wavelength_nm.size} wavelengths of {at}{applied}")
 
 
 def _same_file(a: Path, b: Path) -> bool:

@@ -8,7 +8,8 @@ from typing import List, Optional
 import typer
 
 from ..names import FIT_MODEL_CHOICES as MODEL_NAMES
-from ..names import OPTIMIZER_NAMES, OPTIMIZERS_BY_MODEL, RESIDUAL_NAMES, STEP2_NAMES, metavar
+from ..names import (OPTIMIZER_NAMES, OPTIMIZERS_BY_MODEL, RESIDUAL_NAMES, STEP2_NAMES,
+                     SWEEP_GAIN_NAMES, metavar)
 
 #: The default model; only its poor fits try the other models for a hint (a model chosen
 #: on purpose, e.g. the standard model for a comparison, is not second-guessed).
@@ -41,6 +42,10 @@ def fit(
         "compressive", "--residuals", metavar=metavar(RESIDUAL_NAMES),
         help="compressive (peak and tail alike, default), log (multiplicative noise) or "
              "linear."),
+    sweep_gain: str = typer.Option(
+        "auto", "--sweep-gain", metavar=metavar(SWEEP_GAIN_NAMES),
+        help="One gain per angle of incidence, fitted with the model (separately "
+             "calibrated lamps); auto: for a multi-angle instrument's file (docs/fit.md)."),
     std_weights: bool = typer.Option(True, "--std-weights/--no-std-weights",
                                      help="Weight by brdf_std of the repeats when present."),
     optimizer: Optional[str] = typer.Option(
@@ -80,7 +85,9 @@ def fit(
     from ..fit import check_options, judge, to_material
     from ..fit import fit as run_fit
     from ..fit import fit_auto
+    from ..fit import gains as sweep_gains
     from ..fit.common import FitOptions, prepare
+    from ..names import pick
     from ..schemas import read_measurement, write_material
     from . import require_files
 
@@ -88,6 +95,7 @@ def fit(
     if on_failure not in ("error", "write"):
         raise InputError(f"--on-failure {on_failure!r} is unknown", fix="use error or write")
     check_options(model, optimizer)
+    pick(SWEEP_GAIN_NAMES, sweep_gain, "--sweep-gain")
     if jobs is not None and jobs < 1:
         raise InputError(f"--jobs {jobs} is not a number of processes", fix="give N >= 1")
     if max_error is not None and not (max_error > 0 and max_error < 1e3):
@@ -103,18 +111,32 @@ def fit(
         data = prepare(m, residuals=residuals, exclude_theta_i_deg=exclude_theta_i,
                        exclude_theta_o_deg=exclude_theta_o, weights=w,
                        use_std=std_weights, path=measurement)
+        why = sweep_gains.wanted(sweep_gain, m, data, path=measurement)
+        gains = None
         if model == "auto":
             from ..machine import cpu_count
 
-            result, candidates = _named(fit_auto, measurement)(
-                data, options, jobs=jobs if jobs is not None else cpu_count())
+            n_jobs = jobs if jobs is not None else cpu_count()
+            if why:
+                result, candidates, gains = sweep_gains.fit_auto_with_gains(
+                    data, options, lambda d: _named(fit_auto, measurement)(d, options,
+                                                                          jobs=n_jobs),
+                    _named(run_fit, measurement), why)
+            else:
+                result, candidates = _named(fit_auto, measurement)(data, options,
+                                                                   jobs=n_jobs)
             from ..fit.auto import criterion
 
             extra["auto"] = {"criterion": criterion(data), "chosen": result.model,
                              "candidates": [c.to_dict() for c in candidates]}
+        elif why:
+            result, gains = sweep_gains.fit_with_gains(data, model, options,
+                                                       _named(run_fit, measurement), why)
         else:
             result = _named(run_fit, measurement)(data, model, options)
-        judgement = judge(data, result, max_error)
+        if gains is not None:
+            extra["sweep_gain"] = gains.to_dict()
+        judgement = judge(data, result, max_error, gains)
     final = result.result
     if not final.success:
         if on_failure == "error":
@@ -133,7 +155,8 @@ def fit(
                   "exclude_theta_i_deg": list(exclude_theta_i),
                   "exclude_theta_o_deg": list(exclude_theta_o),
                   "weights": str(weights) if weights is not None else None,
-                  "residuals": residuals, "std_weights": std_weights, "optimizer": optimizer,
+                  "residuals": residuals, "sweep_gain": sweep_gain,
+                  "std_weights": std_weights, "optimizer": optimizer,
                   "alpha": alpha, "max_error": max_error, "on_failure": on_failure}
     inputs = [measurement] + ([weights] if weights is not None else [])
     write_material(output, material, inputs=inputs, parameters=parameters,
@@ -142,14 +165,14 @@ def fit(
         from ..fit.plot import plot_fit
 
         plot_fit(plot, m, material, title=f"{Path(measurement).name}: {result.model}",
-                 excluded_theta_i_deg=exclude_theta_i)
+                 excluded_theta_i_deg=exclude_theta_i, gains=gains)
     log.info(summary_line(output, result))
     if model == "auto":
         log.info(auto_line(extra["auto"]))
     log.info(verdict_line(output, result, judgement))
     if judgement["verdict"] == "poor" and model == DEFAULT_MODEL:
         # the product's own model: say whether another one does better (fits them all)
-        hint = better_model_hint(data, result, judgement, options)
+        hint = better_model_hint(data, result, judgement, options, gains)
         if hint:
             log.info(hint)
 
@@ -253,25 +276,28 @@ def auto_line(auto: dict) -> str:
     return f"auto: held-out CIEDE2000 mean: {', '.join(parts)}; chose {auto['chosen']}"
 
 
-def better_model_hint(data, result, judgement: dict, options) -> str | None:
-    """For a poor fit: the other models' in-sample colour error, if one does better."""
+def better_model_hint(data, result, judgement: dict, options, gains=None) -> str | None:
+    """For a poor fit: the other models' in-sample colour error, if one does better
+    (with the fit's light-source ``gains``, each on the data divided by them)."""
     import numpy as np
 
     from ..errors import GonioError
     from ..fit import FITTERS, judge
     from ..fit import fit as run_fit
+    from ..fit.gains import scaled
 
     if "delta_e2000_mean" not in judgement:
         return None
     best = (judgement["delta_e2000_mean"], result.model)
+    seen = data if gains is None else scaled(data, gains.per_configuration(data.theta_i_deg))
     for name in FITTERS:
         if name == result.model:
             continue
         try:
-            other = run_fit(data, name, options)
+            other = run_fit(seen, name, options)
         except GonioError:
             continue
-        j = judge(data, other)
+        j = judge(data, other, gains=gains)
         if other.result.success and np.isfinite(j.get("delta_e2000_mean", np.inf)) \
                 and j["delta_e2000_mean"] < best[0]:
             best = (j["delta_e2000_mean"], name)

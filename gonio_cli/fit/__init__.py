@@ -17,17 +17,21 @@ The registry :data:`FITTERS` maps a model name (``--model``) to its fitter; each
   (a clear coat and flake lobes), kd(λ), F0(λ); :mod:`.cook_torrance_lobes`
 
 ``auto`` (:data:`AUTO`) fits the candidates and keeps the best on held-out angles
-(:mod:`.auto`); every fit is judged by :mod:`.verdict`.
+(:mod:`.auto`); every fit is judged by :mod:`.verdict`. A multi-angle instrument's lamps
+get one gain each, fitted with the model (:mod:`.gains`).
 """
 
 from __future__ import annotations
 
 from typing import Any, Callable
 
+import numpy as np
+
 from ..names import AUTO_MODEL, FIT_MODEL_CHOICES, OPTIMIZER_NAMES, pick
 from ..schemas import Material
 from . import cook_torrance, cook_torrance_lobes, goniochromatic, layered, torrance_sparrow
 from .common import FitData, FitOptions, ModelFit, choose_optimizer
+from .gains import NOTE_RATIO
 
 FITTERS: dict[str, Callable[[FitData, FitOptions], ModelFit]] = {
     "goniochromatic": goniochromatic.fit,
@@ -91,14 +95,22 @@ def fit_auto(data: FitData, options: FitOptions | None = None, jobs: int = 1):
     return run(data, options or FitOptions(), fit, jobs=jobs)
 
 
-def judge(data: FitData, result: ModelFit, max_mean_delta_e: float | None = None
-          ) -> dict[str, Any]:
+def judge(data: FitData, result: ModelFit, max_mean_delta_e: float | None = None,
+          gains=None) -> dict[str, Any]:
     """The verdict of a fit on its data (:mod:`.verdict`): a dict for the material with
-    ``verdict``, ``reasons`` and the colour figures."""
+    ``verdict``, ``reasons`` and the colour figures. With light-source ``gains``
+    (:class:`.gains.SweepGains`) the model of the data is g(θi) f, judged so; the BRDF's
+    own figures are kept beside (``brdf_alone``)."""
     from ..brdf import evaluate
     from .verdict import THRESHOLDS, fit_colour_errors, reciprocity, verdict
 
-    colour = fit_colour_errors(data, evaluate(result.model, data.cos, result.params))
+    f = evaluate(result.model, data.cos, result.params)
+    y = data.y
+    if gains is not None:
+        g = gains.per_configuration(data.theta_i_deg)[:, None]
+        alone = fit_colour_errors(data, f)
+        f, y = f * g, data.y / g
+    colour = fit_colour_errors(data, f)
     word, reasons = verdict(result.result.success, colour, max_mean_delta_e)
     out: dict[str, Any] = {"verdict": word, "reasons": reasons,
                            "thresholds": dict(THRESHOLDS, **(
@@ -106,12 +118,27 @@ def judge(data: FitData, result: ModelFit, max_mean_delta_e: float | None = None
                                if max_mean_delta_e is not None else {}))}
     if colour is not None:
         out.update(colour.to_dict())
-    # what the data allow: a pair no reciprocal model can match both of explains a poor fit
-    gap = reciprocity(data.wavelength_nm, data.theta_i_deg, data.theta_o_deg, data.y)
+    notes = []
+    if gains is not None:
+        text = f"light-source gains {gains.text()} fitted with the model"
+        if alone is not None:
+            out["brdf_alone"] = {"delta_e2000_mean": alone.mean,
+                                 "delta_e2000_worst": float(np.max(alone.delta_e))}
+            text += (f" (the BRDF alone: CIEDE2000 mean {alone.mean:.2f}, worst "
+                     f"{np.max(alone.delta_e):.2f})")
+        if gains.ratio > NOTE_RATIO:
+            text += (f"; the lamps differ by x{gains.ratio:.2f}: more than a calibration, "
+                     f"did the sample move between sweeps?")
+        notes.append(text)
+    # what the data allow: a pair no reciprocal model can match both of explains a poor
+    # fit (with gains: the data as the BRDF should reproduce them)
+    gap = reciprocity(data.wavelength_nm, data.theta_i_deg, data.theta_o_deg, y)
     if gap is not None:
         out["data_reciprocity"] = gap.to_dict()
         if word == "poor" and gap.delta_e - gap.uncertainty > THRESHOLDS["mean_delta_e"]:
-            out["notes"] = [gap.sentence()]
+            notes.append(gap.sentence())
+    if notes:
+        out["notes"] = notes
     return out
 
 

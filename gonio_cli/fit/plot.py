@@ -85,7 +85,7 @@ def model_curve(material: Material, layout: str, key: float, x_min: float, x_max
 
 
 def plot_fit(path: str | os.PathLike, measurement: Measurement, material: Material,
-             title: str = "", excluded_theta_i_deg=()) -> None:
+             title: str = "", excluded_theta_i_deg=(), gains=None) -> None:
     """Write a PNG like seed 000 Figure 4 (top, middle, bottom) for ``material``.
 
     Top: spectrum-averaged BRDF (dots) and the model averaged the same way (curves),
@@ -93,6 +93,8 @@ def plot_fit(path: str | os.PathLike, measurement: Measurement, material: Materi
     aspecular angle for mirror-only data); configurations at an excluded θi are drawn
     hollow. Middle: absolute difference. Bottom: the model's spectral parameters against
     wavelength. A curve of one configuration is drawn as the model's value (a bar).
+    ``gains`` (:class:`~gonio_cli.fit.gains.SweepGains`): the model drawn against the data
+    is g(θi) f, as the verdict judges it (curves against θo only).
     """
     import matplotlib
 
@@ -103,6 +105,9 @@ def plot_fit(path: str | os.PathLike, measurement: Measurement, material: Materi
     y_avg = measurement.brdf.mean(axis=1)
     f_avg = material.evaluate(in_plane_cosines(ti_all, to_all)).mean(axis=1)
     layout, groups = curve_groups(ti_all, to_all)
+    gained = gains is not None and layout == "theta_o" and gains.covers(ti_all)
+    if gained:
+        f_avg = f_avg * gains.per_configuration(ti_all)
     x_all = to_all if layout == "theta_o" else ti_all
     x_label, curve_label = LAYOUTS[layout]
     excluded = np.zeros(ti_all.shape, dtype=bool)
@@ -124,6 +129,8 @@ def plot_fit(path: str | os.PathLike, measurement: Measurement, material: Materi
                              mfc="none" if hollow else colour,
                              label=None if hollow and (~excluded[rows]).any() else label)
         xs, curve = model_curve(material, layout, g.key, x.min(), x.max())
+        if gained:
+            curve = curve * gains.per_configuration([g.key])[0]
         if xs.size > 1:
             axes[0].plot(xs, curve, "-", lw=1.2, color=colour)
         else:
