@@ -214,3 +214,17 @@ def test_a_malformed_gain_block_is_refused_by_eval(tmp_path, bad):
     out = tmp_path / "ev.json"
     code, err = run("eval", broken, "--at", m, "-o", out)
     assert_refused(code, err, names=("broken.json", "'fit.sweep_gain'"), outputs=(out,))
+
+
+def test_the_batch_sheet_shows_the_gains(tmp_path):
+    from gonio_cli.batch.sheet import _verdict
+
+    m = ingest(tmp_path, write_export(tmp_path / "lamps.csv", TRUE_GAINS))
+    fit(tmp_path, m, "--model", "goniochromatic-diffuse")
+    line = _verdict(str(tmp_path / "m.json"))
+    import re
+
+    shown = re.search(r"with light-source gains x([0-9.]+) x([0-9.]+) \(the BRDF alone: ", line)
+    assert "good" in line and shown, line
+    np.testing.assert_allclose([float(shown[1]), float(shown[2])],
+                               [TRUE_GAINS[15.0], TRUE_GAINS[45.0]], rtol=3e-3)

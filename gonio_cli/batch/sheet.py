@@ -53,6 +53,12 @@ def _verdict(material_path: str | None) -> str:
             parts.append(f"{label} {v[key]:.2f}")
     if v.get("reasons"):
         parts.append(_e("; ".join(map(str, v["reasons"]))))
+    gains = doc["fit"].get("sweep_gain")
+    if isinstance(gains, dict) and isinstance(gains.get("gain"), list):
+        alone = (v.get("brdf_alone") or {}).get("delta_e2000_mean")
+        parts.append(_e("with light-source gains " + " ".join(
+            f"x{g:.3f}" for g in gains["gain"] if isinstance(g, (int, float)))
+            + (f" (the BRDF alone: {alone:.2f})" if isinstance(alone, (int, float)) else "")))
     return "fit: " + ", ".join(p for p in parts if p)
 
 
