@@ -171,6 +171,7 @@ def test_real_ma_t12_pigment_fits_within_the_good_threshold_with_gains(tmp_path)
     g15, g45 = mat.fit["sweep_gain"]["gain"]
     assert 1.02 < g15 < 1.07 and g45 == pytest.approx(1.0 / g15)
     assert v["brdf_alone"]["delta_e2000_mean"] > v["delta_e2000_mean"]
+    assert "light-source gains" in mat.fit["auto"]["criterion"]
 
 
 # ------------------------------------------------------------------- bad input --
@@ -228,3 +229,16 @@ def test_the_batch_sheet_shows_the_gains(tmp_path):
     assert "good" in line and shown, line
     np.testing.assert_allclose([float(shown[1]), float(shown[2])],
                                [TRUE_GAINS[15.0], TRUE_GAINS[45.0]], rtol=3e-3)
+
+
+def test_lamps_far_apart_and_gains_that_do_not_settle_are_said_in_words(tmp_path, monkeypatch):
+    from gonio_cli.fit import gains
+
+    m = ingest(tmp_path, write_export(tmp_path / "far.csv", {15.0: 1.2, 45.0: 1 / 1.2}))
+    notes = " ".join(fit(tmp_path, m, "--model", "goniochromatic-diffuse")
+                     .fit["verdict"]["notes"])
+    assert "the lamps differ by x1.44" in notes and "still moved" not in notes
+    monkeypatch.setattr(gains, "MAX_ROUNDS", 1)   # one round cannot reach 0.1 % from 1
+    mat = fit(tmp_path, m, "--model", "goniochromatic-diffuse", name="one.json")
+    assert not mat.fit["sweep_gain"]["converged"] and mat.fit["sweep_gain"]["rounds"] == 2
+    assert "still moved after 2 rounds" in " ".join(mat.fit["verdict"]["notes"])

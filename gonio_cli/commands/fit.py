@@ -127,7 +127,10 @@ def fit(
                                                                    jobs=n_jobs)
             from ..fit.auto import criterion
 
-            extra["auto"] = {"criterion": criterion(data), "chosen": result.model,
+            judged = criterion(data) + (
+                f"; on the data divided by light-source gains first fitted with "
+                f"{sweep_gains.REFERENCE_MODEL}" if gains is not None else "")
+            extra["auto"] = {"criterion": judged, "chosen": result.model,
                              "candidates": [c.to_dict() for c in candidates]}
         elif why:
             result, gains = sweep_gains.fit_with_gains(data, model, options,

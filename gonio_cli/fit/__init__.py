@@ -126,6 +126,9 @@ def judge(data: FitData, result: ModelFit, max_mean_delta_e: float | None = None
                                  "delta_e2000_worst": float(np.max(alone.delta_e))}
             text += (f" (the BRDF alone: CIEDE2000 mean {alone.mean:.2f}, worst "
                      f"{np.max(alone.delta_e):.2f})")
+        if not gains.converged:
+            text += (f"; the gains still moved after {gains.rounds} rounds (the model and "
+                     f"the gains trade against each other: try --sweep-gain off)")
         if gains.ratio > NOTE_RATIO:
             text += (f"; the lamps differ by x{gains.ratio:.2f}: more than a calibration, "
                      f"did the sample move between sweeps?")

@@ -209,6 +209,7 @@ def fit_with_gains(data: FitData, model: str, options: FitOptions,
     if result is None:                       # MAX_ROUNDS without converging: the last gains
         result = fit_one(scaled(data, SweepGains(angles, g).per_configuration(
             data.theta_i_deg)), model, options)
+        rounds += 1
     return result, SweepGains(angles, g, rounds, converged, why)
 
 
