@@ -229,11 +229,17 @@ def torrance_sparrow(cos: Cosines, alpha, f0) -> np.ndarray:
     f = F(cos θd, λ) G D / (4 cos θi cos θo). Zero where either cosine is below
     :data:`COS_EPS` (G vanishes there faster than the denominator).
     """
+    return schlick_fresnel(cos.cos_theta_d, f0) * _col(ggx_lobe(cos, alpha))
+
+
+def ggx_lobe(cos: Cosines, alpha) -> np.ndarray:
+    """G D / (4 cos θi cos θo) (...,), sr⁻¹: the Torrance–Sparrow lobe of seed 000 eq. (2)
+    without its Fresnel factor (GGX D of eq. 3, separable Smith G), so F · this is
+    :func:`torrance_sparrow`. Zero where either cosine is below :data:`COS_EPS`."""
     ci, co = cos.cos_theta_i, cos.cos_theta_o
     valid = ~((ci <= COS_EPS) | (co <= COS_EPS))  # NaN cosines stay NaN, not 0
-    geo = np.where(valid, smith_g_ggx(cos, alpha) * ggx_d(cos.cos_theta_h, alpha)
-                   / (4.0 * np.maximum(ci, COS_EPS) * np.maximum(co, COS_EPS)), 0.0)
-    return schlick_fresnel(cos.cos_theta_d, f0) * _col(geo)
+    return np.where(valid, smith_g_ggx(cos, alpha) * ggx_d(cos.cos_theta_h, alpha)
+                    / (4.0 * np.maximum(ci, COS_EPS) * np.maximum(co, COS_EPS)), 0.0)
 
 
 # --------------------------------------------------------------------------- seed 004 --
@@ -423,6 +429,26 @@ def goniochromatic_undercoat(cos: Cosines, alpha, rho, c, rho_d, alpha_coat, k_c
     return _col(coat_transmission(cos)) * under + float(k_coat) * coat
 
 
+def goniochromatic_two_lobe(cos: Cosines, alpha, rho, c, rho_d, alpha_2, rho_2) -> np.ndarray:
+    """Seed 000 eq. (5), a Lambertian term and a second, coloured GGX lobe, sr⁻¹:
+
+    f = ρ_d(λ)/π + eq. 5(α, ρ, c) + ρ_2(λ) G D(θh; α_2) / (4 cos θi cos θo),
+
+    the second lobe a Torrance–Sparrow lobe (seed 000 eq. 2; GGX D, separable Smith G,
+    :func:`ggx_lobe`) whose Fresnel factor is a reflectance ρ_2(λ) of its own, constant in
+    angle, as a coloured conductor's (Mitsuba's ``roughconductor`` with a
+    ``specular_reflectance``). Two superposed microfacet populations of different
+    roughness and colour — a sharp lobe of one colour near the mirror over a broad one of
+    another off it, as in a blend of two coloured metals or interference pigments over
+    coloured flakes (Ngan et al. 2005 fit measured BRDFs with two specular lobes; here
+    each has its own colour) — which no model with an achromatic coat can show. Linear in ρ_d, ρ and ρ_2: for fixed α, α_2 and c(λ) each
+    wavelength is a three-column non-negative least-squares problem. Reciprocal (every
+    factor is symmetric in θi, θo).
+    """
+    return (goniochromatic_diffuse(cos, alpha, rho, c, rho_d)
+            + np.asarray(rho_2, dtype=float) * _col(ggx_lobe(cos, alpha_2)))
+
+
 # ----------------------------------------------------------------------------- registry --
 
 @dataclass(frozen=True)
@@ -462,6 +488,11 @@ MODELS: dict[str, Model] = {
         "goniochromatic-undercoat", ("alpha", "alpha_coat", "k_coat", "f0_coat"),
         ("rho", "c", "rho_d"), goniochromatic_undercoat,
         "seed 000 eq. 5 + Lambertian under a GGX clear coat, at refracted angles"),
+    "goniochromatic-two-lobe": Model(
+        "goniochromatic-two-lobe", ("alpha", "alpha_2"), ("rho", "c", "rho_d", "rho_2"),
+        goniochromatic_two_lobe,
+        "seed 000 eq. 5 + Lambertian + a coloured GGX Torrance-Sparrow lobe (seed 000 eq. 2, "
+        "F = rho_2(lambda))"),
     "cook-torrance-2": Model("cook-torrance-2", ("ks_1", "m_1", "ks_2", "m_2"), ("kd", "f0"),
                              cook_torrance_2, "seed 004 eqs. 9-12, two Beckmann lobes"),
     "cook-torrance-3": Model("cook-torrance-3", ("ks_1", "m_1", "ks_2", "m_2", "ks_3", "m_3"),

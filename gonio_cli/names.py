@@ -12,8 +12,9 @@ from __future__ import annotations
 
 #: ``--model``: the fitters of :data:`gonio_cli.fit.FITTERS`, in that order.
 FIT_MODEL_NAMES = ("goniochromatic", "goniochromatic-diffuse", "goniochromatic-coat",
-                   "goniochromatic-backscatter", "goniochromatic-undercoat", "torrance-sparrow",
-                   "cook-torrance", "cook-torrance-2", "cook-torrance-3")
+                   "goniochromatic-backscatter", "goniochromatic-undercoat",
+                   "goniochromatic-two-lobe", "torrance-sparrow", "cook-torrance",
+                   "cook-torrance-2", "cook-torrance-3")
 #: The ``--model`` value that chooses among the fitters by held-out error.
 AUTO_MODEL = "auto"
 FIT_MODEL_CHOICES = FIT_MODEL_NAMES + (AUTO_MODEL,)
@@ -29,6 +30,7 @@ OPTIMIZERS_BY_MODEL = {
     "goniochromatic-coat": ("nlopt-bobyqa", "nlopt-lbfgs"),
     "goniochromatic-backscatter": ("nlopt-bobyqa", "nlopt-lbfgs"),
     "goniochromatic-undercoat": ("nlopt-bobyqa", "nlopt-lbfgs"),
+    "goniochromatic-two-lobe": ("nlopt-bobyqa", "nlopt-lbfgs"),
     "torrance-sparrow": ("nlopt-bobyqa", "nlopt-lbfgs", "scipy-least-squares"),
     "cook-torrance": ("golden-section", "scipy-least-squares"),
     "cook-torrance-2": ("nlopt-bobyqa",),

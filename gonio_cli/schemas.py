@@ -557,10 +557,10 @@ C_MAX = 100.0
 #: fit.cook_torrance.M_MAX); Fresnel F0 in [0, 1]; scales and albedos in
 #: [0, MAX_MAGNITUDE]. A test checks that every model parameter is listed.
 PARAM_RANGES: dict[str, Number] = {
-    **{k: Number(0.0, 1.0, lo_open=True) for k in ("alpha", "alpha_coat")},
+    **{k: Number(0.0, 1.0, lo_open=True) for k in ("alpha", "alpha_coat", "alpha_2")},
     **{k: Number(0.0, 1.0, lo_open=True) for k in ("m", "m_1", "m_2", "m_3")},
     **{k: Number(0.0, 1.0) for k in ("f0", "f0_coat")},
-    **{k: NON_NEGATIVE for k in ("rho", "rho_d", "kd", "ks", "ks_1", "ks_2", "ks_3",
+    **{k: NON_NEGATIVE for k in ("rho", "rho_d", "rho_2", "kd", "ks", "ks_1", "ks_2", "ks_3",
                                  "k_coat")},
     "c": Number(-C_MAX, C_MAX),
     "b0": NON_NEGATIVE, "h": Number(0.0, MAX_MAGNITUDE, lo_open=True),

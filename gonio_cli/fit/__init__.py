@@ -11,6 +11,8 @@ The registry :data:`FITTERS` maps a model name (``--model``) to its fitter; each
   :mod:`.layered`
 - ``goniochromatic-undercoat``: eq. 5 and ρ_d under the clear coat, seen through it
   (refracted angles, Fresnel transmission); :mod:`.layered`
+- ``goniochromatic-two-lobe``: eq. 5, ρ_d(λ) and a second GGX lobe with its own α_2 and
+  colour ρ_2(λ); :mod:`.layered`
 - ``torrance-sparrow``: seed 000 eq. 2 with GGX, Smith G, Schlick F0(λ); :mod:`.torrance_sparrow`
 - ``cook-torrance``: seed 004 eqs. 9–12 per wavelength; :mod:`.cook_torrance`
 - ``cook-torrance-2``, ``cook-torrance-3``: seed 004 eq. 11 with two or three Beckmann lobes
@@ -39,6 +41,7 @@ FITTERS: dict[str, Callable[[FitData, FitOptions], ModelFit]] = {
     "goniochromatic-coat": layered.fit_coat,
     "goniochromatic-backscatter": layered.fit_backscatter,
     "goniochromatic-undercoat": layered.fit_undercoat,
+    "goniochromatic-two-lobe": layered.fit_two_lobe,
     "torrance-sparrow": torrance_sparrow.fit,
     "cook-torrance": cook_torrance.fit,
     "cook-torrance-2": cook_torrance_lobes.fit_2,
@@ -53,6 +56,7 @@ OPTIMIZERS_BY_MODEL: dict[str, dict[str, Callable]] = {
     "goniochromatic-coat": layered.OPTIMIZERS,
     "goniochromatic-backscatter": layered.OPTIMIZERS,
     "goniochromatic-undercoat": layered.OPTIMIZERS,
+    "goniochromatic-two-lobe": layered.OPTIMIZERS,
     "torrance-sparrow": torrance_sparrow.OPTIMIZERS,
     "cook-torrance": cook_torrance.OPTIMIZERS,
     "cook-torrance-2": cook_torrance_lobes.OPTIMIZERS,

@@ -32,7 +32,8 @@ from .verdict import THRESHOLDS, colour_errors, covers_colour, fit_colour_errors
 #: Models ``auto`` tries, cheapest first (a tie keeps the earlier, simpler one).
 CANDIDATES = ("goniochromatic", "goniochromatic-diffuse", "torrance-sparrow",
               "cook-torrance", "cook-torrance-2", "cook-torrance-3", "goniochromatic-coat",
-              "goniochromatic-undercoat", "goniochromatic-backscatter")
+              "goniochromatic-undercoat", "goniochromatic-two-lobe",
+              "goniochromatic-backscatter")
 
 
 #: With at least this many angles of incidence, auto leaves one θi out at a time; with
@@ -163,8 +164,10 @@ def _candidate(model: str, data: FitData, options: FitOptions, fit_one, scheme: 
 
 
 #: Candidates fitted one after the other in one process: the second starts from the
-#: searches the first left in ``FitOptions.stages`` (the same α and coat, :mod:`.layered`).
-TOGETHER = (("goniochromatic-coat", "goniochromatic-backscatter"),)
+#: searches the first left in ``FitOptions.stages`` (the same α and coat, :mod:`.layered`;
+#: the two-lobe model's search starts from the diffuse model's α).
+TOGETHER = (("goniochromatic-coat", "goniochromatic-backscatter"),
+            ("goniochromatic-diffuse", "goniochromatic-two-lobe"))
 
 #: Rough cost of each candidate's fits, relative (measured on an MA-T12 matte pigment and
 #: an RGL wrap, all folds: the layered models with a coat search 1.8-3.5 s each, the

@@ -419,40 +419,97 @@ def profile_c(x, g, t, w, diffuse: bool, c_limit: float = C_LIMIT, diffuse_shape
     weights; ``diffuse_shape`` s (N,): the diffuse term's angular shape, 1 (Lambertian) if
     None. Without ``diffuse`` ρ_d = 0. Returns ρ_d, ρ, c, cost, each (L,).
     """
+    return profile_c_columns(x, g, t, w, diffuse, c_limit, diffuse_shape)[:4]
+
+
+def profile_c_columns(x, g, t, w, diffuse: bool, c_limit: float = C_LIMIT,
+                      diffuse_shape=None, extra=None):
+    """:func:`profile_c` with an optional third non-negative column ``extra`` e (N,), a
+    lobe of fixed shape (``goniochromatic-two-lobe``'s second GGX lobe): per wavelength
+    the best (ρ_d, ρ, c, ρ_2) of ρ_d s/π + ρ g e^{c x} + ρ_2 e, each c's three-column
+    problem solved by :func:`nnls3`. Returns ρ_d, ρ, c, cost, ρ_2 (L,) (ρ_2 = 0 without
+    ``extra``; then the figures are :func:`profile_c`'s, from :func:`nnls2`).
+    """
     x = np.asarray(x, dtype=float)
     g = np.asarray(g, dtype=float)
     a = (np.ones_like(x) if diffuse_shape is None else np.asarray(diffuse_shape, float)) / np.pi
+    L = t.shape[1]
     wt = w * t
     wa = w * a[:, None]
-    s_aa = np.sum(wa * a[:, None], axis=0) if diffuse else np.zeros(t.shape[1])
-    s_at = np.sum(wa * t, axis=0) if diffuse else np.zeros(t.shape[1])
+    s_aa = np.sum(wa * a[:, None], axis=0) if diffuse else np.zeros(L)
+    s_at = np.sum(wa * t, axis=0) if diffuse else np.zeros(L)
     s_tt = np.sum(wt * t, axis=0)
+    if extra is not None:
+        e = np.asarray(extra, dtype=float)
+        we = w * e[:, None]
+        s_ee, s_et = np.sum(we * e[:, None], axis=0), np.sum(we * t, axis=0)
+        s_ae = np.sum(wa * e[:, None], axis=0) if diffuse else np.zeros(L)
 
     def sums_grid(cs):                                       # (G,) → (G, L) each
         E = g[None, :] * np.exp(np.minimum(np.outer(cs, x), _EXP_CAP))
-        return (E @ wa if diffuse else np.zeros((cs.size, t.shape[1])),
-                (E * E) @ w, E @ wt)
+        sums = (E @ wa if diffuse else np.zeros((cs.size, L)), (E * E) @ w, E @ wt)
+        return sums + ((E @ we,) if extra is not None else ())
 
-    def solve(s_ab, s_bb, s_bt):
-        return nnls2(s_aa, s_ab, s_bb, s_at, s_bt, s_tt)
+    def sums_per_column(c):                                   # (L,) → (L,) each
+        B = g[:, None] * np.exp(np.minimum(x[:, None] * c[None, :], _EXP_CAP))
+        sums = (np.sum(wa * B, axis=0) if diffuse else np.zeros(c.size),
+                np.sum(w * B * B, axis=0), np.sum(wt * B, axis=0))
+        return sums + ((np.sum(we * B, axis=0),) if extra is not None else ())
+
+    def solve(s_ab, s_bb, s_bt, s_be=None):                  # (ρ_d, ρ, cost, ρ_2)
+        if extra is None:
+            return (*nnls2(s_aa, s_ab, s_bb, s_at, s_bt, s_tt), 0.0)
+        out = nnls3(s_aa, s_ab, s_ae, s_bb, s_be, s_ee, s_at, s_bt, s_et, s_tt)
+        return out[0], out[1], out[3], out[2]
 
     grid = np.linspace(-c_limit, c_limit, C_SCAN_POINTS)
     costs = solve(*sums_grid(grid))[2]                        # (G, L)
     k = np.argmin(costs, axis=0)
     cols = np.arange(costs.shape[1])
     kl, kr = np.maximum(k - 1, 0), np.minimum(k + 1, grid.size - 1)
-
-    def sums_per_column(c):                                   # (L,) → (L,) each
-        B = g[:, None] * np.exp(np.minimum(x[:, None] * c[None, :], _EXP_CAP))
-        return (np.sum(wa * B, axis=0) if diffuse else np.zeros(c.size),
-                np.sum(w * B * B, axis=0), np.sum(wt * B, axis=0))
-
     c = parabolic_minimum(lambda c: solve(*sums_per_column(c))[2],
                           grid[kl], grid[k], grid[kr],
                           costs[kl, cols], costs[k, cols], costs[kr, cols],
                           C_PARABOLA_STEPS)
-    rho_d, rho, cost = solve(*sums_per_column(c))
-    return rho_d, rho, c, cost
+    rho_d, rho, cost, rho_2 = solve(*sums_per_column(c))
+    return rho_d, rho, c, cost, np.broadcast_to(rho_2, c.shape).astype(float)
+
+
+def nnls3(s_aa, s_ab, s_ae, s_bb, s_be, s_ee, s_at, s_bt, s_et, s_tt):
+    """min over a, b, e ≥ 0 of the quadratic with these normal sums (three columns A, B,
+    E), all arrays at once: the cheapest of the unconstrained solution (where it is
+    feasible and the columns independent) and :func:`nnls2` on each pair (which tries
+    each column alone). The NNLS optimum is the least-squares solution on its set of
+    positive coefficients, and every candidate is feasible, so the cheapest is the optimum.
+    Returns (a, b, e, cost) broadcast like the inputs.
+    """
+    # the 3 × 3 normal matrix by cofactors (symmetric)
+    c_aa = s_bb * s_ee - s_be * s_be
+    c_ab = s_ae * s_be - s_ab * s_ee
+    c_ae = s_ab * s_be - s_ae * s_bb
+    c_bb = s_aa * s_ee - s_ae * s_ae
+    c_be = s_ab * s_ae - s_aa * s_be
+    c_ee = s_aa * s_bb - s_ab * s_ab
+    det = s_aa * c_aa + s_ab * c_ab + s_ae * c_ae
+    well = det > _DET_TOL * np.maximum(s_aa * s_bb * s_ee, 1e-300)
+    safe = np.where(well, det, 1.0)
+    a3 = (c_aa * s_at + c_ab * s_bt + c_ae * s_et) / safe
+    b3 = (c_ab * s_at + c_bb * s_bt + c_be * s_et) / safe
+    e3 = (c_ae * s_at + c_be * s_bt + c_ee * s_et) / safe
+    all3 = well & (a3 >= 0) & (b3 >= 0) & (e3 >= 0)
+    best = np.where(all3, s_tt - a3 * s_at - b3 * s_bt - e3 * s_et, np.inf)
+    zero = np.zeros_like(best)
+    a, b, e = np.where(all3, a3, zero), np.where(all3, b3, zero), np.where(all3, e3, zero)
+    pairs = ((lambda p, q: (p, q, zero), (s_aa, s_ab, s_bb, s_at, s_bt)),
+             (lambda p, q: (p, zero, q), (s_aa, s_ae, s_ee, s_at, s_et)),
+             (lambda p, q: (zero, p, q), (s_bb, s_be, s_ee, s_bt, s_et)))
+    for place, sums in pairs:
+        p, q, cost = nnls2(*sums, s_tt)
+        better = cost < best
+        pa, pb, pe = place(p, q)
+        a, b, e = (np.where(better, new, old) for new, old in ((pa, a), (pb, b), (pe, e)))
+        best = np.where(better, cost, best)
+    return a, b, e, np.maximum(best, 0.0)
 
 
 def parabolic_minimum(fun, left, mid, right, f_left, f_mid, f_right, steps: int):

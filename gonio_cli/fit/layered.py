@@ -10,6 +10,11 @@ Models (in :mod:`gonio_cli.brdf`):
   seen through it: at the angles refracted into it and times its Fresnel transmission in
   and out (:func:`gonio_cli.brdf.goniochromatic_undercoat`). Both depend only on the
   geometry, so the fit is the coat's with other columns.
+- ``goniochromatic-two-lobe``: eq. 5, ρ_d(λ) and a second GGX lobe of its own roughness
+  α_2 and colour ρ_2(λ) (:func:`gonio_cli.brdf.goniochromatic_two_lobe`): for fixed α and
+  α_2 the second lobe is a third non-negative column beside ρ_d and ρ
+  (:func:`~.common.profile_c_columns`, :func:`~.common.nnls3`); the outer search is
+  2-D, (log α, log α_2).
 
 The fit keeps the separable structure of the default model. For fixed roughnesses (α and,
 with a coat, α_coat, k_coat and F0_coat) the coat is a known offset o(θ), and each wavelength is
@@ -30,13 +35,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..brdf import (UNDERCOAT_INDEX, coat_transmission, evaluate, goniochromatic_d4,
-                    goniochromatic_exponent_arg, opposition_surge, torrance_sparrow)
+from ..brdf import (UNDERCOAT_INDEX, coat_transmission, evaluate, ggx_lobe,
+                    goniochromatic_d4, goniochromatic_exponent_arg, opposition_surge,
+                    torrance_sparrow)
 from ..errors import InputError
 from ..geometry import refracted_cosines
 from .common import (ALPHA_MAX, ALPHA_MIN, C_LIMIT, BestPoint, FitData, FitOptions,
                      FitReport, ModelFit, Stopwatch, choose_optimizer, error_figures,
-                     minimize_log_alpha, nm_list, profile_c)
+                     minimize_log_alpha, nm_list, profile_c_columns)
 
 #: The clear coat's F0 for a dielectric of refractive index 1.5 ((n − 1)/(n + 1))², the
 #: start of its search.
@@ -84,13 +90,23 @@ LAYERED_ALPHA_POINTS = 25
 #: Evaluations allowed to the 4-D BOBYQA refinement of (log α, log α_coat, k_coat, F0_coat).
 COAT_MAXEVAL = 300
 
+#: Start values of ``goniochromatic-two-lobe``'s α_2 scanned with each α start (eq. 5's α
+#: of the fit without the second lobe and :data:`ALPHA_STARTS`), beside that α itself:
+#: the second lobe sharper or broader than the first, either lobe the one the data's
+#: sharpest peak belongs to.
+ALPHA_2_STARTS = (0.01, 0.03, 0.1, 0.3)
+
+#: Evaluations allowed to the 2-D BOBYQA refinement of (log α, log α_2).
+TWO_LOBE_MAXEVAL = 150
+
 
 class Layered:
     """The separable problem of one data set: (ρ_d, ρ, c)(λ) for any fixed roughnesses."""
 
     def __init__(self, data: FitData, coat: bool = False, backscatter: bool = False,
-                 undercoat: bool = False):
+                 undercoat: bool = False, second: bool = False):
         self.data, self.coat, self.backscatter = data, coat, backscatter
+        self.second = second
         # eq. 5's geometry: the measured angles, or those refracted into the coat
         self.lobe_cos = (refracted_cosines(data.cos, UNDERCOAT_INDEX) if undercoat
                          else data.cos)
@@ -109,10 +125,11 @@ class Layered:
         return k_coat * torrance_sparrow(self.data.cos, alpha_coat, np.array([f0_coat]))[:, 0]
 
     def solve(self, alpha: float, coat: tuple[float, float, float] | None = None,
-              back: tuple[float, float] | None = None):
+              back: tuple[float, float] | None = None, alpha_2: float | None = None):
         """Returns (params dict, cost (L,), ok (L,)) for fixed roughnesses; ``coat`` is
         (α_coat, k_coat, F0_coat) for the coated model, ``back`` (B0, h) of the opposition
-        effect for ``goniochromatic-backscatter`` (the diffuse column's shape 1 + B)."""
+        effect for ``goniochromatic-backscatter`` (the diffuse column's shape 1 + B),
+        ``alpha_2`` the second lobe's α for ``goniochromatic-two-lobe`` (its column)."""
         d = self.data
         t = d.y
         params: dict = {"alpha": float(alpha)}
@@ -129,17 +146,20 @@ class Layered:
         g = goniochromatic_d4(self.lobe_cos.cos_theta_h, alpha)
         if self.through is not None:
             g = g * self.through
-        rho_d, rho, c, cost = profile_c(self.x, g, t, self.w, diffuse=True,
-                                        diffuse_shape=shape)
+        extra = ggx_lobe(d.cos, alpha_2) if self.second else None
+        rho_d, rho, c, cost, rho_2 = profile_c_columns(self.x, g, t, self.w, diffuse=True,
+                                                       diffuse_shape=shape, extra=extra)
         ok = self.signal & np.isfinite(cost) & (np.abs(c) < C_LIMIT * (1 - 1e-6))
         params.update(rho=np.where(ok, rho, 0.0), c=np.where(ok, c, 0.0),
                       rho_d=np.where(ok, rho_d, 0.0))
+        if self.second:
+            params.update(alpha_2=float(alpha_2), rho_2=np.where(ok, rho_2, 0.0))
         return params, cost, ok
 
-    def cost(self, alpha, coat=None, back=None) -> float:
+    def cost(self, alpha, coat=None, back=None, alpha_2=None) -> float:
         """Total cost over the wavelengths with signal (a c at its bound still counts:
         leaving it out would make the worst roughness look the best)."""
-        _, cost, _ = self.solve(alpha, coat, back)
+        _, cost, _ = self.solve(alpha, coat, back, alpha_2)
         return float(np.sum(cost[self.signal]))
 
 
@@ -190,6 +210,21 @@ def _search_backscatter(problem: Layered, alpha0: float, coat0):
     return (*_coat(v), (float(v[4]), float(np.exp(v[5]))), search.n, message)
 
 
+def _search_second(problem: Layered, alpha0: float):
+    """(α, α_2, evaluations, message) of ``goniochromatic-two-lobe`` minimising the
+    profile cost: a look at α from ``alpha0`` (the fit without the second lobe) and
+    :data:`ALPHA_STARTS`, each with α_2 at :data:`ALPHA_2_STARTS` and at ``alpha0``, then
+    BOBYQA in (log α, log α_2)."""
+    lo, hi = np.full(2, np.log(ALPHA_MIN)), np.full(2, np.log(ALPHA_MAX))
+    search = BestPoint(lambda v: problem.cost(float(np.exp(v[0])),
+                                              alpha_2=float(np.exp(v[1]))))
+    for a in (alpha0,) + ALPHA_STARTS:
+        for a2 in ALPHA_2_STARTS + ((alpha0,) if a != alpha0 else ()):
+            search([np.log(a), np.log(a2)])
+    message = search.bobyqa(lo, hi, [0.3, 0.3], TWO_LOBE_MAXEVAL, xtol_abs=[1e-6, 1e-6])
+    return float(np.exp(search.x[0])), float(np.exp(search.x[1])), search.n, message
+
+
 def _stage_key(data: FitData, options: FitOptions, coat: str) -> bytes:
     """The key of :attr:`FitOptions.stages` for the searches before the opposition
     effect's (α, then the coat): a digest of everything they depend on, the data and
@@ -215,11 +250,14 @@ OPTIMIZERS = {
 
 
 def fit_layered(data: FitData, options: FitOptions, coat: bool,
-                backscatter: bool = False, undercoat: bool = False) -> ModelFit:
+                backscatter: bool = False, undercoat: bool = False,
+                second: bool = False) -> ModelFit:
     """Fit ``goniochromatic-diffuse`` (``coat=False``), ``goniochromatic-coat``, with
-    ``backscatter`` ``goniochromatic-backscatter`` (the coat and the opposition effect), or
-    with ``undercoat`` ``goniochromatic-undercoat`` (the layer seen through the coat)."""
-    model = ("goniochromatic-undercoat" if undercoat else
+    ``backscatter`` ``goniochromatic-backscatter`` (the coat and the opposition effect),
+    with ``undercoat`` ``goniochromatic-undercoat`` (the layer seen through the coat), or
+    with ``second`` (and no coat) ``goniochromatic-two-lobe`` (a second coloured lobe)."""
+    model = ("goniochromatic-two-lobe" if second else
+             "goniochromatic-undercoat" if undercoat else
              "goniochromatic-backscatter" if backscatter else
              "goniochromatic-coat" if coat else "goniochromatic-diffuse")
     kind = "under" if undercoat else "over" if coat else "none"
@@ -251,13 +289,22 @@ def fit_layered(data: FitData, options: FitOptions, coat: bool,
                 alpha * UNDERCOAT_INDEX if undercoat else alpha)
             evaluations += n
         memo[key] = (alpha, coat_params, evaluations, message, success)
+    alpha_2 = None
+    if second:
+        # the diffuse model's α search above is shared with it (same key, ``auto`` fits
+        # both in one process); the 2-D search has its own
+        key_2 = _stage_key(data, options, "second")
+        if key_2 not in memo:
+            memo[key_2] = _search_second(Layered(data, second=True), alpha)
+        alpha, alpha_2, n, message = memo[key_2]
+        evaluations += n
     back = None
     if backscatter:
         alpha, coat_params, back, n, message = _search_backscatter(
             Layered(data, coat=True, backscatter=True), alpha, coat_params)
         evaluations += n
-    params, _, ok = Layered(data, coat=coat, backscatter=backscatter,
-                            undercoat=undercoat).solve(alpha, coat_params, back)
+    params, _, ok = Layered(data, coat=coat, backscatter=backscatter, undercoat=undercoat,
+                            second=second).solve(alpha, coat_params, back, alpha_2)
     failed = [float(w) for w in data.wavelength_nm[~ok]]
     status = "success" if success and not failed else "failed"
     if failed:
@@ -283,3 +330,7 @@ def fit_backscatter(data: FitData, options: FitOptions) -> ModelFit:
 
 def fit_undercoat(data: FitData, options: FitOptions) -> ModelFit:
     return fit_layered(data, options, coat=True, undercoat=True)
+
+
+def fit_two_lobe(data: FitData, options: FitOptions) -> ModelFit:
+    return fit_layered(data, options, coat=False, second=True)
