@@ -441,9 +441,9 @@ def goniochromatic_two_lobe(cos: Cosines, alpha, rho, c, rho_d, alpha_2, rho_2) 
     roughness and colour — a sharp lobe of one colour near the mirror over a broad one of
     another off it, as in a blend of two coloured metals or interference pigments over
     coloured flakes (Ngan et al. 2005 fit measured BRDFs with two specular lobes; here
-    each has its own colour) — which no model with an achromatic coat can show. Linear in ρ_d, ρ and ρ_2: for fixed α, α_2 and c(λ) each
-    wavelength is a three-column non-negative least-squares problem. Reciprocal (every
-    factor is symmetric in θi, θo).
+    each has its own colour) — which no model with an achromatic coat can show. Linear in
+    ρ_d, ρ and ρ_2: for fixed α, α_2 and c(λ) each wavelength is a three-column
+    non-negative least-squares problem. Reciprocal (every factor is symmetric in θi, θo).
     """
     return (goniochromatic_diffuse(cos, alpha, rho, c, rho_d)
             + np.asarray(rho_2, dtype=float) * _col(ggx_lobe(cos, alpha_2)))

@@ -97,6 +97,11 @@ def hand_model(name, ti, to, p):
         coat = hand_model("torrance-sparrow", ti, to,
                           {"alpha": p["alpha_coat"], "f0": np.array([p["f0_coat"]])})
         return (t(ti) * t(to))[:, None] * under + p["k_coat"] * coat
+    if name == "goniochromatic-two-lobe":
+        # the second lobe: Torrance–Sparrow (GGX D, Smith G) with F = ρ_2(λ)
+        g = hand_smith_g1(ti, p["alpha_2"])[:, None] * hand_smith_g1(to, p["alpha_2"])[:, None]
+        second = p["rho_2"] * g * hand_ggx(th, p["alpha_2"]) / (4.0 * ci * co)
+        return hand_model("goniochromatic-diffuse", ti, to, p) + second
     if name in ("cook-torrance-2", "cook-torrance-3"):
         # seed 004 eq. 11 summed over the lobes (ks_j, m_j), one F0(λ)
         lobes = sum(p[f"ks_{j}"] * hand_beckmann(th, p[f"m_{j}"])
@@ -128,6 +133,9 @@ def model_params(name, rng):
         "goniochromatic-undercoat": lambda: {
             "alpha": 0.12, "rho": u(0.05, 1.0), "c": u(-5.0, 5.0), "rho_d": u(0.0, 0.8),
             "alpha_coat": 0.04, "k_coat": 0.7, "f0_coat": 0.05},
+        "goniochromatic-two-lobe": lambda: {
+            "alpha": 0.3, "rho": u(0.05, 1.0), "c": u(-5.0, 5.0), "rho_d": u(0.0, 0.8),
+            "alpha_2": 0.06, "rho_2": u(0.0, 1.0)},
         "cook-torrance-2": lambda: {"kd": u(0.0, 0.5), "f0": u(0.02, 1.0), "ks_1": 0.1,
                                     "m_1": 0.05, "ks_2": 0.6, "m_2": 0.3},
         "cook-torrance-3": lambda: {"kd": u(0.0, 0.5), "f0": u(0.02, 1.0), "ks_1": 0.1,
@@ -319,6 +327,12 @@ EXTREME_PARAMS = [
     ("goniochromatic-undercoat", {"alpha": 1.0, "rho": [0.0, 1.0, 1e-300],
                                   "c": [-1e4, 1e4, 0.0], "rho_d": [1.0, 0.0, 1e-300],
                                   "alpha_coat": 1.0, "k_coat": 0.0, "f0_coat": 0.02}),
+    ("goniochromatic-two-lobe", {"alpha": 1e-6, "rho": [0.0, 1.0, 1.0],
+                                 "c": [1e4, 1e4, -1e4], "rho_d": [0.0, 1.0, 0.5],
+                                 "alpha_2": 1e-6, "rho_2": [1e6, 0.0, 1.0]}),
+    ("goniochromatic-two-lobe", {"alpha": 1.0, "rho": [0.0, 1.0, 1e-300],
+                                 "c": [-1e4, 1e4, 0.0], "rho_d": [1.0, 0.0, 1e-300],
+                                 "alpha_2": 1.0, "rho_2": [0.0, 1e-300, 1.0]}),
 ]
 
 

@@ -79,6 +79,8 @@ def furnace_material(model: str) -> Material:
                                        "k_coat": 1.0, "f0_coat": 0.04, "b0": 0.5, "h": 0.3},
         "goniochromatic-undercoat": {**gonio, "rho_d": rho_d, "alpha_coat": 0.2,
                                      "k_coat": 1.0, "f0_coat": 0.04},
+        "goniochromatic-two-lobe": {**gonio, "rho_d": rho_d, "alpha_2": 0.25,
+                                    "rho_2": 0.1 + 0.3 * (GRID - 380.0) / 400.0},
         "torrance-sparrow": {"alpha": 0.25, "f0": f0},
         "cook-torrance": ct,
         "cook-torrance-2": {"kd": ct["kd"], "f0": f0, "ks_1": 0.3, "m_1": 0.2, "ks_2": 0.2,
@@ -152,7 +154,7 @@ def interior(size):
 #: Parameter ranges for the random test materials (as fitted materials hold them).
 RANGES = {"alpha": (0.05, 0.6), "alpha_coat": (0.05, 0.3), "k_coat": (0.2, 1.0),
           "f0_coat": (0.02, 0.08), "b0": (0.0, 1.0), "h": (0.02, 1.0), "rho": (0.01, 0.5),
-          "c": (-3.0, 6.0), "rho_d": (0.0, 0.6),
+          "c": (-3.0, 6.0), "rho_d": (0.0, 0.6), "alpha_2": (0.05, 0.6), "rho_2": (0.0, 0.6),
           "f0": (0.02, 0.9), "kd": (0.0, 0.6), "ks": (0.05, 1.0), "m": (0.08, 0.6),
           **{f"ks_{j}": (0.05, 1.0) for j in (1, 2, 3)},
           **{f"m_{j}": (0.08, 0.6) for j in (1, 2, 3)}}

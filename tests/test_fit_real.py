@@ -324,11 +324,14 @@ def test_version_1_materials_read_and_evaluate_as_before(tmp_path):
 
 
 @pytest.mark.parametrize("model", ["goniochromatic-diffuse", "goniochromatic-coat",
-                                   "goniochromatic-backscatter", "goniochromatic-undercoat"])
+                                   "goniochromatic-backscatter", "goniochromatic-undercoat",
+                                   "goniochromatic-two-lobe"])
 def test_new_models_feed_lobes_and_render(run_gonio, tmp_path, model):
-    p = layered_truth(coat=model != "goniochromatic-diffuse")
+    p = layered_truth(coat=model not in ("goniochromatic-diffuse", "goniochromatic-two-lobe"))
     if model == "goniochromatic-backscatter":
         p.update(b0=0.6, h=0.2)
+    if model == "goniochromatic-two-lobe":
+        p.update(alpha_2=0.05, rho_2=0.1 + 0.5 * p["rho"][::-1])
     ti, to = paper_geometry(10.0, theta_i_deg=(20.0, 40.0, 60.0))
     meas = tmp_path / "m.json"
     write_measurement(meas, synthetic_measurement(model, p, ti, to, noise=0.005, seed=1))

@@ -94,13 +94,18 @@ def _valid(ci, co):
     return (ci > COS_EPS) & (co > COS_EPS)
 
 
+def ggx_lobe(cos, alpha):
+    """G D / (4 cos θi cos θo), zero at grazing; port of ``gonio_cli.brdf.ggx_lobe``."""
+    ci, co, ch, _ = cos
+    geo = (smith_g1_ggx(ci, alpha) * smith_g1_ggx(co, alpha) * ggx_d(ch, alpha)
+           / (4.0 * dr.maximum(ci, COS_EPS) * dr.maximum(co, COS_EPS)))
+    return dr.select(_valid(ci, co), geo, 0.0)
+
+
 def torrance_sparrow(cos, alpha, f0):
     """Seed 000 eq. (2) with GGX D, Smith G, Schlick F(cos θd): F G D / (4 cos θi cos θo);
     port of ``gonio_cli.brdf.torrance_sparrow``."""
-    ci, co, ch, cd = cos
-    geo = (smith_g1_ggx(ci, alpha) * smith_g1_ggx(co, alpha) * ggx_d(ch, alpha)
-           / (4.0 * dr.maximum(ci, COS_EPS) * dr.maximum(co, COS_EPS)))
-    return schlick_fresnel(cd, f0) * dr.select(_valid(ci, co), geo, 0.0)
+    return schlick_fresnel(cos[3], f0) * ggx_lobe(cos, alpha)
 
 
 # --------------------------------------------------------------------------- seed 004 --
@@ -226,6 +231,12 @@ def goniochromatic_undercoat(cos, alpha, rho, c, rho_d, alpha_coat, k_coat, f0_c
     return coat_transmission(cos) * under + k_coat * torrance_sparrow(cos, alpha_coat, f0_coat)
 
 
+def goniochromatic_two_lobe(cos, alpha, rho, c, rho_d, alpha_2, rho_2):
+    """ρ_d/π + eq. (5) + ρ_2 G D(α_2) / (4 cos θi cos θo); port of
+    ``gonio_cli.brdf.goniochromatic_two_lobe``."""
+    return goniochromatic_diffuse(cos, alpha, rho, c, rho_d) + rho_2 * ggx_lobe(cos, alpha_2)
+
+
 #: The models by ``gonio_cli.brdf.MODELS`` name, with the same keyword parameters.
 MODELS = {
     "goniochromatic": goniochromatic,
@@ -235,6 +246,7 @@ MODELS = {
     "goniochromatic-coat": goniochromatic_coat,
     "goniochromatic-backscatter": goniochromatic_backscatter,
     "goniochromatic-undercoat": goniochromatic_undercoat,
+    "goniochromatic-two-lobe": goniochromatic_two_lobe,
     "cook-torrance-2": cook_torrance_2,
     "cook-torrance-3": cook_torrance_3,
 }

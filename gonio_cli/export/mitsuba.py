@@ -112,6 +112,10 @@ LOBES: dict[str, Callable[[dict], list[Lobe]]] = {
         Lobe("diffuse", 1.0, float(np.mean(p["rho_d"]))),
         _gonio_lobe(dict(p, alpha=min(1.0, UNDERCOAT_INDEX * float(p["alpha"])))),
         Lobe("ggx", float(p["alpha_coat"]), float(p["k_coat"]) * float(p["f0_coat"]))],
+    # the second lobe is a Torrance–Sparrow lobe with F = ρ_2(λ): its albedo is ~ρ_2
+    "goniochromatic-two-lobe": lambda p: [
+        Lobe("diffuse", 1.0, float(np.mean(p["rho_d"]))), _gonio_lobe(p),
+        Lobe("ggx", float(p["alpha_2"]), float(np.mean(p["rho_2"])))],
     "cook-torrance-2": lambda p: [Lobe("diffuse", 1.0, float(np.mean(p["kd"])))] + [
         _ct_lobe(p[f"ks_{j}"], p[f"m_{j}"], np.asarray(p["f0"])) for j in (1, 2)],
     "cook-torrance-3": lambda p: [Lobe("diffuse", 1.0, float(np.mean(p["kd"])))] + [

@@ -113,6 +113,8 @@ def _comparison_truths(wl: np.ndarray) -> dict[str, dict]:
                                            k_coat=1.0, f0_coat=0.04, b0=0.6, h=0.2),
         "goniochromatic-undercoat": dict(_ink(wl), rho_d=0.05 + 0.1 * x, alpha_coat=0.03,
                                          k_coat=1.0, f0_coat=0.04),
+        "goniochromatic-two-lobe": dict(_ink(wl), rho_d=0.05 + 0.1 * x, alpha_2=0.04,
+                                        rho_2=0.1 + 0.4 * (1.0 - x)),
         "cook-torrance-2": dict(_paint(wl), ks_1=0.1, m_1=0.05, ks_2=0.6, m_2=0.3),
         "cook-torrance-3": dict(_paint(wl), ks_1=0.1, m_1=0.05, ks_2=0.4, m_2=0.2,
                                 ks_3=0.3, m_3=0.5),
@@ -135,7 +137,7 @@ def _ink(wl: np.ndarray) -> dict:
 #: Models swept once, at their default optimiser, with the compressive residual they are
 #: meant for.
 _LAYERED = {"goniochromatic-diffuse", "goniochromatic-coat", "goniochromatic-backscatter",
-            "goniochromatic-undercoat",
+            "goniochromatic-undercoat", "goniochromatic-two-lobe",
             "cook-torrance-2", "cook-torrance-3"}
 
 
