@@ -148,3 +148,24 @@ def test_it_reuses_the_diffuse_models_alpha_search_when_fitted_after_it(monkeypa
     assert n_after == n_alone - n_diffuse
     for k, v in alone.params.items():
         np.testing.assert_array_equal(v, after.params[k])
+
+
+def test_a_later_search_of_the_run_starts_near_the_first():
+    # --model auto's folds: the first two-lobe search of a run (on all the data) leaves
+    # its roughnesses, and each later one (a fold) starts there instead of scanning 19
+    # starts; on a fold it ends where a full search ends
+    from gonio_cli.fit import fit, layered
+    from gonio_cli.fit.common import FitOptions, prepare
+    from gonio_cli.synthetic import synthetic_measurement
+
+    m = synthetic_measurement(MODEL, truth(), *rgl_like_geometry(), noise=0.01, seed=4)
+    data = prepare(m, residuals="compressive")
+    fold = data.subset(data.theta_i_deg != 40.0)
+    shared = FitOptions(stages={})
+    whole = fit(data, MODEL, shared)
+    assert shared.stages[layered.SECOND_NEAR] == (whole.params["alpha"],
+                                                  whole.params["alpha_2"])
+    warm, cold = fit(fold, MODEL, shared), fit(fold, MODEL, FitOptions())
+    assert warm.result.evaluations < cold.result.evaluations
+    for k in ("alpha", "alpha_2"):
+        assert warm.params[k] == pytest.approx(cold.params[k], rel=1e-4)

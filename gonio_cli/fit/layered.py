@@ -210,17 +210,26 @@ def _search_backscatter(problem: Layered, alpha0: float, coat0):
     return (*_coat(v), (float(v[4]), float(np.exp(v[5]))), search.n, message)
 
 
-def _search_second(problem: Layered, alpha0: float):
+#: The key of :attr:`FitOptions.stages` under which the first ``goniochromatic-two-lobe``
+#: search of a run leaves its (α, α_2) for the later ones (:func:`_search_second`).
+SECOND_NEAR = "goniochromatic-two-lobe: near"
+
+
+def _search_second(problem: Layered, alpha0: float, near=None):
     """(α, α_2, evaluations, message) of ``goniochromatic-two-lobe`` minimising the
     profile cost: a look at α from ``alpha0`` (the fit without the second lobe) and
     :data:`ALPHA_STARTS`, each with α_2 at :data:`ALPHA_2_STARTS` and at ``alpha0``, then
-    BOBYQA in (log α, log α_2)."""
+    BOBYQA in (log α, log α_2). With ``near`` (α, α_2) of a fit to most of the same data
+    (``--model auto``'s fit to all of it, for each fold), the look is only there and at
+    (``alpha0``, its α_2)."""
     lo, hi = np.full(2, np.log(ALPHA_MIN)), np.full(2, np.log(ALPHA_MAX))
     search = BestPoint(lambda v: problem.cost(float(np.exp(v[0])),
                                               alpha_2=float(np.exp(v[1]))))
-    for a in (alpha0,) + ALPHA_STARTS:
-        for a2 in ALPHA_2_STARTS + ((alpha0,) if a != alpha0 else ()):
-            search([np.log(a), np.log(a2)])
+    starts = ([near, (alpha0, near[1])] if near is not None else
+              [(a, a2) for a in (alpha0,) + ALPHA_STARTS
+               for a2 in ALPHA_2_STARTS + ((alpha0,) if a != alpha0 else ())])
+    for a, a2 in starts:
+        search([np.log(a), np.log(a2)])
     message = search.bobyqa(lo, hi, [0.3, 0.3], TWO_LOBE_MAXEVAL, xtol_abs=[1e-6, 1e-6])
     return float(np.exp(search.x[0])), float(np.exp(search.x[1])), search.n, message
 
@@ -295,7 +304,11 @@ def fit_layered(data: FitData, options: FitOptions, coat: bool,
         # both in one process); the 2-D search has its own
         key_2 = _stage_key(data, options, "second")
         if key_2 not in memo:
-            memo[key_2] = _search_second(Layered(data, second=True), alpha)
+            # the first two-lobe search of the run (auto: on all the data) starts each
+            # later one (auto: each fold); the same order with any --jobs
+            memo[key_2] = _search_second(Layered(data, second=True), alpha,
+                                         memo.get(SECOND_NEAR))
+            memo.setdefault(SECOND_NEAR, memo[key_2][:2])
         alpha, alpha_2, n, message = memo[key_2]
         evaluations += n
     back = None
