@@ -25,14 +25,15 @@ from gonio_cli.__main__ import use_blas_threads
 
 use_blas_threads()  # before numpy: kernels timed as in a gonio process
 
+from gonio_cli.names import FIT_MODEL_CHOICES
 from gonio_cli.fit.sweep import (comparison_sweep, format_comparison, format_rows,
                                   goniochromatic_sweep)
 
 import process
 
 ROOT = Path(__file__).resolve().parent.parent
-MODELS = ("goniochromatic", "goniochromatic-diffuse", "goniochromatic-coat",
-          "goniochromatic-backscatter", "torrance-sparrow", "cook-torrance", "auto")
+#: Every ``--model`` of the registry, ``auto`` last.
+MODELS = FIT_MODEL_CHOICES
 
 #: (label, input files, ingest options, fit options) of the whole-command table.
 DATASETS = (
