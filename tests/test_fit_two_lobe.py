@@ -169,3 +169,20 @@ def test_a_later_search_of_the_run_starts_near_the_first():
     assert warm.result.evaluations < cold.result.evaluations
     for k in ("alpha", "alpha_2"):
         assert warm.params[k] == pytest.approx(cold.params[k], rel=1e-4)
+
+
+def test_a_wavelength_without_eq5s_lobe_is_fitted_not_failed():
+    # at the red end the truth has no eq. 5 lobe (rho = 0): the colour term c multiplies
+    # nothing there, its search runs to a bound, and the wavelength used to come back
+    # "failed" with rho_d = rho_2 = 0 (CIEDE2000 44 on a sample car paint); the body and
+    # the second lobe alone fit it
+    p = truth()
+    wl = np.linspace(380.0, 780.0, p["rho"].size)
+    p["rho"] = np.where(wl > 650.0, 0.0, p["rho"])
+    ti, to = rgl_like_geometry()
+    data, got = fit_back(MODEL, p, ti, to, seed=5)      # asserts the fit succeeded
+    red = wl > 650.0
+    np.testing.assert_allclose(got["rho_2"][red], p["rho_2"][red], rtol=0.02)
+    np.testing.assert_allclose(got["rho_d"][red], p["rho_d"][red], rtol=0.05)
+    assert np.all(got["rho"][red] < 0.005 * p["rho"].max())   # 1 % noise fitted
+    assert brdf_error(data, MODEL, p, params=got) < 0.02

@@ -42,7 +42,7 @@ from ..errors import InputError
 from ..geometry import refracted_cosines
 from .common import (ALPHA_MAX, ALPHA_MIN, C_LIMIT, BestPoint, FitData, FitOptions,
                      FitReport, ModelFit, Stopwatch, choose_optimizer, error_figures,
-                     minimize_log_alpha, nm_list, profile_c_columns)
+                     minimize_log_alpha, nm_list, nnls2, profile_c_columns)
 
 #: The clear coat's F0 for a dielectric of refractive index 1.5 ((n − 1)/(n + 1))², the
 #: start of its search.
@@ -149,12 +149,35 @@ class Layered:
         extra = ggx_lobe(d.cos, alpha_2) if self.second else None
         rho_d, rho, c, cost, rho_2 = profile_c_columns(self.x, g, t, self.w, diffuse=True,
                                                        diffuse_shape=shape, extra=extra)
+        bound = np.abs(c) >= C_LIMIT * (1 - 1e-6)
+        if np.any(bound & self.signal):
+            # eq. 5's colour term ran to its bound: its lobe is not wanted there (the body,
+            # or the second lobe, carries that wavelength, and a vanishing ρ e^{c x} bends
+            # to the last grazing point). The best fit without it, if no worse than the
+            # failure it replaces (ρ = ρ_d = c = 0 there)
+            rd0, r20, cost0 = self._without_lobe(t, shape, extra)
+            take = bound & self.signal & np.isfinite(cost0)
+            rho, c = np.where(take, 0.0, rho), np.where(take, 0.0, c)
+            rho_d, rho_2 = np.where(take, rd0, rho_d), np.where(take, r20, rho_2)
+            cost = np.where(take, cost0, cost)
         ok = self.signal & np.isfinite(cost) & (np.abs(c) < C_LIMIT * (1 - 1e-6))
         params.update(rho=np.where(ok, rho, 0.0), c=np.where(ok, c, 0.0),
                       rho_d=np.where(ok, rho_d, 0.0))
         if self.second:
             params.update(alpha_2=float(alpha_2), rho_2=np.where(ok, rho_2, 0.0))
         return params, cost, ok
+
+    def _without_lobe(self, t, shape, extra):
+        """(ρ_d, ρ_2, cost) (L,) each of the targets ``t`` by the body (angular ``shape``,
+        1 if None) and, with ``extra``, the second lobe alone: eq. 5's lobe left out."""
+        a = (np.ones(t.shape[0]) if shape is None else np.asarray(shape, float)) / np.pi
+        e = np.zeros(t.shape[0]) if extra is None else np.asarray(extra, float)
+        w = self.w
+
+        def s(u, v):
+            return np.sum(w * (u[:, None] if u.ndim == 1 else u) *
+                          (v[:, None] if v.ndim == 1 else v), axis=0)
+        return nnls2(s(a, a), s(a, e), s(e, e), s(a, t), s(e, t), s(t, t))
 
     def cost(self, alpha, coat=None, back=None, alpha_2=None) -> float:
         """Total cost over the wavelengths with signal (a c at its bound still counts:
