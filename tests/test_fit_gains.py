@@ -242,3 +242,21 @@ def test_lamps_far_apart_and_gains_that_do_not_settle_are_said_in_words(tmp_path
     mat = fit(tmp_path, m, "--model", "goniochromatic-diffuse", name="one.json")
     assert not mat.fit["sweep_gain"]["converged"] and mat.fit["sweep_gain"]["rounds"] == 2
     assert "still moved after 2 rounds" in " ".join(mat.fit["verdict"]["notes"])
+
+
+def test_eval_at_other_angles_says_it_gives_the_brdf_alone(tmp_path):
+    m = ingest(tmp_path, write_export(tmp_path / "lamps.csv", TRUE_GAINS))
+    mat = fit(tmp_path, m, "--model", "goniochromatic-diffuse")
+    # a measurement at 15 and 45 degrees, evaluated by a material with gains at 15 only
+    doc = json.loads((tmp_path / "m.json").read_text())
+    doc["fit"]["sweep_gain"]["theta_i_deg"] = [15.0]
+    doc["fit"]["sweep_gain"]["gain"] = [1.05]
+    (tmp_path / "only15.json").write_text(json.dumps(doc))
+    out = tmp_path / "ev.json"
+    code, err = run("eval", tmp_path / "only15.json", "--at", m, "-o", out)
+    assert code == 0, err
+    assert "the BRDF alone: the material's light-source gains are for other angles" in err
+    meas = read_measurement(m)
+    np.testing.assert_allclose(
+        read_measurement(out).brdf,
+        mat.evaluate(in_plane_cosines(meas.theta_i_deg, meas.theta_o_deg)), rtol=1e-12)

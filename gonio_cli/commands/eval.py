@@ -78,6 +78,9 @@ def evaluate(
                  gains=gains)
     applied = (f", times the material's light-source gains ({gains.text()}; --sweep-gain "
                f"off for the BRDF alone)" if gains is not None else "")
+    if gains is None and sweep_gain == "auto" and (mat.fit or {}).get("sweep_gain"):
+        applied = (", the BRDF alone: the material's light-source gains are for other "
+                   "angles of incidence")
     log.info(f"{output}: {mat.model} at {data.n_configurations} configurations x "
              f"{data.wavelength_nm.size} wavelengths of {at}{applied}")
 
