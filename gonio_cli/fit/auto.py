@@ -137,7 +137,7 @@ def _candidate(model: str, data: FitData, options: FitOptions, fit_one, scheme: 
     if colour is not None and colour.peak_ratio:
         ratios = list(colour.peak_ratio.values())
         lo, hi = THRESHOLDS["peak_ratio_min"], THRESHOLDS["peak_ratio_max"]
-        cand.peaks_match = bool(lo <= min(ratios) and max(ratios) <= hi)
+        cand.peaks_match = not colour.peaks_off
         if not cand.peaks_match:
             cand.notes.append(f"mirror peak x{min(ratios):.2f}-{max(ratios):.2f} of the data, "
                               f"outside {lo:g}-{hi:.2f}: ranked after the candidates within")

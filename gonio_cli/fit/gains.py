@@ -195,21 +195,22 @@ def fit_with_gains(data: FitData, model: str, options: FitOptions,
 
     angles = np.array([t for t, _ in data.theta_i_groups()])
     g = np.ones(angles.size) if start is None else np.asarray(start, dtype=float)
+
+    def refit(gains):
+        return fit_one(scaled(data, SweepGains(angles, gains).per_configuration(
+            data.theta_i_deg)), model, options)
+
     rounds, converged, result = 0, False, first
     for _ in range(MAX_ROUNDS):
         if result is None:
-            result = fit_one(scaled(data, SweepGains(angles, g).per_configuration(
-                data.theta_i_deg)), model, options)
-            rounds += 1
+            result, rounds = refit(g), rounds + 1
         new = best_gains(data, evaluate(model, data.cos, result.params))
         if np.max(np.abs(np.log(new / g))) <= GAIN_TOL:
             converged = True
             break
         g, result = new, None
     if result is None:                       # MAX_ROUNDS without converging: the last gains
-        result = fit_one(scaled(data, SweepGains(angles, g).per_configuration(
-            data.theta_i_deg)), model, options)
-        rounds += 1
+        result, rounds = refit(g), rounds + 1
     return result, SweepGains(angles, g, rounds, converged, why)
 
 

@@ -170,14 +170,12 @@ class Layered:
     def _without_lobe(self, t, shape, extra):
         """(ρ_d, ρ_2, cost) (L,) each of the targets ``t`` by the body (angular ``shape``,
         1 if None) and, with ``extra``, the second lobe alone: eq. 5's lobe left out."""
-        a = (np.ones(t.shape[0]) if shape is None else np.asarray(shape, float)) / np.pi
-        e = np.zeros(t.shape[0]) if extra is None else np.asarray(extra, float)
+        a = (np.ones(t.shape[0]) if shape is None else np.asarray(shape, float))[:, None] / np.pi
+        e = (np.zeros(t.shape[0]) if extra is None else np.asarray(extra, float))[:, None]
         w = self.w
-
-        def s(u, v):
-            return np.sum(w * (u[:, None] if u.ndim == 1 else u) *
-                          (v[:, None] if v.ndim == 1 else v), axis=0)
-        return nnls2(s(a, a), s(a, e), s(e, e), s(a, t), s(e, t), s(t, t))
+        return nnls2(np.sum(w * a * a, axis=0), np.sum(w * a * e, axis=0),
+                     np.sum(w * e * e, axis=0), np.sum(w * a * t, axis=0),
+                     np.sum(w * e * t, axis=0), np.sum(w * t * t, axis=0))
 
     def cost(self, alpha, coat=None, back=None, alpha_2=None) -> float:
         """Total cost over the wavelengths with signal (a c at its bound still counts:

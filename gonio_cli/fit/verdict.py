@@ -55,6 +55,12 @@ class ColourErrors:
         return float(np.mean(self.delta_e))
 
     @property
+    def peaks_off(self) -> dict[float, float]:
+        """θi → ratio of the mirror peaks outside the ``good`` range of :data:`THRESHOLDS`."""
+        lo, hi = THRESHOLDS["peak_ratio_min"], THRESHOLDS["peak_ratio_max"]
+        return {t: r for t, r in self.peak_ratio.items() if not lo <= r <= hi}
+
+    @property
     def worst_index(self) -> int:
         return int(np.argmax(self.delta_e))
 
@@ -248,8 +254,7 @@ def verdict(success: bool, colour: ColourErrors | None,
     worst = float(colour.delta_e[colour.worst_index])
     if worst > max(THRESHOLDS["worst_delta_e"], limit):
         reasons.append(f"worst CIEDE2000 {worst:.2f} > {max(THRESHOLDS['worst_delta_e'], limit):g}")
-    off = {t: r for t, r in colour.peak_ratio.items()
-           if not THRESHOLDS["peak_ratio_min"] <= r <= THRESHOLDS["peak_ratio_max"]}
+    off = colour.peaks_off
     if off:
         reasons.append("mirror peak off at theta_i " + ", ".join(
             f"{t:g} (x{r:.2f})" for t, r in off.items()))
