@@ -147,22 +147,45 @@ def lookup(image: np.ndarray, directions: np.ndarray) -> np.ndarray:
     (..., C) or (...) float64 — bilinear interpolation between the four nearest texel
     centres; columns wrap around (φ is periodic), rows clamp at the poles.
     """
-    img = np.asarray(image, dtype=float)
+    theta, phi = direction_to_spherical(directions)
+    return lookup_angles(np.asarray(image, dtype=float), theta, phi)
+
+
+def lookup_angles(image: np.ndarray, theta: np.ndarray, phi: np.ndarray) -> np.ndarray:
+    """:func:`lookup` at polar angles ``theta`` and azimuths ``phi`` (radians, (...)):
+    the directions' angles computed once serve maps of every size (a chain of prefiltered
+    maps). The arithmetic is in the image's own float dtype (a float32 map: float32, 1e-7
+    relative, twice as fast as float64 at 512²)."""
+    img = image
     h, w = img.shape[:2]
-    rc = direction_to_pixel(directions, h, w)
-    row = np.clip(rc[..., 0], 0.0, h - 1.0)
-    col = rc[..., 1]
-    r0 = np.floor(row).astype(int)
-    c0 = np.floor(col).astype(int)
-    fr = row - r0
-    fc = col - c0
-    r1 = np.minimum(r0 + 1, h - 1)
-    c0w, c1w = np.mod(c0, w), np.mod(c0 + 1, w)
+    row = np.clip(theta * (h / np.pi) - 0.5, 0.0, h - 1.0)
+    col = phi * (w / (2.0 * np.pi)) - 0.5
+    r0 = row.astype(np.intp)                              # row ≥ 0: floor
+    c0 = np.floor(col).astype(np.intp)
+    dtype = img.dtype if img.dtype.kind == "f" else np.float64
+    fr, fc = (row - r0).astype(dtype), (col - c0).astype(dtype)
+    r1 = np.minimum(r0 + 1, h - 1) * w
+    r0 = r0 * w
+    c0 %= w                                               # φ wraps
+    c1 = c0 + 1
+    c1 %= w
+    flat = img.reshape(h * w, -1)                         # one gather per corner
     if img.ndim == 3:
         fr, fc = fr[..., None], fc[..., None]
-    top = img[r0, c0w] * (1.0 - fc) + img[r0, c1w] * fc
-    bottom = img[r1, c0w] * (1.0 - fc) + img[r1, c1w] * fc
-    return top * (1.0 - fr) + bottom * fr
+    else:
+        flat = flat[:, 0]
+    top = np.take(flat, r0 + c0, axis=0).astype(dtype, copy=False)
+    right = np.take(flat, r0 + c1, axis=0) - top
+    right *= fc
+    top += right                                          # the upper row, in place
+    bottom = np.take(flat, r1 + c0, axis=0).astype(dtype, copy=False)
+    right = np.take(flat, r1 + c1, axis=0) - bottom
+    right *= fc
+    bottom += right
+    bottom -= top
+    bottom *= fr
+    top += bottom
+    return top
 
 
 def downsample(image: np.ndarray, factor: int) -> np.ndarray:
@@ -196,3 +219,21 @@ def downsample(image: np.ndarray, factor: int) -> np.ndarray:
     summed = sum(rows[:, k::factor] for k in range(factor))
     coarse_omega = omega.reshape(h // factor, factor).sum(axis=1) * factor
     return summed / coarse_omega.reshape(shape)
+
+
+#: Ratio of consecutive exponents of a prefiltered chain (``gonio prefilter --chain``):
+#: a lobe between two levels is mixed from both (gonio_cli.render.env_model).
+CHAIN_RATIO = 2.0
+
+
+def chain_exponents(height: int, maximum: float = 1e6) -> list[float]:
+    """Exponents 1, 2, 4, … of a prefiltered chain for a map ``height`` texels high, up to
+    the first whose lobe (σ ≈ 1/√E rad) is no wider than a texel (π/H): that level is the
+    map itself, so the chain reaches a mirror. A 1k map (H = 512): 1 … 32768 (16 maps).
+    No exponent exceeds ``maximum`` (gonio prefilter's largest)."""
+    texel = np.pi / float(height)
+    out = [1.0]
+    while 1.0 / np.sqrt(out[-1]) > texel and out[-1] * CHAIN_RATIO <= maximum:
+        out.append(out[-1] * CHAIN_RATIO)
+    return out
+

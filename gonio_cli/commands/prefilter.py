@@ -48,6 +48,9 @@ def prefilter(
                                             help="Cosine-lobe exponents, 1 to 1e4."),
     lobes: Optional[Path] = typer.Option(None, "--lobes", metavar="LOBES.json",
                                          help="Take the exponents of a gonio.lobes file."),
+    chain: bool = typer.Option(False, "--chain",
+                               help="Exponents 1, 2, 4, … up to the map's own sharpness: "
+                                    "what [environment] method = 'model' reads."),
     method: str = typer.Option("auto", "--method", "-m",
                                metavar=metavar((PREFILTER_AUTO,) + PREFILTER_METHOD_NAMES),
                                help="auto (per exponent), ring, or brute (exact, slow)."),
@@ -61,12 +64,15 @@ def prefilter(
 ) -> None:
     """Prefilter an environment map for cosine lobes (seed 001 §5.1, eqs. 7-9).
 
-    Writes OUTDIR/prefiltered_E<E>.exr, the normalised lobe average
+    --chain makes every level a material's own lobes need (gonio render's default
+    environment method); --lobes the maps of seed 001's lobe weights. Writes
+    OUTDIR/prefiltered_E<E>.exr, the normalised lobe average
     P_E(r) = ∫ L max(0, r·ω)^E dω / ∫ max(0, r·ω)^E dω, for every exponent and the
     diffuse map E = 1, and OUTDIR/index.json.
 
     \b
     Example:
+      gonio prefilter sky.hdr --chain -o sky.chain
       gonio prefilter sky.exr --exponents 8,64,512 -o sky.prefiltered
       gonio prefilter sky.exr --lobes paint.lobes.json -o sky.prefiltered
     """
@@ -79,18 +85,24 @@ def prefilter(
 
     require_files([envmap_path], what="image file")
     require_files([lobes] if lobes is not None else [])
-    if (exponents is None) == (lobes is None):
-        raise InputError("give either --exponents or --lobes (one of them)",
-                         fix="e.g. --exponents 1,8,64")
+    if (exponents is not None) + (lobes is not None) + chain != 1:
+        raise InputError("give one of --chain, --exponents or --lobes",
+                         fix="e.g. --chain (for any material) or --exponents 1,8,64")
     core.check_method(method)
     if output.exists() and not output.is_dir():
         raise InputError("exists and is not a folder", path=output,
                          fix="give a folder name for -o")
     from ..outputs import declare
     declare({"-o": output}, [envmap_path, lobes], folders=["-o"])
-    exps = parse_exponents(exponents) if exponents is not None else read_lobe_exponents(lobes)
-    exps = core.validate_exponents(exps, path=lobes)
     pixels, replaced = read_envmap(envmap_path, fix_invalid)
+    if chain:
+        from ..envmap import chain_exponents
+
+        exps = chain_exponents(pixels.shape[0])
+    else:
+        exps = (parse_exponents(exponents) if exponents is not None
+                else read_lobe_exponents(lobes))
+    exps = core.validate_exponents(exps, path=lobes)
     if replaced:
         log.warn(f"{envmap_path}: replaced {replaced} NaN, inf or negative texels "
                  "(negative → 0, NaN/inf → the mean of their row)")
@@ -107,7 +119,7 @@ def prefilter(
     if len(set(names)) != len(names):
         raise InputError("two exponents round to the same file name",
                          fix="give exponents that differ in their first 6 digits")
-    parameters = {"exponents": exps, "lobes": str(lobes) if lobes else None,
+    parameters = {"exponents": exps, "lobes": str(lobes) if lobes else None, "chain": chain,
                   "method": method, "resolution": resolution, "fix_invalid": fix_invalid,
                   "check": check}
     write_maps(output, envmap_path, lobes, pixels.shape, results, names, parameters,

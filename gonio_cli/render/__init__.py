@@ -123,6 +123,16 @@ class Light:
     name: str = ""
 
 
+#: How an ``[environment]`` lights an object (``[environment] method``; docs/render.md).
+ENVIRONMENT_METHODS = {
+    "auto": "model, or lobes for an object that names a lobes file (and for a measured one)",
+    "model": "every lobe of the object's own model reads the prefiltered chain at its own "
+             "sharpness (gonio_cli.render.env_model)",
+    "lobes": "seed 001 eqs. 7-9: the object's cosine-lobe weights (gonio lobes fit), one "
+             "prefiltered map per lobe exponent",
+}
+
+
 @dataclass
 class Stats:
     """Per-stage wall times (s) and counters for the run report (``--report``)."""

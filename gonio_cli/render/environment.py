@@ -64,6 +64,7 @@ class Environment:
     shapes : (k,) (height, width) the index promises for each map.
     maps : exponent → (H, W, 3) float32 array, filled on first use (:meth:`map`), and
         the float64 stacks of :meth:`stacked`.
+    tables : the lobe tables of :func:`gonio_cli.render.env_model.tables_for`, by key.
     """
 
     path: str
@@ -71,6 +72,7 @@ class Environment:
     files: list[str]
     shapes: list[tuple[int, int]]
     maps: dict = field(default_factory=dict)
+    tables: dict = field(default_factory=dict)
 
     def index_of(self, exponent: float, where: str = "") -> int:
         """Index of the map of ``exponent`` (within :data:`EXPONENT_RTOL`), or an error."""
@@ -110,6 +112,11 @@ class Environment:
             self.maps[key] = np.concatenate([self.map(e) for e in exponents],
                                             axis=2).astype(np.float64)
         return self.maps[key]
+
+    def level(self, i: int) -> np.ndarray:
+        """The map of ``exponents[i]`` ((H, W, 3) float32, read on first use): a level of
+        the chain the lobes of :mod:`.env_model` mix; maps no lobe uses are never read."""
+        return self.map(float(self.exponents[i]))
 
     @property
     def diffuse(self) -> np.ndarray:
@@ -194,8 +201,8 @@ def channel_matrices(weights: np.ndarray, channel_kind: str, wavelength_nm,
     cm = cmf_weights(wavelength_nm) if observer is None else observer   # (n_λ, C)
     basis = rgb_basis(wavelength_nm)                         # (3, n_λ)
     k = np.asarray(weights, dtype=float)
-    if channel_kind == "spectral":
-        return np.einsum("...l,cl,lj->...cj", k, basis, cm)
+    if channel_kind == "spectral":                           # Σλ K B_c cmf_j, one product
+        return np.tensordot(k, np.einsum("cl,lj->lcj", basis, cm), axes=(-1, 0))
     if observer is not None:
         raise InputError("lobe weights fitted in XYZ channels have no spectrum, so they "
                          "cannot give a spectral image",

@@ -216,27 +216,65 @@ def build_surfaces(scene: Scene, stats: Stats) -> list:
                     s.sparkle = load_sparkle(o)
     if scene.environment is not None:
         with Stage(stats, "lobes"):
-            lobes: dict[Path, Any] = {}
-
-            def read(p, key):
-                from .environment import check_lobes
-
-                if p not in lobes:
-                    with _SceneKey(scene, key, p):
-                        lobes[p] = read_lobes(p)
-                        check_lobes(lobes[p], scene.grid_nm)     # its grid, named here
-                return lobes[p]
-
-            for o, s in zip(scene.objects, surfaces):
-                if o.lobes is None:
-                    raise InputError(f"[[object]] {o.index + 1} ({o.name}): the scene has an "
-                                     "[environment], which needs the object's lobes",
-                                     path=scene.display,
-                                     fix="add lobes = \"....lobes.json\" (gonio lobes fit)")
-                key = f"[[object]] {o.index + 1} lobes"
-                s.lobes = ([read(p, f"{key}[{k}]") for k, p in enumerate(o.lobes)]
-                           if isinstance(o.lobes, list) else read(o.lobes, key))
+            _environment_lobes(scene, surfaces, read_lobes)
     return surfaces
+
+
+def environment_method(scene: Scene, o) -> str:
+    """``model`` or ``lobes`` for one object (:data:`gonio_cli.render.ENVIRONMENT_METHODS`):
+    ``auto`` takes the object's lobes file where it names one, and a measured object
+    (it has no model lobes) always needs one."""
+    method = scene.environment.method
+    if method == "auto":
+        method = "lobes" if o.lobes is not None or o.measured is not None else "model"
+    if method == "model" and o.measured is not None:
+        raise InputError(f"[[object]] {o.index + 1} ({o.name}): a measured reference has no "
+                         "model lobes for [environment] method = 'model'",
+                         path=scene.display,
+                         fix="give it lobes (gonio lobes fit) and method = 'lobes' or 'auto'")
+    return method
+
+
+def _environment_lobes(scene: Scene, surfaces: list, read_lobes) -> None:
+    """Each object's environment method; the lobe weights of those that use them."""
+    lobes: dict[Path, Any] = {}
+
+    def read(p, key):
+        from .environment import check_lobes
+
+        if p not in lobes:
+            with _SceneKey(scene, key, p):
+                lobes[p] = read_lobes(p)
+                check_lobes(lobes[p], scene.grid_nm)     # its grid, named here
+        return lobes[p]
+
+    for o, s in zip(scene.objects, surfaces):
+        s.env_method = environment_method(scene, o)
+        if s.env_method == "model":
+            continue
+        if o.lobes is None:
+            raise InputError(f"[[object]] {o.index + 1} ({o.name}): [environment] method = "
+                             "'lobes' needs the object's lobes", path=scene.display,
+                             fix="add lobes = \"....lobes.json\" (gonio lobes fit), or "
+                                 "method = 'model'")
+        key = f"[[object]] {o.index + 1} lobes"
+        s.lobes = ([read(p, f"{key}[{k}]") for k, p in enumerate(o.lobes)]
+                   if isinstance(o.lobes, list) else read(o.lobes, key))
+
+
+def environment_tables(scene: Scene, surfaces: list, environment) -> None:
+    """The lobe tables (:mod:`.env_model`) of every object lit by method ``model``,
+    from gonio's disk cache after the first render of a material with a chain."""
+    from .env_model import tables_for, warn_blurred
+
+    for o, s in zip(scene.objects, surfaces):
+        if getattr(s, "env_method", "lobes") != "model":
+            continue
+        where = f"{scene.display}: [[object]] {o.index + 1} ({o.name})"
+        mats = s.inks if s.printed else [s.material]
+        s.env_tables = [tables_for(environment, m, scene.grid_nm) for m in mats]
+        for tables in s.env_tables:
+            warn_blurred(tables, where, environment)
 
 
 def load_measured(path: Path, grid_nm: np.ndarray):
@@ -446,6 +484,9 @@ def _render_steps(scene: Scene, stats: Stats, state: dict, spectra: bool = False
         with Stage(stats, "environment"), _SceneKey(scene, "[environment] prefiltered",
                                                      scene.environment.prefiltered):
             environment = load_environment(scene.environment.prefiltered)
+        if any(getattr(s, "env_method", "") == "model" for s in surfaces):
+            with Stage(stats, "environment.lobes"):
+                environment_tables(scene, surfaces, environment)
     yield "materials"
     from .raster import rasterize
 

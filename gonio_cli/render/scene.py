@@ -22,7 +22,7 @@ Sections (see ``docs/render.md``)::
                    (+ sparkle, sparkle_color, sparkle_exponent, sparkle_scale)
     [[light]]      type = "directional" (direction, irradiance) | "point" (position,
                    intensity); spectrum = CIE name or CSV; name
-    [environment]  prefiltered (a gonio prefilter index.json)            (optional)
+    [environment]  prefiltered (a gonio prefilter index.json), method   (optional)
     [output]       exposure (stops), tonemap, adapt, ssaa, spectral, grid_nm, background
 
 The working spectral grid (:func:`choose_grid`): ``--grid-nm`` when given; else the
@@ -57,7 +57,7 @@ from ..errors import InputError
 from ..names import pick
 from ..schemas import EXPONENT_RANGE, EXPOSURE_MAX_STOPS, MAX_MAGNITUDE
 from ..spectra import grid_spec
-from . import Camera, Light
+from . import ENVIRONMENT_METHODS, Camera, Light
 
 #: Built-in meshes (``mesh = "builtin:NAME"``); anything else is an OBJ path.
 #: Options after "?" (``builtin:sphere?segments=48``) are checked by :mod:`.mesh`.
@@ -80,7 +80,7 @@ OBJECT_KEYS = ("name", "mesh", "translate", "rotate_deg", "scale", "material", "
 SPARKLE_KEYS = ("sparkle_color", "sparkle_exponent", "sparkle_scale")
 SUBSTRATE_KEYS = ("kd", "ks", "shininess")
 LIGHT_KEYS = ("type", "name", "direction", "irradiance", "position", "intensity", "spectrum")
-ENVIRONMENT_KEYS = ("prefiltered",)
+ENVIRONMENT_KEYS = ("prefiltered", "method")
 OUTPUT_KEYS = ("exposure", "tonemap", "adapt", "ssaa", "spectral", "grid_nm", "background")
 TOP_KEYS = ("vars", "camera", "object", "light", "environment", "output")
 
@@ -154,6 +154,7 @@ class Environment:
     linear sRGB radiance; brightness is set by ``[output] exposure``)."""
 
     prefiltered: Path
+    method: str = "auto"
 
 
 @dataclass
@@ -394,7 +395,9 @@ def load_scene(path: str | os.PathLike, *, variables: Mapping[str, str] | None =
         chk.keys(env, ENVIRONMENT_KEYS, "[environment]")
         environment = Environment(
             chk.file(chk.required(env, "prefiltered", "[environment]"),
-                     "[environment] prefiltered"))
+                     "[environment] prefiltered"),
+            chk.choice(env.get("method", "auto"), "[environment] method",
+                       tuple(ENVIRONMENT_METHODS)))
     if not lights and environment is None:
         raise chk.error("", "no [[light]] and no [environment]: the picture would be black",
                         fix="add a [[light]] or an [environment]")

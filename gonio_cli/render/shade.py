@@ -129,7 +129,10 @@ class Surface:
     substrate : None (black paper) or ``{"kd": .., "ks": .., "shininess": ..,
         "spectrum": (n_λ,) reflectance (optional, default 1)}``, the dim Phong term.
     lobes : a :class:`~gonio_cli.schemas.Lobes` (or one per ink for a printed object),
-        needed only under environment light (seed 001 eqs. 7-9).
+        needed only under environment light by ``env_method`` "lobes" (seed 001 eqs. 7-9).
+    env_method : "lobes" or "model" (:data:`gonio_cli.render.ENVIRONMENT_METHODS`).
+    env_tables : for "model", one list of :class:`gonio_cli.render.env_model.LobeTable`
+        per material (one, or three inks).
     name : for messages.
     sparkle : a :class:`gonio_cli.sparkle.SparkleTexture` or None (seed 004 eq. 17; a
         material or measured object only).
@@ -142,6 +145,8 @@ class Surface:
     lobes: Any = None
     name: str = ""
     sparkle: Any = None
+    env_method: str = "lobes"
+    env_tables: Any = None
 
     @property
     def printed(self) -> bool:
@@ -610,6 +615,8 @@ def _environment_term(environment, surface: Surface, k: int, px: _Pixels,
 
     where = f"object {k}" + (f" ({surface.name})" if surface.name else "")
     fix = "fit its lobe weights with gonio lobes fit and give them in the scene"
+    if surface.env_method == "model":
+        return _model_environment_term(environment, surface, px, cov, wl, observer)
     if not surface.printed:
         if not isinstance(surface.lobes, Lobes):
             raise InputError(f"{where} has no lobes; environment light needs gonio lobes fit",
@@ -627,6 +634,32 @@ def _environment_term(environment, surface: Surface, k: int, px: _Pixels,
         if np.any(sel):
             out[sel] += cov[sel, j, None] * environment_xyz(
                 environment, lob, normal[sel], view[sel], wl, observer)
+    bare = np.clip(1.0 - cov.sum(axis=1), 0.0, 1.0)
+    if surface.substrate is not None and np.any(bare > 0):
+        sel = bare > 0
+        out[sel] += bare[sel, None] * substrate_environment_xyz(
+            environment, surface.substrate, normal[sel], view[sel], wl, observer)
+    return out
+
+
+def _model_environment_term(environment, surface: Surface, px: _Pixels,
+                            cov: np.ndarray | None, wl: np.ndarray,
+                            observer: np.ndarray | None = None) -> np.ndarray:
+    """Environment light through the lobes of each material's own model (n, C);
+    printed: each ink's coverage-weighted, and the substrate's as seed 001's."""
+    from .env_model import model_environment_xyz
+    from .environment import substrate_environment_xyz
+
+    normal, view = px.get("normal"), px.get("view")
+    if not surface.printed:
+        return model_environment_xyz(environment, surface.env_tables[0], normal, view, wl,
+                                     observer)
+    out = np.zeros((px.size, 3 if observer is None else observer.shape[1]))
+    for j, tables in enumerate(surface.env_tables):
+        sel = cov[:, j] > 0
+        if np.any(sel):
+            out[sel] += cov[sel, j, None] * model_environment_xyz(
+                environment, tables, normal[sel], view[sel], wl, observer)
     bare = np.clip(1.0 - cov.sum(axis=1), 0.0, 1.0)
     if surface.substrate is not None and np.any(bare > 0):
         sel = bare > 0

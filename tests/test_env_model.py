@@ -1,0 +1,157 @@
+"""Environment light through the material's own lobes (gonio_cli.render.env_model).
+
+Truths: the furnace (a constant environment reflects the directional albedo, computed
+here by a dense quadrature of brdf.evaluate itself), brute-force integration of the BRDF
+against a prefiltered sky's texels, a pure Phong lobe's cumulative distribution, and the
+geometry of a mirror's reflected horizon.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from gonio_cli import envmap
+from gonio_cli.geometry import cosines
+from gonio_cli.prefilter import prefilter
+from gonio_cli.render.env_model import (VIEW_ANGLES_DEG, level_weights, material_tables,
+                                        model_environment_xyz)
+from gonio_cli.render.environment import Environment, rgb_basis
+from gonio_cli.schemas import Material
+
+from test_render_environment import brute_force, sky, sky_case  # noqa: F401 (fixture)
+from test_render_shade import WL, delta_e, ink
+
+def cm():
+    from gonio_cli.spectra import cmf_weights
+
+    return cmf_weights(WL)
+
+
+def constant_environment(levels, rgb=(1.0, 1.0, 1.0), shape=(8, 16)):
+    """Every level the constant ``rgb`` (what any prefilter makes of a constant sky)."""
+    maps = {float(e): np.broadcast_to(np.asarray(rgb, np.float32), shape + (3,)).copy()
+            for e in levels}
+    return Environment("memory", np.asarray(levels, float), [""] * len(levels),
+                       [shape] * len(levels), maps)
+
+
+def coat_paint() -> Material:
+    """A blue paint: Lambertian body, eq. 5's lobe (α = 0.25), clear coat α = 0.1."""
+    body = 0.02 + 0.25 * np.exp(-0.5 * ((WL - 460.0) / 40.0) ** 2)
+    return Material("goniochromatic-coat", WL, {
+        "alpha": 0.25, "rho": 0.05 + 0.3 * np.exp(-0.5 * ((WL - 470.0) / 50.0) ** 2),
+        "c": np.linspace(-1.0, 2.0, WL.size), "rho_d": body, "alpha_coat": 0.1,
+        "k_coat": 1.0, "f0_coat": 0.04})
+
+
+def metal() -> Material:
+    return Material("cook-torrance", WL, {"kd": np.full(WL.size, 0.05),
+                                          "ks": np.full(WL.size, 0.5),
+                                          "m": np.full(WL.size, 0.2),
+                                          "f0": np.linspace(0.5, 0.95, WL.size)})
+
+
+def dense_albedo(material, theta_v_deg, n=1200):
+    """∫ f cos θi dω (n_λ,) by the midpoint rule on an n × 2n (cos θi, φ) grid of
+    brdf.evaluate: independent of the lobe-following quadrature under test."""
+    ct = (np.arange(n) + 0.5) / n
+    ph = (np.arange(2 * n) + 0.5) / (2 * n) * np.pi          # symmetric about the plane
+    ct, ph = np.meshgrid(ct, ph, indexing="ij")
+    st = np.sqrt(1 - ct * ct)
+    wi = np.stack([st * np.cos(ph), st * np.sin(ph), ct], -1).reshape(-1, 3)
+    t = np.radians(theta_v_deg)
+    wo = np.array([[np.sin(t), 0.0, np.cos(t)]])
+    total = np.zeros(WL.size)
+    for s in range(0, len(wi), 200_000):
+        b = wi[s:s + 200_000]
+        f = material.evaluate(cosines(b, np.broadcast_to(wo, b.shape)))
+        total += (f * b[:, 2:3]).sum(0)
+    return total * (1.0 / n) * (np.pi / (2 * n)) * 2.0
+
+
+@pytest.mark.parametrize("make", [coat_paint, metal, lambda: ink(0.2, 530.0)],
+                         ids=["coat", "metal", "ink"])
+@pytest.mark.parametrize("theta_v", [0.0, 37.0, 70.0])
+def test_constant_environment_reflects_the_directional_albedo(make, theta_v):
+    """The furnace: under L = (1, 1, 1) (D65, Y = 1) every level is 1, so the result is
+    Σ_k A_k(θv) D65 cmf: the albedo. Against a 1200 × 2400 midpoint grid of the BRDF
+    (its own error ~1e-4 for α ≥ 0.1); 0.5 % covers the lobe quadrature's (measured
+    ≤ 0.2 %) and the linear view interpolation at 37° (between tabulated 36° and 38°)."""
+    material = make()
+    levels = [1.0, 2.0, 4.0, 16.0, 64.0, 256.0]
+    env = constant_environment(levels)
+    tables = material_tables(material, WL, np.asarray(levels))
+    t = np.radians(theta_v)
+    normal, view = np.array([[0.0, 0.0, 1.0]]), np.array([[np.sin(t), 0.0, np.cos(t)]])
+    got = model_environment_xyz(env, tables, normal, view, WL)[0]
+    d65 = np.ones(3) @ rgb_basis(WL)
+    want = (dense_albedo(material, theta_v) * d65) @ cm()
+    np.testing.assert_allclose(got, want, rtol=5e-3)
+
+
+def test_a_pure_phong_lobe_gets_one_level():
+    """The distribution of max(0, cos ψ)^64 (sampled on a fine ψ grid) is level 64 alone."""
+    psi = np.linspace(0.0, np.pi / 2, 20001)[1:]
+    mass = np.cos(psi) ** 64 * np.sin(psi)
+    w = level_weights(psi, mass, np.array([1.0, 16.0, 32.0, 64.0, 128.0, 256.0]))
+    assert w[3] > 0.98 and w.sum() == pytest.approx(1.0)
+
+
+def test_a_lambertian_body_is_the_irradiance_map_exactly():
+    """ρ/π: one lobe, mean direction N at every view, all its weight on E = 1."""
+    lam = Material("cook-torrance", WL, {"kd": np.full(WL.size, 0.5), "ks": np.zeros(WL.size),
+                                         "m": np.full(WL.size, 0.3), "f0": np.zeros(WL.size)})
+    table = material_tables(lam, WL, np.array([1.0, 2.0, 4.0]))[0]
+    assert np.all(table.weights[:, 0] == 1.0)
+    np.testing.assert_allclose(table.beta, 0.0, atol=1e-12)
+    np.testing.assert_allclose(table.albedo, 0.5, rtol=1e-9)
+
+
+@pytest.mark.parametrize("material", [ink(0.35, 620.0), ink(0.1, 530.0), coat_paint()],
+                         ids=["matte", "glossy", "coat"])
+def test_sky_matches_brute_force(material, sky_case):  # noqa: F811
+    """Against brute-force integration of the BRDF over the sky's texels (the same 300
+    interior sphere pixels as seed 001's test in test_render_environment.py, whose lobe
+    weights reach mean 1.81 / 0.72 on the matte and glossy inks). Measured here: mean
+    CIEDE2000 1.87 (matte, α = 0.35: its wide lobe is cut by the horizon, and the part of
+    a round lobe below it reads the ground), 0.50 (glossy), 0.27 (coat); p99 4.7, 1.3,
+    0.71. Asserted: the matte within seed 001's targets (mean < 2, p99 < 5), the glossy
+    ones mean < 1, p99 < 2."""
+    env, normals, views = sky_case[:3]
+    chain = [float(e) for e in envmap.chain_exponents(64)]
+    results = prefilter(sky(64), chain, check=False)
+    env = Environment("memory", np.array([r.exponent for r in results]), [""] * len(results),
+                      [r.pixels.shape[:2] for r in results],
+                      {float(r.exponent): r.pixels for r in results})
+    tables = material_tables(material, WL, env.exponents)
+    got = model_environment_xyz(env, tables, normals, views, WL)
+    ref = brute_force(material, sky_case)
+    de = delta_e(got, ref, ref[:, 1].max())
+    matte = material.params["alpha"] > 0.3
+    assert de.mean() < (2.0 if matte else 1.0)
+    assert np.percentile(de, 99) < (5.0 if matte else 2.0)
+
+
+def test_a_sharp_coat_reflects_the_horizon_where_a_mirror_does():
+    """A sky of 1 above the horizon and 0 below, prefiltered as a chain, seen in a clear
+    coat of α = 0.01 on a flat floor: looking 4° above the mirror angle of the horizon
+    the coat shows the sky (> 90 % of its albedo), 4° below it shows the ground (< 10 %)."""
+    h = 128
+    d = envmap.pixel_directions(h, 2 * h)
+    step = np.repeat((d[..., 1] > 0).astype(float)[..., None], 3, axis=2)
+    chain = [float(e) for e in envmap.chain_exponents(h)]
+    results = prefilter(step, chain, check=False)
+    env = Environment("memory", np.array([r.exponent for r in results]), [""] * len(results),
+                      [r.pixels.shape[:2] for r in results],
+                      {float(r.exponent): r.pixels for r in results})
+    coat = Material("torrance-sparrow", WL, {"alpha": 0.01, "f0": np.full(WL.size, 0.04)})
+    tables = material_tables(coat, WL, env.exponents)
+    white = constant_environment(env.exponents)
+    normal = np.array([[0.0, 0.0, 1.0]])                      # a wall facing +z
+    for elevation, lo, hi in ((4.0, 0.9, 1.01), (-4.0, 0.0, 0.1)):
+        e = np.radians(elevation)
+        view = np.array([[0.0, -np.sin(e), np.cos(e)]])       # its mirror R = (0, sin e, cos e)
+        y = model_environment_xyz(env, tables, normal, view, WL)[0, 1]
+        albedo_y = model_environment_xyz(white, tables, normal, view, WL)[0, 1]
+        assert lo * albedo_y < y < hi * albedo_y, (elevation, y / albedo_y)
