@@ -478,3 +478,18 @@ def test_cook_torrance_without_specular_is_lambertian(rng):
     f = brdf.cook_torrance(geo.cosines(wi, wo), kd, np.zeros(N_LAMBDA),
                            rng.uniform(0.1, 0.5, N_LAMBDA), rng.uniform(0.0, 1.0, N_LAMBDA))
     np.testing.assert_allclose(f, np.broadcast_to(kd / np.pi, f.shape), rtol=1e-15)
+
+
+@pytest.mark.parametrize("name", sorted(brdf.MODELS))
+def test_the_lobes_of_each_model_add_up_to_it(name, rng):
+    """gonio_cli.brdf_components: every model is the sum of its lobes (environment light
+    reads each lobe on its own), to round-off, at random pairs and at the extremes."""
+    from gonio_cli.brdf_components import DIFFUSE, GLOSSY, components
+
+    p = model_params(name, rng)
+    for cos in (geo.cosines(*random_upper_pairs(rng, 500)), extreme_cosines(rng)):
+        want = brdf.evaluate(name, cos, p)
+        lobes = components(name, p)
+        got = sum(np.broadcast_to(c.evaluate(cos), want.shape) for c in lobes)
+        np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-300)
+        assert {c.kind for c in lobes} <= {DIFFUSE, GLOSSY}

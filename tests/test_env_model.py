@@ -8,6 +8,8 @@ geometry of a mirror's reflected horizon.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -155,3 +157,96 @@ def test_a_sharp_coat_reflects_the_horizon_where_a_mirror_does():
         y = model_environment_xyz(env, tables, normal, view, WL)[0, 1]
         albedo_y = model_environment_xyz(white, tables, normal, view, WL)[0, 1]
         assert lo * albedo_y < y < hi * albedo_y, (elevation, y / albedo_y)
+
+
+# ------------------------------------------------------------------ the command line --
+
+#: The sample sky (256 × 128, a sun ~1e5 × the sky: sample_data/make_sky.py).
+SKY = Path(__file__).resolve().parents[1] / "sample_data" / "sky.exr"
+
+SCENE = """
+[camera]
+eye = [0.0, 0.0, 4.0]
+target = [0.0, 0.0, 0.0]
+fov_deg = 35.0
+width = 40
+height = 40
+
+[[object]]
+mesh = "builtin:sphere?segments=48"
+{object}
+
+[environment]
+prefiltered = "{index}"
+{method}
+
+[output]
+ssaa = 1
+"""
+
+
+@pytest.fixture(scope="module")
+def chain_index(tmp_path_factory):
+    """The sample sky prefiltered as a chain by the command (256 × 128: E = 1 … 2048)."""
+    from gonio_cli import cli
+
+    out = tmp_path_factory.mktemp("chain")
+    assert cli.run(["prefilter", str(SKY), "--chain", "-o", str(out)]) == 0
+    return out / "index.json"
+
+
+def write_scene(tmp_path, index, obj, method=""):
+    from gonio_cli.schemas import write_material
+
+    write_material(tmp_path / "coat.json", coat_paint())
+    path = tmp_path / "scene.toml"
+    path.write_text(SCENE.format(object=obj, index=index, method=method))
+    return path
+
+
+def test_prefilter_chain_reaches_a_texel(chain_index):
+    import json
+
+    maps = json.loads(chain_index.read_text())["maps"]
+    exps = sorted(m["exponent"] for m in maps)
+    assert exps == envmap.chain_exponents(128) == [2.0 ** k for k in range(12)]
+    sharpest = max(maps, key=lambda m: m["exponent"])
+    assert (sharpest["width"], sharpest["height"]) == (256, 128)    # the map's own size
+
+
+def test_render_without_lobes_uses_the_model(run_gonio, tmp_path, chain_index):
+    """auto: a material without a lobes file is lit through its own lobes; the run
+    report names the stage; nothing is said about blurring with a full chain."""
+    import json
+
+    scene = write_scene(tmp_path, chain_index, 'material = "coat.json"')
+    r = run_gonio("render", scene, "-o", tmp_path / "o.png", "--report", tmp_path / "r.json")
+    assert r.exit_code == 0, r.stderr
+    assert "warning" not in r.stderr
+    report = json.loads((tmp_path / "r.json").read_text())
+    assert any(s["stage"] == "environment.lobes" for s in report["substages"])
+
+
+def test_a_short_chain_is_said_to_blur(run_gonio, tmp_path):
+    """An index whose sharpest map is E = 8 cannot hold the coat (α = 0.1): said."""
+    from gonio_cli import cli
+
+    out = tmp_path / "short"
+    assert cli.run(["prefilter", str(SKY), "--exponents", "2,8", "-o", str(out)]) == 0
+    scene = write_scene(tmp_path, out / "index.json", 'material = "coat.json"')
+    r = run_gonio("render", scene, "-o", tmp_path / "o.png")
+    assert r.exit_code == 0
+    assert "coat lobe is sharper than the sharpest prefiltered map" in r.stderr
+    assert "--chain" in r.stderr
+
+
+@pytest.mark.parametrize("method, message", [
+    ('method = "mirror"', "'mirror' is unknown; use one of auto, model, lobes"),
+    ('method = 3', "method"),
+])
+def test_bad_method_is_one_line(run_gonio, tmp_path, chain_index, method, message):
+    scene = write_scene(tmp_path, chain_index, 'material = "coat.json"', method)
+    r = run_gonio("render", scene, "-o", tmp_path / "o.png")
+    assert r.exit_code == 2 and message in r.stderr and "[environment]" in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "o.png").exists()

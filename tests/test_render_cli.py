@@ -170,7 +170,7 @@ def test_nan_in_a_material_is_refused(run_gonio, scene, tmp_path):
     assert len(r.stderr.strip().splitlines()) == 1
 
 
-def test_environment_without_lobes_is_one_line(run_gonio, scene, tmp_path):
+def test_lobes_method_without_lobes_is_one_line(run_gonio, scene, tmp_path):
     from gonio_cli.artifact import write_artifact
     from gonio_cli.imageio import write_exr
 
@@ -180,7 +180,8 @@ def test_environment_without_lobes_is_one_line(run_gonio, scene, tmp_path):
     write_artifact(sky / "index.json", "gonio.prefilter", 1,
                    {"diffuse": "e1.exr", "maps": [{"exponent": 1.0, "path": "e1.exr",
                                                    "width": 8, "height": 4}]})
-    scene.write_text(scene.read_text() + '\n[environment]\nprefiltered = "sky/index.json"\n')
+    scene.write_text(scene.read_text() + '\n[environment]\nprefiltered = "sky/index.json"\n'
+                     'method = "lobes"\n')
     r = run_gonio("render", scene, "-o", tmp_path / "o.png")
     assert r.exit_code == 2, r.stderr
     line = r.stderr.strip()
