@@ -46,8 +46,9 @@ def read_envmap(envmap_path: Path, fix_invalid: bool = False):
 
 
 def write_maps(output: Path, envmap_path: Path, lobes, shape, results, names, parameters,
-               replaced: int, time_s: float) -> None:
-    """Write the maps and index.json through a temporary folder beside OUTDIR."""
+               replaced: int, time_s: float, sun: dict | None = None) -> None:
+    """Write the maps and index.json through a temporary folder beside OUTDIR; ``sun``:
+    the sun split off the map (:func:`sun_entry`), or None."""
     from .artifact import image_metadata
     from .imageio import write_exr
     from .outputs import folder_output
@@ -77,7 +78,16 @@ def write_maps(output: Path, envmap_path: Path, lobes, shape, results, names, pa
         index = PrefilterIndex(
             source={"width": int(shape[1]), "height": int(shape[0]),
                     "channels": int(shape[2]), "invalid_texels_replaced": int(replaced)},
-            diffuse=names[0], maps=entries)
+            diffuse=names[0], maps=entries, sun=sun)
         # checked against the reader's definition before writing (gonio_cli.schemas)
         write_prefilter_index(tmp / "index.json", index, inputs=inputs,
                               parameters=parameters, time_s=time_s)
+
+
+def sun_entry(sun) -> dict:
+    """``index.json``'s ``sun`` of a :class:`gonio_cli.envsun.Sun` (units in the names)."""
+    return {"direction": [float(x) for x in sun.direction],
+            "irradiance_rgb": [float(x) for x in sun.irradiance_rgb],
+            "angular_diameter_deg": float(sun.angular_diameter_deg),
+            "solid_angle_sr": float(sun.solid_angle_sr), "texels": int(sun.texels),
+            "flux_share": float(sun.flux_share), "fill_share": float(sun.fill_share)}

@@ -802,14 +802,22 @@ class PrefilterIndex:
         ``checked_texels``, ``working_width``, ``working_height``, ``time_s``).
     source : the input map's ``width``, ``height``, ``channels``,
         ``invalid_texels_replaced`` ; diffuse : the file name of the E = 1 map.
+    sun : (version 2, ``gonio prefilter --sun``) the sun split off the map before it was
+        prefiltered (:class:`gonio_cli.envsun.Sun`): ``direction`` (3, towards it),
+        ``irradiance_rgb`` (3, linear sRGB at normal incidence), ``angular_diameter_deg``,
+        ``solid_angle_sr``, ``texels``, ``flux_share``, ``fill_share``; the renderer lights
+        the scene with it as a directional light that casts shadows.
     """
 
     maps: list[dict[str, Any]]
     source: dict[str, Any] | None = None
     diffuse: str | None = None
+    sun: dict[str, Any] | None = None
 
     SCHEMA = "gonio.prefilter"
-    VERSION = 1
+    VERSION = 2
+    #: Versions read: 1 (no sun) and 2.
+    READ_VERSIONS = (1, 2)
     FIX = "regenerate the folder with gonio prefilter"
 
     def to_payload(self) -> dict[str, Any]:
@@ -818,6 +826,8 @@ class PrefilterIndex:
             out["source"] = self.source
         if self.diffuse is not None:
             out["diffuse"] = self.diffuse
+        if self.sun is not None:
+            out["sun"] = self.sun
         out["maps"] = self.maps
         return out
 
@@ -832,19 +842,26 @@ class PrefilterIndex:
                      "working_height": _opt(POSITIVE_COUNT), "time_s": _opt(SECONDS)})
         source = Obj({"width": _req(POSITIVE_COUNT), "height": _req(POSITIVE_COUNT),
                       "channels": _req(POSITIVE_COUNT), "invalid_texels_replaced": _opt(COUNT)})
-        return Obj({**envelope_fields(cls.SCHEMA, (cls.VERSION,)),
-                    "source": _opt(source), "diffuse": _opt(Text()),
+        vector = ListOf(Number(-MAX_MAGNITUDE, MAX_MAGNITUDE), min_items=3)
+        sun = Obj({"direction": _req(vector), "irradiance_rgb": _req(vector),
+                   "angular_diameter_deg": _req(Number(0.0, 180.0)),
+                   "solid_angle_sr": _req(NON_NEGATIVE), "texels": _opt(COUNT),
+                   "flux_share": _opt(Number(0.0, 1.0)), "fill_share": _opt(Number(0.0, 1.0))})
+        return Obj({**envelope_fields(cls.SCHEMA, cls.READ_VERSIONS),
+                    "source": _opt(source), "diffuse": _opt(Text()), "sun": _opt(sun),
                     "maps": _req(ListOf(entry, min_items=1))})
 
     @classmethod
     def from_document(cls, doc: dict[str, Any], path=None) -> "PrefilterIndex":
         f = validate(doc, cls.spec(), path, cls.FIX)
-        return cls([dict(m) for m in f["maps"]], f.get("source"), f.get("diffuse"))
+        return cls([dict(m) for m in f["maps"]], f.get("source"), f.get("diffuse"),
+                   f.get("sun"))
 
 
 def read_prefilter_index(path: str | os.PathLike) -> PrefilterIndex:
-    """Read and validate a prefiltered environment's ``index.json``."""
-    return _read_as(PrefilterIndex, path)
+    """Read and validate a prefiltered environment's ``index.json`` (versions 1 and 2)."""
+    doc = read_artifact(path, PrefilterIndex.SCHEMA, PrefilterIndex.READ_VERSIONS)
+    return PrefilterIndex.from_document(doc, path=path)
 
 
 def write_prefilter_index(path: str | os.PathLike, index: PrefilterIndex, **envelope) -> dict:

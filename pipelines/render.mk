@@ -8,7 +8,7 @@ SCENES := sample_data/scenes
 RENDER_VARS := --var out=$(abspath $(OUT))
 RENDER_TARGETS := $(RENDER)/figure5.png $(RENDER)/print-D65.png $(RENDER)/print-A.png \
                   $(RENDER)/print-A-unadapted.png $(RENDER)/paint_env.png \
-                  $(RENDER)/paint_sparkle.png
+                  $(RENDER)/paint_sparkle.png $(RENDER)/paint_sky.png
 
 .PHONY: render
 render: $(RENDER_TARGETS)
@@ -54,3 +54,10 @@ $(RENDER)/paint_sparkle.png: $(SCENES)/paint_sparkle.toml $(CARPAINT)/paint.mate
 	$(GONIO) render $< -o $@ --exr $(RENDER)/paint_sparkle.exr \
 	  --report $(RENDER)/paint_sparkle.json $(RENDER_VARS) \
 	  --var sparkles=$(abspath $(RENDER)/sparkle.png)
+
+# The clear-coated paint on Spot (sample_data/meshes/) on a floor under the real sky,
+# every lobe of the paint reading the prefiltered chain at its own sharpness.
+$(RENDER)/paint_sky.png: $(SCENES)/paint_sky.toml $(CARPAINT)/coat.material.json \
+  $(SCENES)/floor.material.json sample_data/meshes/spot.obj $(SKY)/quarry/index.json
+	$(GONIO) render $< -o $@ --exr $(RENDER)/paint_sky.exr --report $(RENDER)/paint_sky.json \
+	  $(RENDER_VARS)

@@ -3,10 +3,16 @@
 # the top Makefile after lobes.mk (GONIO, OUT, STAMP, LOBES).
 
 SKY := $(OUT)/sky
-SKY_TARGETS := $(SKY)/index.json
+SKY_TARGETS := $(SKY)/index.json $(SKY)/quarry/index.json
 
 .PHONY: sky
 sky: $(SKY_TARGETS)
 
 $(SKY)/index.json: sample_data/sky.exr $(LOBES)/paint.lobes.json | $(STAMP)
 	$(GONIO) prefilter $< --lobes $(LOBES)/paint.lobes.json -o $(SKY)
+
+# A real sky (Poly Haven "Quarry 01", CC0: sample_data/envmaps/README.md) prefiltered as a
+# chain, E = 1 … 32768: every lobe of a material reads it at its own sharpness
+# ([environment] method = "model", docs/render.md).
+$(SKY)/quarry/index.json: sample_data/envmaps/quarry_01_1k.hdr | $(STAMP)
+	$(GONIO) prefilter $< --chain -o $(SKY)/quarry

@@ -40,7 +40,7 @@ def test_writes_one_map_per_exponent_and_the_index(run_gonio, sky, tmp_path):
     r = run_gonio("prefilter", sky, "--exponents", "8,64", "-o", out)
     assert r.exit_code == 0, r.stderr
     index = json.loads((out / "index.json").read_text())
-    assert index["schema"] == "gonio.prefilter" and index["schema_version"] == 1
+    assert index["schema"] == "gonio.prefilter" and index["schema_version"] == 2
     assert index["inputs"][0]["sha256"] and index["parameters"]["exponents"] == [1, 8, 64]
     assert [m["exponent"] for m in index["maps"]] == [1.0, 8.0, 64.0]
     assert index["diffuse"] == index["maps"][0]["path"]
@@ -49,7 +49,7 @@ def test_writes_one_map_per_exponent_and_the_index(run_gonio, sky, tmp_path):
         img = read_image(out / m["path"])
         assert img.pixels.shape == (m["height"], m["width"], 3)
         assert img.metadata["schema"] == "gonio.prefilter"
-        assert int(img.metadata["schema_version"]) == 1
+        assert int(img.metadata["schema_version"]) == 2
         assert json.loads(img.metadata["inputs"]) == index["inputs"]   # same hashes
         assert np.all(img.pixels >= 0.0) and np.all(np.isfinite(img.pixels))
         assert m["error_estimate"] < 0.01
@@ -111,8 +111,8 @@ def bad_cases(tmp_path, sky):
         "missing map": ([tmp_path / "nope.exr", "-e", "8"], "no such image file"),
         "exponent below 1": ([sky, "-e", "0.5,8"], "outside [1"),
         "not a number": ([sky, "-e", "8,abc"], "'abc'"),
-        "no exponents": ([sky], "either --exponents or --lobes"),
-        "both": ([sky, "-e", "8", "--lobes", nolist], "either --exponents or --lobes"),
+        "no exponents": ([sky], "give one of --chain, --exponents or --lobes"),
+        "both": ([sky, "-e", "8", "--lobes", nolist], "give one of --chain, --exponents or --lobes"),
         "lobes without exponents": ([sky, "--lobes", nolist], "exponents"),
         "lobes of another schema": ([sky, "--lobes", wrong], "gonio.material"),
         "unknown method": ([sky, "-e", "8", "--method", "sh9"], "auto, brute, ring"),

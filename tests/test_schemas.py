@@ -168,7 +168,7 @@ def test_prefilter_index_written_and_read_by_one_definition(tmp_path):
         source={"width": 16, "height": 8, "channels": 3}, diffuse="prefiltered_E1.exr")
     path = tmp_path / "index.json"
     doc = schemas.write_prefilter_index(path, index, parameters={"exponents": [1, 64]})
-    assert doc["schema"] == "gonio.prefilter" and doc["schema_version"] == 1
+    assert doc["schema"] == "gonio.prefilter" and doc["schema_version"] == 2
     assert schemas.read_prefilter_index(path) == index
     bad = tmp_path / "bad.json"
     broken = schemas.PrefilterIndex(maps=[{"exponent": 0.5, "path": "x.exr", "width": 8,

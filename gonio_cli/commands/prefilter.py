@@ -51,6 +51,9 @@ def prefilter(
     chain: bool = typer.Option(False, "--chain",
                                help="Exponents 1, 2, 4, … up to the map's own sharpness: "
                                     "what [environment] method = 'model' reads."),
+    sun: bool = typer.Option(False, "--sun",
+                             help="Split the sun off the map first: the renderer lights "
+                                  "with it as a directional light that casts shadows."),
     method: str = typer.Option("auto", "--method", "-m",
                                metavar=metavar((PREFILTER_AUTO,) + PREFILTER_METHOD_NAMES),
                                help="auto (per exponent), ring, or brute (exact, slow)."),
@@ -95,6 +98,9 @@ def prefilter(
     from ..outputs import declare
     declare({"-o": output}, [envmap_path, lobes], folders=["-o"])
     pixels, replaced = read_envmap(envmap_path, fix_invalid)
+    sun_found = split_sun(pixels, envmap_path) if sun else None
+    if sun_found is not None:
+        pixels = sun_found[0]
     if chain:
         from ..envmap import chain_exponents
 
@@ -120,11 +126,32 @@ def prefilter(
         raise InputError("two exponents round to the same file name",
                          fix="give exponents that differ in their first 6 digits")
     parameters = {"exponents": exps, "lobes": str(lobes) if lobes else None, "chain": chain,
+                  "sun": sun,
                   "method": method, "resolution": resolution, "fix_invalid": fix_invalid,
                   "check": check}
     write_maps(output, envmap_path, lobes, pixels.shape, results, names, parameters,
-               replaced, t["time_s"])
+               replaced, t["time_s"], sun_found[1] if sun_found is not None else None)
     log.info(summary_line(output, results, t["time_s"]))
+
+
+def split_sun(pixels, envmap_path: Path):
+    """(residual, index.json's sun entry) of :func:`gonio_cli.envsun.split_sun`, said on
+    stderr; None, with a warning that says why, when the map has no sun."""
+    import numpy as np
+
+    from .. import log
+    from ..envsun import find_sun_region, split_sun as split
+    from ..prefilter_files import sun_entry
+
+    residual, found = split(pixels)
+    if found is None:
+        log.warn(f"{envmap_path}: no sun split off ({find_sun_region(pixels).reason}); "
+                 "the map is prefiltered whole and casts no shadow")
+        return None
+    log.info(f"{envmap_path}: sun at theta {found.theta_deg:.1f} deg, phi "
+             f"{found.phi_deg:.1f} deg, {found.angular_diameter_deg:.2f} deg across, "
+             f"{found.flux_share:.0%} of the map's light, split off as a light")
+    return residual.astype(np.float32), sun_entry(found)
 
 
 def summary_line(output: Path, results, time_s: float) -> str:

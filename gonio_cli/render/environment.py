@@ -65,6 +65,7 @@ class Environment:
     maps : exponent → (H, W, 3) float32 array, filled on first use (:meth:`map`), and
         the float64 stacks of :meth:`stacked`.
     tables : the lobe tables of :func:`gonio_cli.render.env_model.tables_for`, by key.
+    sun : the index's ``sun`` (``gonio prefilter --sun``), or None: :func:`sun_light`.
     """
 
     path: str
@@ -73,6 +74,7 @@ class Environment:
     shapes: list[tuple[int, int]]
     maps: dict = field(default_factory=dict)
     tables: dict = field(default_factory=dict)
+    sun: dict | None = None
 
     def index_of(self, exponent: float, where: str = "") -> int:
         """Index of the map of ``exponent`` (within :data:`EXPONENT_RTOL`), or an error."""
@@ -173,11 +175,42 @@ def load_environment(index_json_path: str | os.PathLike) -> Environment:
     if np.any(np.diff(e) <= EXPONENT_RTOL * e[1:]):
         raise ArtifactError("field 'maps' lists an exponent twice", path=path,
                             fix=PrefilterIndex.FIX)
-    env = Environment(os.fspath(path), e, [files[i] for i in order], [shapes[i] for i in order])
+    env = Environment(os.fspath(path), e, [files[i] for i in order], [shapes[i] for i in order],
+                      sun=index.sun)
+    if env.sun is not None:
+        for key in ("direction", "irradiance_rgb"):
+            if len(env.sun[key]) != 3 or (key == "direction"
+                                          and not np.linalg.norm(env.sun[key]) > 0):
+                raise ArtifactError(f"field 'sun.{key}' is {env.sun[key]}, not 3 numbers"
+                                    + (" of non-zero length" if key == "direction" else ""),
+                                    path=path, fix=PrefilterIndex.FIX)
+            if key == "irradiance_rgb" and min(env.sun[key]) < 0:
+                raise ArtifactError(f"field 'sun.{key}' is {env.sun[key]}: negative",
+                                    path=path, fix=PrefilterIndex.FIX)
     if not env.has(1.0):
         raise ArtifactError("has no diffuse map (exponent 1)", path=path,
                             fix="regenerate it with gonio prefilter (which always adds E = 1)")
     return env
+
+
+def sun_light(environment: Environment, wavelength_nm):
+    """The sun split off the map (``gonio prefilter --sun``) as a directional
+    :class:`~gonio_cli.render.Light` on the working grid, or None: its linear-sRGB
+    irradiance E_rgb becomes the spectrum D65 Σ_c E_c B_c (docs/conventions.md), scaled
+    to Σ S ȳ / Σ ȳ = 1 with ``irradiance`` its luminance."""
+    from . import Light
+    from ..spectra import cmf_weights
+
+    if environment.sun is None:
+        return None
+    wl = np.asarray(wavelength_nm, dtype=float)
+    spectrum = rgb_spectral_basis(wl) @ np.asarray(environment.sun["irradiance_rgb"], float)
+    y = float(spectrum @ cmf_weights(wl)[:, 1])
+    if not y > 0:
+        return None
+    d = np.asarray(environment.sun["direction"], dtype=float)
+    return Light("directional", spectrum / y, direction=d / np.linalg.norm(d), irradiance=y,
+                 name=f"the sun of {Path(environment.path).parent.name}")
 
 
 # ------------------------------------------------------------------------------ colour --
@@ -359,5 +392,5 @@ def substrate_environment_xyz(environment: Environment, substrate: dict, normal:
     return out
 
 
-__all__ = ["Environment", "load_environment", "environment_xyz", "substrate_environment_xyz",
+__all__ = ["Environment", "load_environment", "sun_light", "environment_xyz", "substrate_environment_xyz",
            "rgb_basis", "channel_matrices", "view_interpolation"]

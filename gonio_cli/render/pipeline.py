@@ -572,8 +572,9 @@ def spectral_radiance(gbuffer, surfaces: list, scene: Scene, environment=None) -
     out = np.empty((cam.height, cam.width, n), np.float32)
     identity = np.eye(n)
     step = bands_per_pass(gbuffer.rows, n)
+    lights = shading_lights(scene, environment)
     for start in range(0, n, step):
-        rows = shade_rows(gbuffer, surfaces, scene.lights, wl, environment=environment,
+        rows = shade_rows(gbuffer, surfaces, lights, wl, environment=environment,
                           spectral=scene.output.spectral, dtype=np.float32,
                           observer=identity[:, start:start + step])
         band, coverage = resolve(rows, gbuffer.pixels, gbuffer.object_id, ssaa, scene.display)
@@ -586,6 +587,16 @@ def spectral_radiance(gbuffer, surfaces: list, scene: Scene, environment=None) -
         out += ((1.0 - coverage)[..., None]
                 * (rgb_spectral_basis(wl) @ background)).astype(np.float32)
     return out
+
+
+def shading_lights(scene: Scene, environment) -> list:
+    """The scene's lights and the environment's sun (``gonio prefilter --sun``), if any:
+    what lights the surfaces. The sun is the environment's, so it does not enter the
+    scene white (a scene lit only by an environment is not adapted)."""
+    from .environment import sun_light
+
+    sun = None if environment is None else sun_light(environment, scene.grid_nm)
+    return list(scene.lights) + ([sun] if sun is not None else [])
 
 
 def scene_white(scene: Scene) -> np.ndarray | None:
@@ -603,9 +614,10 @@ def _shade_without_overflow(scene: Scene, gbuffer, surfaces, environment, stats:
     from ..errors import NumericError
     from .shade import shade_rows
 
+    lights = shading_lights(scene, environment)
     try:
         with np.errstate(over="raise"):
-            return shade_rows(gbuffer, surfaces, scene.lights, scene.grid_nm,
+            return shade_rows(gbuffer, surfaces, lights, scene.grid_nm,
                               environment=environment, spectral=scene.output.spectral,
                               stats=stats, dtype=np.float32)
     except FloatingPointError:
