@@ -291,3 +291,41 @@ def test_a_map_without_a_sun_says_so(run_gonio, tmp_path):
     r = run_gonio("prefilter", flat, "--chain", "--sun", "-o", tmp_path / "o")
     assert r.exit_code == 0 and "no sun split off" in r.stderr
     assert len([ln for ln in r.stderr.splitlines() if "warning" in ln]) == 1
+
+
+def test_background_environment_shows_the_sky_behind(run_gonio, tmp_path, chain_index):
+    """[output] background = "environment": an uncovered pixel shows the sharpest map in
+    the direction through its centre (a bilinear lookup, checked against envmap.lookup),
+    in the EXR (linear sRGB, not adapted: an environment-lit scene)."""
+    from gonio_cli.imageio import read_image
+    from gonio_cli.render.environment import load_environment
+    from gonio_cli.render.raster import pixel_rays
+    from gonio_cli.render.scene import load_scene
+
+    scene = write_scene(tmp_path, chain_index, 'material = "coat.json"')
+    scene.write_text(scene.read_text() + 'background = "environment"\n')
+    r = run_gonio("render", scene, "-o", tmp_path / "o.png", "--exr", tmp_path / "o.exr")
+    assert r.exit_code == 0, r.stderr
+    px = read_image(tmp_path / "o.exr").pixels[..., :3]
+    env = load_environment(chain_index)
+    sharpest = env.map(float(env.exponents.max()))
+    want = envmap.lookup(sharpest, pixel_rays(load_scene(scene).camera))
+    corner = (slice(0, 4), slice(0, 4))                        # no sphere there
+    np.testing.assert_allclose(px[corner], want[corner], rtol=1e-5)
+
+
+@pytest.mark.parametrize("background, needle", [
+    ('"sky"', "'sky' is unknown; use one of environment"),
+    ('"environment"', "no [environment]"),
+])
+def test_bad_background_is_one_line(run_gonio, tmp_path, background, needle):
+    from gonio_cli.schemas import write_material
+
+    write_material(tmp_path / "coat.json", coat_paint())
+    text = SCENE.split("[environment]")[0] + (
+        '[[light]]\ntype = "directional"\ndirection = [0.0, 0.0, 1.0]\nirradiance = 1.0\n'
+        f'[output]\nbackground = {background}\n')
+    (tmp_path / "s.toml").write_text(text.format(object='material = "coat.json"'))
+    r = run_gonio("render", tmp_path / "s.toml", "-o", tmp_path / "o.png")
+    assert r.exit_code == 2 and needle in r.stderr and "background" in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1

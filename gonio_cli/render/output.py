@@ -97,11 +97,11 @@ def exr_pixels(frame: Frame, scene: Scene, space: str = "srgb") -> np.ndarray:
         return frame.linear
     m = xyz_to_exr_matrix(space, scene.output.adapt, scene_white(scene))
     out = xyz_to_linear(frame.xyz, m)
-    background = np.asarray(scene.output.background, float)
-    if np.any(background != 0):              # given in linear sRGB, the display's space
+    if frame.background is not None:         # given in linear sRGB, the display's space
         to_space = get_exr_space(space).matrix() @ np.linalg.inv(
             get_exr_space("srgb").matrix())
-        out += ((1.0 - frame.coverage)[..., None] * (to_space @ background)).astype(np.float32)
+        out += ((1.0 - frame.coverage)[..., None]
+                * (frame.background @ to_space.T)).astype(np.float32)
     return out
 
 

@@ -56,7 +56,8 @@ class Frame:
     each pixel's samples that hit an object, ``out_of_gamut`` (H, W) bool the pixels whose
     colour lies outside sRGB (a negative linear channel, shown clipped to 0), ``spectra``
     (H, W, n_λ) float32 the spectral radiance on the working grid (box-filtered like
-    ``xyz``, whose Σλ L cmf / Σ ȳ it is), only when asked for."""
+    ``xyz``, whose Σλ L cmf / Σ ȳ it is), only when asked for; ``background`` the linear
+    sRGB behind the objects ((3,) or (H, W, 3), :func:`background_rgb`) or None."""
 
     linear: np.ndarray
     display: np.ndarray
@@ -64,6 +65,7 @@ class Frame:
     coverage: np.ndarray
     out_of_gamut: np.ndarray | None = None
     spectra: np.ndarray | None = None
+    background: np.ndarray | None = None
 
     @functools.cached_property
     def xyz(self) -> np.ndarray:
@@ -518,9 +520,9 @@ def _render_steps(scene: Scene, stats: Stats, state: dict, spectra: bool = False
         xyz, coverage, linear = resolve(rows, pixels, object_id, ssaa, scene.display, stats,
                                         matrix=matrix)
         del rows
-        if np.any(scene.output.background != 0):
-            linear += ((1.0 - coverage)[..., None]
-                       * np.asarray(scene.output.background, np.float32))
+        background = background_rgb(scene, environment)
+        if background is not None:
+            linear += ((1.0 - coverage)[..., None] * background).astype(np.float32)
     stats.counts["covered_pixels"] = int(np.count_nonzero(coverage > 0))
     yield "resolve"
     with Stage(stats, "tonemap"):
@@ -530,7 +532,8 @@ def _render_steps(scene: Scene, stats: Stats, state: dict, spectra: bool = False
     # what the display could not show: colours outside sRGB, channels clipped at 1
     stats.counts["out_of_gamut_pixels"] = int(np.count_nonzero(shown["out_of_gamut"]))
     stats.counts["clipped_pixels"] = int(np.count_nonzero(shown["clipped"]))
-    state["frame"] = Frame(linear, png, xyz, coverage, shown["out_of_gamut"], radiance)
+    state["frame"] = Frame(linear, png, xyz, coverage, shown["out_of_gamut"], radiance,
+                           background)
     yield "tonemap"
 
 
@@ -580,13 +583,27 @@ def spectral_radiance(gbuffer, surfaces: list, scene: Scene, environment=None) -
         band, coverage = resolve(rows, gbuffer.pixels, gbuffer.object_id, ssaa, scene.display)
         del rows
         out[..., start:start + step] = band
-    background = np.asarray(scene.output.background, float)
-    if np.any(background != 0):
+    background = background_rgb(scene, environment)
+    if background is not None:
         from ..spectra import rgb_spectral_basis
 
         out += ((1.0 - coverage)[..., None]
-                * (rgb_spectral_basis(wl) @ background)).astype(np.float32)
+                * (background @ rgb_spectral_basis(wl).T)).astype(np.float32)
     return out
+
+
+def background_rgb(scene: Scene, environment) -> np.ndarray | None:
+    """Linear sRGB behind the objects: ``[output] background`` (3,), None where it is 0,
+    or with ``background = "environment"`` the environment seen through each pixel centre
+    (H, W, 3) float32 (its sharpest prefiltered map: the map itself, less a split sun)."""
+    if isinstance(scene.output.background, str):
+        from ..envmap import direction_to_spherical, lookup_angles
+        from .raster import pixel_rays
+
+        theta, phi = direction_to_spherical(pixel_rays(scene.camera))
+        return lookup_angles(environment.level(len(environment.exponents) - 1), theta, phi)
+    background = np.asarray(scene.output.background, float)
+    return background if np.any(background != 0) else None
 
 
 def shading_lights(scene: Scene, environment) -> list:

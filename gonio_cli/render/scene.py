@@ -164,7 +164,7 @@ class Output:
     :data:`gonio_cli.render.tonemap.ADAPTATIONS` (the lights' white → the display's D65,
     or ``none``); ``ssaa``: supersampling factor per axis;
     ``spectral``: "table" or "exact"; ``grid_nm``: working grid START:STOP:STEP;
-    ``background``: linear sRGB (3,) of pixels no object covers."""
+    ``background``: linear sRGB (3,) of pixels no object covers, or "environment"."""
 
     exposure: float = 0.0
     tonemap: str = "neutral"
@@ -398,6 +398,9 @@ def load_scene(path: str | os.PathLike, *, variables: Mapping[str, str] | None =
                      "[environment] prefiltered"),
             chk.choice(env.get("method", "auto"), "[environment] method",
                        tuple(ENVIRONMENT_METHODS)))
+    if isinstance(output.background, str) and environment is None:
+        raise chk.error("[output] background", "is 'environment' but the scene has no "
+                        "[environment]", fix="add an [environment] or give 3 numbers")
     if not lights and environment is None:
         raise chk.error("", "no [[light]] and no [environment]: the picture would be black",
                         fix="add a [[light]] or an [environment]")
@@ -464,8 +467,18 @@ def _output(chk: _Checker, doc, overrides) -> Output:
         ssaa=chk.integer(src.get("ssaa", d.ssaa), label("ssaa"), lo=1, hi=MAX_SSAA),
         spectral=chk.choice(src.get("spectral", d.spectral), label("spectral"), SPECTRAL_MODES),
         grid_nm=chk.string(src.get("grid_nm", d.grid_nm), label("grid_nm")),
-        background=(chk.vector(out["background"], f"{where} background")
-                    if "background" in out else d.background))
+        background=_background(chk, out, where, d.background))
+
+
+def _background(chk: _Checker, out: dict, where: str, default):
+    """``[output] background``: linear sRGB (3 numbers), or "environment" (the
+    ``[environment]`` seen through each pixel; checked against the scene by its parser)."""
+    if "background" not in out:
+        return default
+    if isinstance(out["background"], str):
+        chk.choice(out["background"], f"{where} background", ("environment",))
+        return "environment"
+    return chk.vector(out["background"], f"{where} background")
 
 
 def _object(chk: _Checker, raw, number: int) -> SceneObject:
