@@ -13,6 +13,6 @@ $(SKY)/index.json: sample_data/sky.exr $(LOBES)/paint.lobes.json | $(STAMP)
 
 # A real sky (Poly Haven "Quarry 01", CC0: sample_data/envmaps/README.md) prefiltered as a
 # chain, E = 1 … 32768: every lobe of a material reads it at its own sharpness
-# ([environment] method = "model", docs/render.md).
+# ([environment] method = "model", docs/render.md); its sun split off first as a light.
 $(SKY)/quarry/index.json: sample_data/envmaps/quarry_01_1k.hdr | $(STAMP)
-	$(GONIO) prefilter $< --chain -o $(SKY)/quarry
+	$(GONIO) prefilter $< --chain --sun -o $(SKY)/quarry
