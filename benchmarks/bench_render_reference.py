@@ -104,12 +104,12 @@ def scene_for(material: Path, envmap: Path, size: int, bsdf=None) -> mr.Referenc
 
 
 def run_case(name: str, ref: mr.ReferenceScene, work: Path, spp: int, timed: Timed,
-             n_lobes: int) -> dict:
+             n_lobes: int, colour: str) -> dict:
     """gonio's chain and Mitsuba's render of one case, compared."""
     lobes, env = mr.gonio_environment(ref, work / "gonio", n_lobes=n_lobes, run=timed)
     exr = mr.render_gonio(ref, work / "gonio", env, lobes=lobes, run=timed)
     start = time.perf_counter()
-    mitsuba = mr.render_mitsuba(ref, work / "mitsuba", spp=spp)
+    mitsuba = mr.render_mitsuba(ref, work / "mitsuba", spp=spp, colour=colour)
     mitsuba_wall = time.perf_counter() - start
     c = rc.compare(exr, mitsuba)
     from gonio_cli.imageio import write_exr
@@ -154,6 +154,8 @@ def main() -> None:
     p.add_argument("--out", type=Path, default=ROOT / "out", help="the demo's outputs")
     p.add_argument("--bsdf", type=Path, default=None, help="an RGL .bsdf for the rgl case")
     p.add_argument("--cases", default="lambert,glossy,carpaint,rgl")
+    p.add_argument("--colour", choices=("spectral", "rgb"), default="spectral",
+                   help="Mitsuba's variants (rgb for a sky whose sun is ~1 texel)")
     p.add_argument("--lobes", type=int, default=4,
                    help="lobe count of the basis (beyond 4 its error is flat here)")
     p.add_argument("--keep", type=Path, default=None, help="keep images and JSON here")
@@ -182,7 +184,7 @@ def main() -> None:
             ref = scene_for(rgl_material(a.bsdf, folder, timed), a.envmap, a.size, a.bsdf)
         else:
             raise SystemExit(f"unknown case {case!r}: lambert, glossy, carpaint or rgl")
-        results.append(run_case(case, ref, folder, a.spp, timed, a.lobes))
+        results.append(run_case(case, ref, folder, a.spp, timed, a.lobes, a.colour))
         print_case(results[-1])
     (work / "reference.json").write_text(json.dumps(results, indent=1, default=float))
     print(f"\nimages and reference.json in {work}")

@@ -319,19 +319,21 @@ def mitsuba_scene_dict(ref: ReferenceScene, bsdf: dict, envmap: np.ndarray, spp:
 
 
 def render_mitsuba(ref: ReferenceScene, folder, *, spp: int = DEFAULT_SPP,
-                   variant: str | None = None, passes: int = 2,
+                   variant: str | None = None, colour: str = "spectral", passes: int = 2,
                    layout: str = "gonio") -> MitsubaRender:
     """Mitsuba's path-traced XYZ of ``ref``: ``passes`` renders of spp/passes samples with
     seeds 0, 1, …, averaged; with two or more, ``noise`` estimates the mean's error. The
-    variant: ``variant``, else :func:`choose_variant` (spectral; RGB for an RGB ``.bsdf``,
-    which Mitsuba's ``measured`` plugin reads only there); ``layout``: of the map's rows,
-    :func:`mitsuba_envmap`."""
+    variant: ``variant``, else :func:`choose_variant` of ``colour`` (RGB for an RGB
+    ``.bsdf``, which Mitsuba's ``measured`` plugin reads only there). Spectral variants
+    interpolate a map's upsampled spectra and its scales apart, which darkens a sun of
+    about one texel (−9 % on ``sample_data/sky.exr``, none seen on a 1k sky): ``"rgb"``
+    then (docs/reference.md). ``layout``: of the map's rows, :func:`mitsuba_envmap`."""
     import mitsuba as mi
 
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     if variant is None:
-        kind = "spectral"
+        kind = colour
         if ref.bsdf is not None:
             from ..rgl import check_bsdf
 
