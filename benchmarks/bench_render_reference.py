@@ -2,23 +2,27 @@
 
     .venv/bin/python benchmarks/bench_render_reference.py [--size 512] [--spp 256]
         [--envmap SKY.hdr] [--out out] [--bsdf X_rgb.bsdf]
-        [--cases lambert,carpaint,rgl] [--keep DIR]
+        [--cases lambert,glossy,coat,carpaint,rgl] [--methods model,lobes] [--keep DIR]
 
 The scene of ``sample_data/scenes/paint_env.toml`` (a unit sphere, eye (0, 0.6, 4), fov
-32°) under a sky (``--envmap``: EXR or HDR lat-long; default the bundled
-``sample_data/sky.exr``; docs/reference.md's figures are under Poly Haven's 1k
-``quarry_01``), lit by the environment alone, for each case:
+32°) under a sky (``--envmap``: EXR or HDR lat-long; default the shipped Poly Haven 1k
+``quarry_01``, sample_data/envmaps/), lit by the environment alone, for each case:
 
 * ``lambert`` — a Lambertian paint (Cook–Torrance, ks = 0; the test's material): what
   the diffuse map alone must get right;
 * ``glossy`` — a grey metal, Torrance–Sparrow α = 0.05: the horizon's reflection;
+* ``coat`` — the demo's clear-coated paint (``OUT/carpaint/coat.material.json``: a fit of
+  ``sample_data/coat_paint.csv``, coat α ≈ 0.02);
 * ``carpaint`` — the demo's car paint (``OUT/carpaint/paint.material.json``, ``make demo``);
 * ``rgl`` — an RGL ``.bsdf`` (``--bsdf``): gonio's chain (``gonio ingest`` in plane,
   ``gonio fit --model auto``) against Mitsuba's ``measured`` plugin on the file itself.
 
-gonio runs seed 001's chain as whole commands (``gonio lobes basis --samples hemisphere``,
-``gonio lobes fit --samples hemisphere --solver nnls``, ``gonio prefilter --lobes``,
-``gonio render``), each timed as a process (wall time, peak memory: benchmarks/process.py).
+gonio runs each method of ``--methods`` as whole commands, each timed as a process (wall
+time, peak memory: benchmarks/process.py), against the same Mitsuba render: ``model`` (the
+default: ``gonio prefilter --chain --sun``, ``gonio render`` with ``method = "model"``, the
+material's own lobes) and ``lobes`` (seed 001's chain: ``gonio lobes basis --samples
+hemisphere``, ``gonio lobes fit --samples hemisphere --solver nnls``, ``gonio prefilter
+--lobes``, ``gonio render`` with ``method = "lobes"``).
 Mitsuba renders in this process (``gonio_cli.export.mitsuba_reference.render_mitsuba``,
 two passes of spp/2 for its noise figure): its render time and variant. Printed per case:
 mean / p95 CIEDE2000 (interior pixels, one white: Mitsuba's 99th percentile of Y), the
@@ -47,9 +51,8 @@ import process  # noqa: E402  (whole-process wall time and memory)
 from gonio_cli.export import mitsuba_reference as mr  # noqa: E402
 from gonio_cli.export import reference_compare as rc  # noqa: E402
 
-#: The bundled synthetic sky (256 × 128, a sun 1e5 × the sky). The baseline of
-#: docs/reference.md uses a real one: Poly Haven's quarry_01 at 1k (CC0), --envmap.
-DEFAULT_ENVMAP = ROOT / "sample_data/sky.exr"
+#: A real sky with a hard horizon and a sun: Poly Haven's quarry_01 at 1k (CC0).
+DEFAULT_ENVMAP = ROOT / "sample_data/envmaps/quarry_01_1k.hdr"
 SCENE = ROOT / "sample_data/scenes/paint_env.toml"
 
 
@@ -103,22 +106,41 @@ def scene_for(material: Path, envmap: Path, size: int, bsdf=None) -> mr.Referenc
     return mr.ReferenceScene(camera, material, envmap, bsdf=bsdf)
 
 
-def run_case(name: str, ref: mr.ReferenceScene, work: Path, spp: int, timed: Timed,
-             n_lobes: int, colour: str) -> dict:
-    """gonio's chain and Mitsuba's render of one case, compared."""
-    lobes, env = mr.gonio_environment(ref, work / "gonio", n_lobes=n_lobes, run=timed)
-    exr = mr.render_gonio(ref, work / "gonio", env, lobes=lobes, run=timed)
+def gonio_render(method: str, ref: mr.ReferenceScene, work: Path, timed: Timed,
+                 n_lobes: int) -> Path:
+    """gonio's whole chain for one ``method`` (module docstring); the render's XYZ EXR."""
+    folder = work / f"gonio-{method}"
+    if method == "lobes":
+        lobes, env = mr.gonio_environment(ref, folder, n_lobes=n_lobes, run=timed)
+        return mr.render_gonio(ref, folder, {**env, "method": "lobes"}, lobes=lobes,
+                               run=timed)
+    folder.mkdir(parents=True, exist_ok=True)
+    timed(["prefilter", ref.envmap, "--chain", "--sun", "-o", folder / "chain"])
+    return mr.render_gonio(ref, folder, {"prefiltered": (folder / "chain/index.json")
+                                         .resolve(), "method": "model"}, run=timed)
+
+
+def run_case(name: str, ref: mr.ReferenceScene, work: Path, spp: int, methods, n_lobes: int,
+             colour: str, timed_before=()) -> list[dict]:
+    """Mitsuba's render of one case and gonio's by each method, compared."""
+    from gonio_cli.imageio import write_exr
+
     start = time.perf_counter()
     mitsuba = mr.render_mitsuba(ref, work / "mitsuba", spp=spp, colour=colour)
     mitsuba_wall = time.perf_counter() - start
-    c = rc.compare(exr, mitsuba)
-    from gonio_cli.imageio import write_exr
-
     write_exr(work / "mitsuba.exr", mitsuba.xyz.astype(np.float32), {"exr_space": "xyz"})
-    rc.side_by_side(c, exr, mitsuba, work / f"{name}.png")
-    return {"case": name, **c.summary(), "gonio_commands": timed.rows,
-            "mitsuba": {"variant": mitsuba.variant, "spp": mitsuba.spp,
-                        "render_s": mitsuba.time_s, "wall_s": mitsuba_wall}}
+    out = []
+    for method in methods:
+        timed = Timed()
+        timed.rows += list(timed_before)
+        exr = gonio_render(method, ref, work, timed, n_lobes)
+        c = rc.compare(exr, mitsuba)
+        rc.side_by_side(c, exr, mitsuba, work / f"{name}-{method}.png")
+        out.append({"case": name, "method": method, **c.summary(),
+                    "gonio_commands": timed.rows,
+                    "mitsuba": {"variant": mitsuba.variant, "spp": mitsuba.spp,
+                                "render_s": mitsuba.time_s, "wall_s": mitsuba_wall}})
+    return out
 
 
 def rgl_material(bsdf: Path, work: Path, timed: Timed) -> Path:
@@ -131,7 +153,7 @@ def rgl_material(bsdf: Path, work: Path, timed: Timed) -> Path:
 
 
 def print_case(r: dict) -> None:
-    print(f"\n## {r['case']}: {r['pixels']} px")
+    print(f"\n## {r['case']}, gonio method {r['method']}: {r['pixels']} px")
     print(f"CIEDE2000 mean {r['mean_delta_e']:.2f}  p95 {r['p95_delta_e']:.2f}  "
           f"(Mitsuba's noise alone: {r['noise_delta_e']:.2f})  luminance ratio "
           f"{r['luminance_ratio']:.3f}")
@@ -153,7 +175,9 @@ def main() -> None:
     p.add_argument("--envmap", type=Path, default=DEFAULT_ENVMAP)
     p.add_argument("--out", type=Path, default=ROOT / "out", help="the demo's outputs")
     p.add_argument("--bsdf", type=Path, default=None, help="an RGL .bsdf for the rgl case")
-    p.add_argument("--cases", default="lambert,glossy,carpaint,rgl")
+    p.add_argument("--cases", default="lambert,glossy,coat,carpaint,rgl")
+    p.add_argument("--methods", default="model,lobes",
+                   help="gonio's environment methods to compare (model, lobes)")
     p.add_argument("--colour", choices=("spectral", "rgb"), default="spectral",
                    help="Mitsuba's variants (rgb for a sky whose sun is ~1 texel)")
     p.add_argument("--lobes", type=int, default=4,
@@ -171,10 +195,10 @@ def main() -> None:
         if case in ("lambert", "glossy"):
             make = lambert_material if case == "lambert" else glossy_material
             ref = scene_for(make(folder / f"{case}.material.json"), a.envmap, a.size)
-        elif case == "carpaint":
-            paint = a.out / "carpaint/paint.material.json"
+        elif case in ("carpaint", "coat"):
+            paint = a.out / f"carpaint/{'paint' if case == 'carpaint' else 'coat'}.material.json"
             if not paint.is_file():
-                print(f"\n## carpaint: skipped ({paint} missing: make demo)")
+                print(f"\n## {case}: skipped ({paint} missing: make demo)")
                 continue
             ref = scene_for(paint, a.envmap, a.size)
         elif case == "rgl":
@@ -183,9 +207,11 @@ def main() -> None:
                 continue
             ref = scene_for(rgl_material(a.bsdf, folder, timed), a.envmap, a.size, a.bsdf)
         else:
-            raise SystemExit(f"unknown case {case!r}: lambert, glossy, carpaint or rgl")
-        results.append(run_case(case, ref, folder, a.spp, timed, a.lobes, a.colour))
-        print_case(results[-1])
+            raise SystemExit(f"unknown case {case!r}: lambert, glossy, coat, carpaint or rgl")
+        for r in run_case(case, ref, folder, a.spp, a.methods.split(","), a.lobes, a.colour,
+                          timed.rows):
+            results.append(r)
+            print_case(r)
     (work / "reference.json").write_text(json.dumps(results, indent=1, default=float))
     print(f"\nimages and reference.json in {work}")
     if a.keep is None:

@@ -329,3 +329,28 @@ def test_bad_background_is_one_line(run_gonio, tmp_path, background, needle):
     r = run_gonio("render", tmp_path / "s.toml", "-o", tmp_path / "o.png")
     assert r.exit_code == 2 and needle in r.stderr and "background" in r.stderr
     assert len(r.stderr.strip().splitlines()) == 1
+
+
+def test_a_lobe_table_that_reflects_1e11_is_refused(run_gonio, tmp_path, chain_index):
+    """The blow-up a user met: a lobe of exponent 1e4 weighted 4.5e13 (no sample saw it).
+    The render refuses the lobes file in one line, naming it, the lobe and the fix."""
+    from gonio_cli.render.environment import LOBE_ALBEDO_MAX, check_lobe_energy
+    from gonio_cli.schemas import Lobes, write_lobes
+
+    views = np.array([0.0, 40.0, 80.0])
+    exps = np.array([8.0, 1e4])
+    gloss = np.zeros((3, 2, WL.size))
+    gloss[:, 0] = 0.1
+    lobes = Lobes(exps, "spectral", list(WL), views, np.full((3, WL.size), 0.05),
+                  np.zeros((3, 2, WL.size)), gloss, {}, "nnls", "hemisphere", [0] * 3)
+    check_lobe_energy(lobes)                                  # a plausible table passes
+    gloss[1, 1] = 4.5e13
+    write_lobes(tmp_path / "bad.lobes.json", lobes)
+    assert 4.5e13 * 2 * np.pi / (1e4 + 1) > LOBE_ALBEDO_MAX
+    scene = write_scene(tmp_path, chain_index, 'material = "coat.json"\nlobes = '
+                        '"bad.lobes.json"', 'method = "lobes"')
+    r = run_gonio("render", scene, "-o", tmp_path / "o.png")
+    assert r.exit_code == 2 and len(r.stderr.strip().splitlines()) == 1
+    assert "bad.lobes.json" in r.stderr and "exponent 10000" in r.stderr
+    assert "method = 'model'" in r.stderr
+    assert not (tmp_path / "o.png").exists()

@@ -268,34 +268,53 @@ def _tangents(normal, view, cos_v) -> np.ndarray:
     return np.divide(t, norm, out=np.zeros_like(t), where=norm > 1e-12)
 
 
+#: Pixels per block of :func:`model_environment_xyz`: its per-pixel temporaries (angles,
+#: axes, lookups) stay ~10 MB, so a 2048² frame costs no more memory than a small one.
+BLOCK = 65536
+
+
 def model_environment_xyz(environment, tables: list[LobeTable], normal: np.ndarray,
                           view: np.ndarray, wavelength_nm,
                           observer: np.ndarray | None = None) -> np.ndarray:
     """XYZ (n, C) of the environment reflected by a material's lobes (module docstring).
 
     ``environment``: :class:`gonio_cli.render.environment.Environment` (its maps are the
-    chain, :meth:`~gonio_cli.render.environment.Environment.chain`); ``tables``:
+    levels, :meth:`~gonio_cli.render.environment.Environment.level`); ``tables``:
     :func:`material_tables` for the environment's exponents; ``normal``, ``view``: (n, 3)
     unit N and V; ``observer`` as in :func:`gonio_cli.render.environment.environment_xyz`.
+    In blocks of :data:`BLOCK` pixels.
     """
-    from .environment import channel_matrices, view_interpolation
+    from .environment import channel_matrices
 
     normal = np.asarray(normal, dtype=float)
     view = np.asarray(view, dtype=float)
     n = normal.shape[0]
     channels = 3 if observer is None else np.shape(observer)[1]
     out = np.zeros((n, channels))
-    if n == 0:
-        return out
+    matrices = [channel_matrices(t.albedo, "spectral", wavelength_nm, observer)
+                for t in tables]                                        # (V, 3, C) each
+    for start in range(0, n, BLOCK):
+        b = slice(start, start + BLOCK)
+        out[b] = _block_xyz(environment, tables, matrices, normal[b], view[b])
+    return out
+
+
+def _block_xyz(environment, tables, matrices, normal, view) -> np.ndarray:
+    """:func:`model_environment_xyz` of one block: per lobe, its axis d_k, the levels it
+    mixes at each pixel's view angle (the pixels sorted by view interval, so each level
+    reads one slice), then its colour matrices, interpolated in θv."""
+    from .environment import view_interpolation
+
+    n = normal.shape[0]
     cos_v = np.clip(np.einsum("ij,ij->i", normal, view), 0.0, 1.0)
     i0, _, t = view_interpolation(cos_v, VIEW_ANGLES_DEG)
     order = np.argsort(i0, kind="stable")                 # each view interval a slice
     i0, t, cos_v = i0[order], t[order], cos_v[order]
     normal, view = normal[order], view[order]
     starts = np.searchsorted(i0, np.arange(len(VIEW_ANGLES_DEG) + 1))
-    acc = np.zeros((n, channels))
+    acc = np.zeros((n, matrices[0].shape[-1]))
     tangent = _tangents(normal, view, cos_v)
-    for table in tables:
+    for table, m in zip(tables, matrices):
         beta = table.beta[i0] + t * (_next(table.beta, i0) - table.beta[i0])
         axis = np.cos(beta)[:, None] * normal + np.sin(beta)[:, None] * tangent   # d_k
         theta, phi = direction_to_spherical(axis)
@@ -304,14 +323,16 @@ def model_environment_xyz(environment, tables: list[LobeTable], normal: np.ndarr
             wl = np.append(table.weights[:, level], table.weights[-1, level])   # row V
             live = np.flatnonzero(np.maximum(wl[:-1], wl[1:]) > 0)
             s = slice(starts[live[0]], starts[live[-1] + 1])      # their pixels: a slice
+            if s.start == s.stop:
+                continue
             i = i0[s]
             w = (wl[i] + t[s] * (wl[i + 1] - wl[i])).astype(np.float32)
             p[s] += w[:, None] * lookup_angles(environment.level(level), theta[s], phi[s])
-        m = channel_matrices(table.albedo, "spectral", wavelength_nm, observer)  # (V, 3, C)
         tp = t[:, None] * p
         for r in np.flatnonzero(np.diff(starts)):        # per view interval: 2 products
             s = slice(starts[r], starts[r + 1])
             acc[s] += p[s] @ m[r] + tp[s] @ (m[r + 1] - m[r])
+    out = np.empty_like(acc)
     out[order] = acc
     return out
 

@@ -257,6 +257,32 @@ def check_lobes(lobes: Lobes, wavelength_nm: np.ndarray) -> None:
                              fix="fit the lobes on the render's grid (gonio lobes fit)")
     elif lobes.channel_kind != "xyz":
         raise InputError(f"lobe channel kind {lobes.channel_kind!r} is unknown")
+    check_lobe_energy(lobes)
+
+
+#: The most a lobe table may reflect of uniform light (its directional albedo, π K_D +
+#: Σ 2π/(E+1) (K_G + K_DD cos θv)): a real surface reflects ≤ 1; fits of noisy data stay
+#: well below 2. Beyond this a lobe took a weight its samples do not support (a sharp lobe
+#: that no sample sees, weighted 1e11), and the render would be that much too bright.
+LOBE_ALBEDO_MAX = 4.0
+
+
+def check_lobe_energy(lobes: Lobes) -> None:
+    """Refuse a lobe table that reflects more than :data:`LOBE_ALBEDO_MAX` × the light it
+    receives at some view angle, naming the lobe that carries most of it."""
+    cos_v = np.cos(np.radians(lobes.view_angle_deg))[:, None, None]        # (V, 1, 1)
+    per_lobe = lobe_integral(lobes.exponents)[None, :, None] * (
+        np.asarray(lobes.gloss) + cos_v * np.asarray(lobes.directional_diffuse))
+    albedo = np.pi * np.asarray(lobes.diffuse) + per_lobe.sum(axis=1)      # (V, C)
+    if not np.nanmax(albedo) > LOBE_ALBEDO_MAX:
+        return
+    v, i, c = np.unravel_index(np.nanargmax(per_lobe), per_lobe.shape)
+    raise InputError(f"the lobe of exponent {lobes.exponents[i]:g} reflects "
+                     f"{per_lobe[v, i, c]:.3g} x the light it receives at view angle "
+                     f"{lobes.view_angle_deg[v]:g} deg (a surface reflects at most 1): its "
+                     "weight is not supported by the samples it was fitted to",
+                     fix="refit with fewer or wider lobes (gonio lobes fit), or leave the "
+                         "lobes out: [environment] method = 'model' needs none")
 
 
 def view_interpolation(cos_theta_v: np.ndarray, view_angle_deg: np.ndarray
