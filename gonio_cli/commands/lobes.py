@@ -20,6 +20,14 @@ def _samples_option():
                         help=SAMPLE_SET_HELP)
 
 
+def _mirror_dense_option():
+    return typer.Option(False, "--mirror-dense",
+                        help="With --samples hemisphere: add rings of lights down to 0.07 deg "
+                             "from each view's mirror direction, weighted by solid angle, so "
+                             "lobes up to E=1e4 are resolved (a glossy paint's sharp gloss) "
+                             "and the fit conserves the material's energy.")
+
+
 def _choice_option(flag: str, default: str, choices, help: str):
     """A string option whose metavar lists its choices (validated by the core's registry)."""
     return typer.Option(default, flag, metavar=metavar(choices), help=help)
@@ -38,6 +46,7 @@ def basis(
     max_lobes: int = typer.Option(11, "--max-lobes", metavar="N",
                                   help="Choose exponents for 1 ... N lobes."),
     samples: str = _samples_option(),
+    mirror_dense: bool = _mirror_dense_option(),
     channels: str = _choice_option("--channels", "xyz", CHANNEL_NAMES,
                                    "Colour channels the errors are measured in."),
     solver: str = _choice_option("--solver", "nnls", BASIS_SOLVER_NAMES,
@@ -59,7 +68,7 @@ def basis(
     from ..outputs import declare
     declare({"-o": output, "--plot": plot}, materials)
     mats = [read_material(p) for p in materials]
-    s = core.sample_set(samples)
+    s = core.sample_set(samples, mirror_dense=mirror_dense)
     with log.timer() as t:
         targets = [core.target_values(m, s, channels)[0] for m in mats]
         result = core.select_basis(
@@ -70,11 +79,14 @@ def basis(
               "per_material": st.per_material, "evaluations": st.evaluations,
               "time_s": st.time_s, "message": st.message} for st in result.steps]
     doc = LobeBasis(bases, [{"path": str(p), "model": m.model} for p, m in zip(materials, mats)],
-                    samples, channels, solver, [core.EXPONENT_MIN, core.EXPONENT_MAX],
+                    s.name, channels, solver, [float(v) for v in result.exponent_range],
                     [float(v) for v in s.view_angle_deg])
     write_lobe_basis(output, doc, inputs=materials, time_s=t["time_s"],
                      parameters={"max_lobes": max_lobes, "samples": samples,
-                                 "channels": channels, "solver": solver})
+                                 "mirror_dense": mirror_dense, "channels": channels,
+                                 "solver": solver})
+    for note in core.basis_notes(result):
+        log.warn(f"{output}: {note}")
     if plot is not None:
         from ..lobes.plot import plot_basis
 
@@ -98,6 +110,7 @@ def fit(
     exponents: Optional[str] = typer.Option(None, "--exponents", metavar="E1,E2,...",
                                             help="Exponents given directly instead of --basis."),
     samples: str = _samples_option(),
+    mirror_dense: bool = _mirror_dense_option(),
     view_angles: str = typer.Option("0:80:10", "--view-angles-deg", "--view-angles",
                                     metavar="START:STOP:STEP|LIST",
                                     help="View angles of the weight table (deg, seed 001 §5.2)."),
@@ -109,10 +122,17 @@ def fit(
     compare: bool = typer.Option(False, "--compare",
                                  help="Also run every other solver on the same samples and "
                                       "record its error, time and status (not its weights)."),
-    time_limit_s: float = typer.Option(1.0, "--time-limit-s", metavar="S",
-                                       help="Time limit of one LP (one view angle); a solve "
-                                            "stopped by it is recorded as status "
-                                            "time_limit, not an error."),
+    max_energy_ratio: float = typer.Option(
+        1000.0, "--max-energy-ratio", metavar="R",
+        help="Refuse weights whose lobes hold more than R times the light the material "
+             "reflects (its directional albedo) at some view angle and channel: a render "
+             "would be that much too bright (above 10 times it is a warning). inf: no "
+             "check."),
+    time_limit_s: Optional[float] = typer.Option(
+        None, "--time-limit-s", metavar="S", show_default=False,
+        help="Time limit of one LP (one view angle; default 1 s per 100 samples of a view, "
+             "at least 1 s); a solve stopped by it is recorded as status time_limit, not "
+             "an error."),
 ) -> None:
     """Fit non-negative cosine-lobe weights at each view angle (seed 001 §4, eqs. 5-6, §5.2).
 
@@ -130,8 +150,12 @@ def fit(
     if (basis_path is None) == (exponents is None):
         raise InputError("give exactly one of --basis BASIS.json and --exponents E1,E2,...",
                          fix="e.g. --basis basis.json")
-    if not (time_limit_s > 0):
+    if time_limit_s is not None and not (time_limit_s > 0):
         raise InputError(f"--time-limit-s {time_limit_s:g} is not positive")
+    if not (max_energy_ratio >= 1):
+        raise InputError(f"--max-energy-ratio {max_energy_ratio:g} is below 1",
+                         fix="a sound fit holds about 1x the material's albedo; e.g. "
+                             "--max-energy-ratio 1000 (default) or inf for no check")
     from ..outputs import declare
     declare({"-o": output}, [material, basis_path])
     inputs = [material]
@@ -146,19 +170,37 @@ def fit(
                              fix="e.g. --exponents 1,10,100") from None
     e = core.check_exponents(e, where="--exponents" if basis_path is None else str(basis_path))
     mat = read_material(material)
-    s = core.sample_set(samples, core.parse_view_angles(view_angles))
+    s = core.sample_set(samples, core.parse_view_angles(view_angles), mirror_dense)
+    if time_limit_s is None:
+        time_limit_s = core.default_time_limit_s(s)
     others = tuple(core.WEIGHT_SOLVERS) if compare else ()
+    from ..errors import GonioError
     with log.timer() as t:
-        table = core.fit_weight_table(mat, e, s, channels, solver, compare=others,
-                                      time_limit_s=time_limit_s)
+        try:
+            table = core.fit_weight_table(mat, e, s, channels, solver, compare=others,
+                                          time_limit_s=time_limit_s,
+                                          max_energy_ratio=max_energy_ratio)
+        except GonioError as exc:              # a refused fit names the material
+            if exc.path is None:
+                exc.path = str(material)
+            raise
     lobes = Lobes(table.exponents, channels, table.channels, table.view_angle_deg,
                   table.diffuse, table.directional_diffuse, table.gloss, table.errors,
-                  solver, samples, table.n_samples)
+                  solver, s.name, table.n_samples)
     write_lobes(output, lobes, inputs=inputs, time_s=t["time_s"],
                 parameters={"lobes": n_lobes, "exponents": [float(v) for v in e],
-                            "samples": samples, "view_angles": view_angles,
+                            "samples": samples, "mirror_dense": mirror_dense,
+                            "view_angles": view_angles,
                             "channels": channels, "solver": solver, "compare": compare,
-                            "time_limit_s": time_limit_s})
+                            "time_limit_s": time_limit_s,
+                            # JSON holds no inf: null is "no check"
+                            "max_energy_ratio": (max_energy_ratio if max_energy_ratio
+                                                 < float("inf") else None)})
+    for note in core.unresolved_notes(table, samples):
+        log.warn(f"{output}: {note}")
+    note = core.energy_note(table)
+    if note is not None:
+        log.warn(f"{output}: {note}")
     for name, r in table.errors.items():
         stopped = [k for k, st in enumerate(r["status"]) if st not in core.FINISHED]
         if stopped:

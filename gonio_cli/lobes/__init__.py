@@ -49,13 +49,68 @@ EXPONENT_MAX = 1e4
 #: out: the target models are 0 or unreliable at grazing (Smith G → 0, cos θi → 0).
 HORIZON_DEG = 85.0
 
-#: Lights per view of the ``hemisphere`` sample set: ~3.7° apart on the half hemisphere,
-#: finer than the narrowest lobe the demo's materials need (E ≈ 70, ~7° wide).
+#: Lights per view of the ``hemisphere`` sample set: ~3.9° apart (median; 8° from the
+#: farthest direction) on the half hemisphere, finer than the narrowest lobe the demo's
+#: materials need (E ≈ 70, half-width 8°) but not than a glossy paint's (E ≈ 1e3, 2°).
 HEMISPHERE_POINTS = 200
 
-#: A lobe column whose largest value over the samples is below this is "not seen": its
-#: weight would be undetermined (any value fits), so the sample set is refused.
+#: The diffuse column (L·N) whose largest value over the samples is below this is "not
+#: seen": its weight would be undetermined (any value fits), so the sample set is refused.
 UNSEEN_COLUMN = 1e-300
+
+#: A lobe is *resolved* by a view's samples when its largest value over them is at least
+#: this fraction of its peak (1, on its axis): some sample lies within the lobe's
+#: half-width at half maximum, acos(2^(-1/E)) ≈ sqrt(2 ln 2 / E) rad (0.67° at E = 1e4,
+#: 2.1° at 1e3, 8° at 70), of its axis. A lobe the samples see only in its tail gets the
+#: data divided by that tail as its weight: 1e-17 at every sample (E = 1e4, nearest
+#: sample 5° off its axis) lets any weight up to ~1e17 fit, and a fit put 4.5e13 there.
+#: At half maximum a sample's value pins the weight to within a factor 2 of the peak it
+#: implies. Such a lobe is left out of that view's fit (weight 0, with a warning).
+LOBE_RESOLVED_MIN = 0.5
+
+#: What the fitted lobes hold, against the material's directional albedo (per view angle
+#: and channel; their integrals as the renderer uses them, π K_D + Σ (K_G + cos θv K_DD)
+#: 2π/(E+1), against ∫ f cos θi dω of the material). A sound fit holds about 1× (hemisphere
+#: samples: 0.96-1.24 on the demo's inks and paint and two measured materials). In-plane
+#: samples (seed 001 §4) see no light across the plane, so at oblique views their round
+#: lobes stand for a gloss far narrower across it: 2.3-2.4× on the demo's inks, 4.7× on its
+#: paint, 21-40× at 80° on glossy clear coats (measured) — seed 001's own limitation, a
+#: warning above ENERGY_EXCESS_WARN. A weight extrapolated from a lobe's tail holds
+#: 1e6-1e14× (4.5e13 in the issue): refused above ENERGY_EXCESS_MAX (``--max-energy-ratio``),
+#: 25× above the worst in-plane figure, 1000× below the blow-ups.
+ENERGY_EXCESS_WARN = 10.0
+ENERGY_EXCESS_MAX = 1000.0
+
+#: Channels darker than this fraction of the view's brightest channel are compared with
+#: that fraction instead (a dark band's albedo near 0 would make any lobe look excessive;
+#: 1 % of the peak is below what a rendered colour shows).
+ALBEDO_FLOOR_REL = 0.01
+
+#: Mirror-dense hemisphere (``--mirror-dense``): rings of lights around the mirror
+#: direction of each view, merged with the spiral by a smooth partition of unity so the
+#: sum Σ w f is a quadrature of ∫ f dω over the half hemisphere. Panels in θ (the angle
+#: from the mirror direction) double from MIRROR_RING_INNER_DEG, a third of the
+#: half-width of the narrowest lobe (E = 1e4, 0.67°), to the blend's outer edge; each
+#: panel has MIRROR_RING_GAUSS Gauss–Legendre radii in u = 1 − cos θ (a lobe is ≈ exp(−E u):
+#: 3 points per doubling integrate it to < 0.3 % for every E, measured).
+MIRROR_RING_INNER_DEG = 0.2
+MIRROR_RING_RATIO = 2.0
+MIRROR_RING_GAUSS = 3
+#: The rings take the whole weight within MIRROR_BLEND_DEG[0] of the mirror direction and
+#: hand it to the spiral by MIRROR_BLEND_DEG[1] (a smoothstep between). A lobe narrower
+#: than the spiral's spacing (E ≳ 200, 1/sqrt(E) ≤ 4°) has its mass within 3/sqrt(E) ≤ 12°
+#: of its axis, so the rings alone integrate it; wider lobes pass through the blend, which
+#: spans ~4 spiral spacings so that each rule integrates a smooth function. Measured on
+#: lobes E = 1 … 1e4 (tests/test_lobes_quadrature.py): < 0.5 % error at every view 0-80°;
+#: blending over 6-20° instead cost 2.4 %, a hard edge 1.5 %.
+MIRROR_BLEND_DEG = (15.0, 30.0)
+#: Azimuthal spacing of the lights along a ring (deg of arc, ~1.5 spiral spacings: the
+#: spiral shares the blend's outer rings), with at least MIRROR_RING_AZIMUTHS per half
+#: ring: the midpoint rule on 4 azimuths integrates the cos ψ … cos 7ψ terms of a BRDF
+#: that is not round about R (a peak elongated across the plane) exactly. ~340 lights per
+#: view in all (~190 of the spiral's 200 keep some weight; ~150 on the rings).
+MIRROR_RING_SPACING_DEG = 6.0
+MIRROR_RING_AZIMUTHS = 4
 
 #: Default view angles (deg) of the weight table (seed 001 §5.2), interpolated by the
 #: renderer; 10° steps resolve the colour shift of the sample inks (c ≤ 6, seed 000).
@@ -170,10 +225,15 @@ def check_exponents(exponents, where: str = "basis") -> np.ndarray:
 # from ``gonio_cli.lobes``.
 
 from .samples import (CHANNELS, SAMPLE_SETS, HemispherePattern, SamplePattern,  # noqa: E402
-                      Samples, check_channels, parse_view_angles, read_sample_csv,
-                      sample_set, target_values)
+                      Samples, check_channels, directional_albedo, mirror_rings,
+                      parse_view_angles, read_sample_csv, sample_set, target_values)
 from .solve import (DEFAULT_SOLVER, FINISHED, STATUSES, WARM_SIMPLEX_MAX_SAMPLES,  # noqa: E402
                     WEIGHT_SOLVERS, WeightFit, WeightSolver, WeightTable, check_design,
-                    check_solver, fit_weight_table, fit_weights, residual_errors)
-from .basis import (BASIS_EVALS_PER_LOBE, BASIS_FTOL_REL, BASIS_SOLVERS,  # noqa: E402
-                    BASIS_XTOL_LOG, BasisResult, BasisStep, basis_objective, select_basis)
+                    check_energy, check_solver, default_time_limit_s, energy_excess,
+                    energy_note,
+                    fit_weight_table, unresolved_notes,
+                    fit_weights, lobe_columns, lobe_energy, lobe_half_width_deg,
+                    relative_weights, residual_errors, resolved_lobes)
+from .basis import (BASIS_EVALS_PER_LOBE, BASIS_FLAT_REL, BASIS_FTOL_REL,  # noqa: E402
+                    BASIS_PIN_LOG, BASIS_SOLVERS, BASIS_XTOL_LOG, BasisResult, BasisStep,
+                    basis_notes, basis_objective, resolvable_exponent, select_basis)

@@ -13,9 +13,9 @@ from typing import Callable, Sequence
 import numpy as np
 
 from ..errors import InputError
-from . import EXPONENT_MAX, EXPONENT_MIN, design_matrix
+from . import EXPONENT_MAX, EXPONENT_MIN, LOBE_RESOLVED_MIN, design_matrix
 from .samples import Samples
-from .solve import fit_weights
+from .solve import fit_weights, lobe_columns, relative_weights, resolved_lobes
 
 # ------------------------------------------------------------ basis selection (§3.2) --
 
@@ -41,10 +41,17 @@ class BasisStep:
 
 @dataclass
 class BasisResult:
+    """The search's bases, one per lobe count. ``exponent_range``: the (min, max) searched,
+    the max lowered to :func:`resolvable_exponent` where the samples cannot resolve
+    sharper lobes; ``mirror_offset_deg``: (V,) the nearest sample's angle from each view's
+    mirror direction (:meth:`Samples.mirror_offset_deg`)."""
+
     steps: list[BasisStep] = field(default_factory=list)
     solver: str = "nnls"
     n_samples: int = 0
     time_s: float = 0.0
+    exponent_range: tuple = (EXPONENT_MIN, EXPONENT_MAX)
+    mirror_offset_deg: np.ndarray | None = None
 
 
 #: Solvers the basis search may use inside eq. 4. ``nnls`` minimises the very RMS that
@@ -60,27 +67,56 @@ BASIS_FTOL_REL = 1e-6
 #: Objective evaluations per exponent being searched (the search is m-dimensional).
 BASIS_EVALS_PER_LOBE = 150
 
+#: An exponent within this of a bound in log E (1 %, ten times the search's xtol) is "at
+#: the bound": the search pressed against it and would have gone further.
+BASIS_PIN_LOG = 1e-2
+#: The error "does not fall as lobes are added" when the largest basis's is above
+#: (1 − BASIS_FLAT_REL) × the one-lobe basis's: 1 %, below any difference a render shows.
+BASIS_FLAT_REL = 0.01
+
+
+def resolvable_exponent(samples: Samples) -> float:
+    """The largest E every view of ``samples`` resolves (:data:`LOBE_RESOLVED_MIN`): with
+    θ the nearest sample's angle from a view's mirror direction, cos θ^E ≥ 1/2 ⇔
+    E ≤ ln(1/2) / ln cos θ; inf when a sample lies on every mirror direction."""
+    offset = np.radians(np.max(samples.mirror_offset_deg()))
+    c = np.cos(offset)
+    return float(np.log(LOBE_RESOLVED_MIN) / np.log(c)) if c < 1.0 else float("inf")
+
 
 def basis_objective(log_exponents, cos_theta_i, cos_rv, groups, targets: Sequence[np.ndarray],
-                    solver: str = "nnls"):
+                    solver: str = "nnls", weight=None):
     """Seed 001 eq. 4: max_i Error(E, B_i) + mean_i Error(E, B_i).
 
     The weights are fitted per group of samples (one view angle each, as
-    :func:`fit_weight_table` will use them, seed 001 §5.2), and Error(E, B_i) is the
-    relative RMS sqrt(Σ r² / Σ b²) of material i over every group, sample and channel,
-    so bright and dark materials count alike.
+    :func:`fit_weight_table` will use them, seed 001 §5.2: lobes a group's samples do not
+    resolve are left out of it, quadrature weights are used), and Error(E, B_i) is the
+    relative RMS sqrt(Σ w r² / Σ w b²) of material i over every group, sample and channel
+    (w = 1 without quadrature weights), so bright and dark materials count alike.
 
     Parameters
     ----------
     log_exponents : (m,) log E ; cos_theta_i, cos_rv, groups : (N,) ; targets : n arrays
-    (N, C). Returns (f, per-material errors (n,)).
+    (N, C); weight : (N,) quadrature weights or None. Returns (f, per-material errors (n,)).
     """
     M = design_matrix(cos_theta_i, cos_rv, np.exp(np.asarray(log_exponents, dtype=float)))
+    w = np.ones(M.shape[0])
+    parts = []
+    for g in groups:
+        Mg = M[g]
+        resolved = resolved_lobes(Mg)[1]
+        if not resolved.all():
+            Mg = Mg[:, lobe_columns(resolved)]
+        if weight is not None:
+            w[g] = relative_weights(np.asarray(weight, dtype=float)[g])
+        parts.append((g, Mg, None if weight is None else w[g]))
     errs = np.empty(len(targets))
     for i, B in enumerate(targets):
-        sse = sum(np.sum((M[g] @ fit_weights(M[g], B[g], solver).weights - B[g]) ** 2)
-                  for g in groups)
-        total = float(np.sum(B * B))
+        sse = 0.0
+        for g, Mg, wg in parts:
+            r = Mg @ fit_weights(Mg, B[g], solver, weight=wg).weights - B[g]
+            sse += float(np.sum(r * r if wg is None else wg[:, None] * r * r))
+        total = float(np.sum(B * B if weight is None else w[:, None] * B * B))
         errs[i] = np.sqrt(sse / total) if total > 0 else 0.0
     return float(errs.max() + errs.mean()), errs
 
@@ -122,8 +158,19 @@ def select_basis(targets: Sequence[np.ndarray], samples: Samples, max_lobes: int
     lo, hi = np.log(exponent_range[0]), np.log(exponent_range[1])
     if not (np.isfinite(lo) and np.isfinite(hi) and hi > lo):
         raise InputError(f"exponent range {exponent_range} is not 0 < min < max")
-    result = BasisResult(solver=solver, n_samples=samples.n_samples)
-    cos_theta_i, cos_rv = samples.cos_theta_i(), samples.cos_rv()
+    offsets = samples.mirror_offset_deg()
+    sharpest = resolvable_exponent(samples)
+    if sharpest <= exponent_range[0] * np.exp(BASIS_XTOL_LOG):
+        raise InputError(f"sample set {samples.name}: no view has a sample within the "
+                         f"widest lobe's half-width of its mirror direction (the nearest is "
+                         f"{np.max(offsets):.3g} deg away), so no lobe can be fitted",
+                         fix="use samples near the mirror direction, e.g. --samples seed001")
+    top = float(min(exponent_range[1], sharpest))
+    hi = min(hi, np.log(sharpest))
+    result = BasisResult(solver=solver, n_samples=samples.n_samples,
+                         exponent_range=(float(exponent_range[0]), top),
+                         mirror_offset_deg=offsets)
+    cos_theta_i, cos_rv, weight = samples.cos_theta_i(), samples.cos_rv(), samples.weight
     groups = [samples.view_index == k for k in range(samples.view_angle_deg.size)]
     start_all = time.perf_counter()
     log_e = np.empty(0)
@@ -135,7 +182,8 @@ def select_basis(targets: Sequence[np.ndarray], samples: Samples, max_lobes: int
 
         def f(x):
             evals["n"] += 1
-            value, errs = basis_objective(x, cos_theta_i, cos_rv, groups, targets, solver)
+            value, errs = basis_objective(x, cos_theta_i, cos_rv, groups, targets, solver,
+                                          weight)
             if value < best["f"]:
                 best.update(x=np.array(x, dtype=float), f=value, errs=errs)
             return value
@@ -167,3 +215,57 @@ def select_basis(targets: Sequence[np.ndarray], samples: Samples, max_lobes: int
                                       evals["n"], time.perf_counter() - t0, message))
     result.time_s = time.perf_counter() - start_all
     return result
+
+
+def basis_notes(result: BasisResult) -> list[str]:
+    """What a user should know about the bases found, one sentence each (the shell warns
+    with them): an exponent pressed against a bound of the search (and why: the lobe put
+    there added nothing, the samples resolve nothing sharper, the material's gloss is
+    sharper than any lobe, or wider), and an error that does not fall as lobes are added.
+    Empty when neither happened."""
+    notes = []
+    lo, hi = result.exponent_range
+    errors = {st.n_lobes: st.error for st in result.steps}
+    for bound, name in ((hi, "upper"), (lo, "lower")):
+        counts = [st.n_lobes for st in result.steps
+                  if np.any(np.abs(np.log(st.exponents) - np.log(bound)) < BASIS_PIN_LOG)]
+        if not counts:
+            continue
+        first = counts[0]
+        gain = (1.0 - errors[first] / errors[first - 1]
+                if errors.get(first - 1, 0.0) > 0 else None)
+        if gain is not None and gain < BASIS_FLAT_REL:
+            why = (f"the lobe put there at {first} lobes lowered the error by only "
+                   f"{gain:.2%}: it adds nothing, and {first - 1} lobes do as well")
+        elif name == "lower":
+            why = ("the material has a part wider than the widest lobe (E=1, the diffuse "
+                   "map's), e.g. grazing retro-reflection, which the lobes only approximate")
+        elif bound < EXPONENT_MAX * (1 - BASIS_PIN_LOG):
+            offset = float(np.max(result.mirror_offset_deg))
+            why = (f"it is the sharpest lobe these samples resolve (a view's nearest sample "
+                   f"is {offset:.2g} deg from its mirror direction) and the material's gloss "
+                   "is sharper; use --samples hemisphere --mirror-dense (or seed001) to "
+                   f"resolve lobes up to E={EXPONENT_MAX:g}")
+        else:
+            why = ("the material's gloss is sharper than any lobe the basis may hold "
+                   "(near-mirror), and that lobe stands for all of it")
+        shown = f"{bound:.0f}" if bound >= 10 else f"{bound:g}"       # 174, 10000, 1
+        notes.append(f"an exponent sits at the {name} bound E={shown} of the search in "
+                     f"the {_counts_text(counts)} basis(es): {why}")
+    steps = result.steps
+    if len(steps) > 1 and steps[-1].error > (1.0 - BASIS_FLAT_REL) * steps[0].error:
+        notes.append(f"the error stays at {steps[0].error:.4g} from 1 to {steps[-1].n_lobes} "
+                     f"lobes (falls less than {BASIS_FLAT_REL:.0%}): more lobes do not help "
+                     "on these samples; a lobe count of 1 is as good, or the lobes cannot "
+                     "represent the material's shape")
+    return notes
+
+
+def _counts_text(counts: list[int]) -> str:
+    """[1, 2, 3, 5] → "1-3, 5-lobe"."""
+    runs, start = [], counts[0]
+    for a, b in zip(counts, counts[1:] + [None]):
+        if b != a + 1:
+            runs.append(f"{start}" if start == a else f"{start}-{a}")
+            start = b
+    return ", ".join(runs) + "-lobe"
