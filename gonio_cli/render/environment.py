@@ -261,10 +261,13 @@ def check_lobes(lobes: Lobes, wavelength_nm: np.ndarray) -> None:
 
 
 #: The most a lobe table may reflect of uniform light (its directional albedo, π K_D +
-#: Σ 2π/(E+1) (K_G + K_DD cos θv)): a real surface reflects ≤ 1; fits of noisy data stay
-#: well below 2. Beyond this a lobe took a weight its samples do not support (a sharp lobe
-#: that no sample sees, weighted 1e11), and the render would be that much too bright.
-LOBE_ALBEDO_MAX = 4.0
+#: Σ 2π/(E+1) (K_G + K_DD cos θv)): a real surface reflects ≤ 1; seed 001's in-plane fits
+#: of a glossy coat hold up to ~40 × the material's albedo at 80° (too wide across the
+#: plane: docs/lobes.md), a few units. Beyond 100 a lobe took a weight its samples do not
+#: support (a sharp lobe that no sample sees, weighted 1e11: 1e6–1e14 × the albedo), and
+#: the render would be that much too bright. (gonio lobes fit checks the same against the
+#: material's own albedo when it fits: docs/lobes.md.)
+LOBE_ALBEDO_MAX = 100.0
 
 
 def check_lobe_energy(lobes: Lobes) -> None:
