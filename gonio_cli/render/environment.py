@@ -272,16 +272,18 @@ LOBE_ALBEDO_MAX = 100.0
 
 def check_lobe_energy(lobes: Lobes) -> None:
     """Refuse a lobe table that reflects more than :data:`LOBE_ALBEDO_MAX` × the light it
-    receives at some view angle, naming the lobe that carries most of it."""
-    cos_v = np.cos(np.radians(lobes.view_angle_deg))[:, None, None]        # (V, 1, 1)
-    per_lobe = lobe_integral(lobes.exponents)[None, :, None] * (
-        np.asarray(lobes.gloss) + cos_v * np.asarray(lobes.directional_diffuse))
-    albedo = np.pi * np.asarray(lobes.diffuse) + per_lobe.sum(axis=1)      # (V, C)
-    if not np.nanmax(albedo) > LOBE_ALBEDO_MAX:
+    receives at some view angle (:func:`gonio_cli.lobes.solve.lobe_energy` summed over its
+    terms), naming the lobe that carries most of it."""
+    from ..lobes.solve import lobe_energy
+
+    terms = lobe_energy(lobes.exponents, lobes.view_angle_deg, lobes.diffuse,
+                        lobes.directional_diffuse, lobes.gloss)         # (V, 1 + 2m, C)
+    if not np.nanmax(terms.sum(axis=1)) > LOBE_ALBEDO_MAX:
         return
-    v, i, c = np.unravel_index(np.nanargmax(per_lobe), per_lobe.shape)
+    v, k, c = np.unravel_index(np.nanargmax(terms[:, 1:]), terms[:, 1:].shape)
+    i = k % lobes.exponents.size                           # K_DD columns, then K_G ones
     raise InputError(f"the lobe of exponent {lobes.exponents[i]:g} reflects "
-                     f"{per_lobe[v, i, c]:.3g} x the light it receives at view angle "
+                     f"{terms[v, 1 + k, c]:.3g} x the light it receives at view angle "
                      f"{lobes.view_angle_deg[v]:g} deg (a surface reflects at most 1): its "
                      "weight is not supported by the samples it was fitted to",
                      fix="refit with fewer or wider lobes (gonio lobes fit), or leave the "
