@@ -37,6 +37,7 @@ material and view angle (:data:`VIEW_ANGLES_DEG`), linear in θv between them.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -102,13 +103,19 @@ class LobeTable:
     sharper: float
 
 
+@functools.lru_cache(maxsize=None)
+def _legendre(n: int) -> tuple[np.ndarray, np.ndarray]:
+    return np.polynomial.legendre.leggauss(n)
+
+
 def _gauss_legendre(edges: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
     """Composite Gauss–Legendre nodes and weights over consecutive ``edges``."""
-    x, w = np.polynomial.legendre.leggauss(n)
+    x, w = _legendre(n)
     a, b = edges[:-1, None], edges[1:, None]
     return ((a + b) / 2 + (b - a) / 2 * x).ravel(), ((b - a) / 2 * w).ravel()
 
 
+@functools.lru_cache(maxsize=1)
 def _half_vector_nodes():
     edges = [0.0]
     while edges[-1] * 2 < np.pi / 2 or len(edges) == 1:
@@ -119,7 +126,9 @@ def _half_vector_nodes():
     th, ph = np.meshgrid(th, ph, indexing="ij")
     w = (wt[:, None] * np.sin(th) * (2 * np.pi / PHI_NODES)).ravel()   # both halves
     h = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], -1)
-    return h.reshape(-1, 3), w
+    h, w = h.reshape(-1, 3), w
+    h.flags.writeable = w.flags.writeable = False         # shared by every call (cached)
+    return h, w
 
 
 def _directions(kind: str, wo: np.ndarray):
