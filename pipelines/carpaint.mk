@@ -16,17 +16,16 @@ $(CARPAINT)/paint.measurement.json: sample_data/carpaint_multiangle.csv | $(STAM
 	$(GONIO) ingest $^ -o $@ --quantity reflectance-factor
 
 # One run writes the material and its plot: a pattern rule with two targets (make's
-# grouped targets, `&:`, need make 4.3 and hide their dependents from `make -n`).
+# grouped targets, `&:`, need make 4.3 and hide their dependents from `make -n`). The
+# model per material: CARPAINT_MODEL_<stem>, else Cook–Torrance (seed 004).
+CARPAINT_MODEL_coat := goniochromatic-coat
 $(CARPAINT)/%.material.json $(CARPAINT)/%.fit.png: $(CARPAINT)/%.measurement.json
-	$(GONIO) fit $< -o $(CARPAINT)/$*.material.json --model cook-torrance \
+	$(GONIO) fit $< -o $(CARPAINT)/$*.material.json --model $(or $(CARPAINT_MODEL_$*),cook-torrance) \
 	  --plot $(CARPAINT)/$*.fit.png
 
 # A clear-coated blue paint measured in plane with samples close to the mirror
-# (sample_data/make_coat_paint.py): fitted with a clear coat over eq. 5 and a body
-# (goniochromatic-coat; the truth's coat α 0.02 comes back within 0.1 %).
+# (sample_data/make_coat_paint.py), fitted by the pattern rule above with a clear coat
+# over eq. 5 and a body (goniochromatic-coat; the truth's coat α 0.02 comes back within
+# 0.1 %).
 $(CARPAINT)/coat.measurement.json: sample_data/coat_paint.csv | $(STAMP)
 	$(GONIO) ingest $^ -o $@
-
-$(CARPAINT)/coat.material.json $(CARPAINT)/coat.fit.png: $(CARPAINT)/coat.measurement.json
-	$(GONIO) fit $< -o $(CARPAINT)/coat.material.json --model goniochromatic-coat \
-	  --plot $(CARPAINT)/coat.fit.png

@@ -33,7 +33,8 @@ pytestmark = pytest.mark.skipif(
 
 INKS = ("red", "green", "blue")
 RENDERS = ("render/figure5.png", "render/print-D65.png", "render/print-A.png",
-           "render/print-A-unadapted.png", "render/paint_env.png", "render/paint_sparkle.png")
+           "render/print-A-unadapted.png", "render/paint_env.png", "render/paint_sparkle.png",
+           "render/paint_sky.png")
 PRINTS = {"render/print-D65.png", "render/print-A.png", "render/print-A-unadapted.png"}
 
 # Every file `make demo` makes, relative to OUT: the file graph of docs/pipelines.md.
@@ -42,13 +43,15 @@ ALL = frozenset(
      ("measurement.json", "material.json", "fit.png", "torrance-sparrow.material.json")]
     + ["rgbink/print.png", "rgbink/print.json",
        "carpaint/paint.measurement.json", "carpaint/paint.material.json",
-       "carpaint/paint.fit.png",
+       "carpaint/paint.fit.png", "carpaint/coat.measurement.json",
+       "carpaint/coat.material.json", "carpaint/coat.fit.png",
        "lobes/basis.json", "lobes/basis.png", "lobes/paint.lobes.json",
        *(f"lobes/{i}.lobes.json" for i in INKS),
-       "sky/index.json", "render/sparkle.png", *RENDERS, "report/report.md", "demo.txt"])
+       "sky/index.json", "sky/quarry/index.json", "render/sparkle.png", *RENDERS, "report/report.md", "demo.txt"])
 # Files written by the run that writes another target (two-target rules) and the list.
 SECONDARY = frozenset({"rgbink/red.fit.png", "rgbink/green.fit.png", "rgbink/blue.fit.png",
-                       "rgbink/print.json", "carpaint/paint.fit.png", "lobes/basis.png",
+                       "rgbink/print.json", "carpaint/paint.fit.png",
+                       "carpaint/coat.fit.png", "lobes/basis.png",
                        "demo.txt"})
 ALL_LOBES = {"lobes/basis.json", "lobes/basis.png", "lobes/paint.lobes.json",
              *(f"lobes/{i}.lobes.json" for i in INKS)}
@@ -197,6 +200,9 @@ def test_scene_edit_reruns_only_its_renders(tree):
     ("sample_data/scenes/paint_env.toml", {"render/paint_env.png"}),
     ("sample_data/scenes/paint_sparkle.toml", {"render/paint_sparkle.png"}),
     ("sample_data/scenes/sheet.obj", PRINTS),
+    ("sample_data/scenes/paint_sky.toml", {"render/paint_sky.png"}),
+    ("sample_data/scenes/floor.material.json", {"render/paint_sky.png"}),
+    ("sample_data/meshes/spot.obj", {"render/paint_sky.png"}),
 ])
 def test_other_scene_inputs_rerun_only_renders(tree, source, renders):
     tree.touch(source)
@@ -234,6 +240,10 @@ def test_paint_measurement_edit(tree):
     ("sample_data/sky.exr", {"sky/index.json", "render/paint_env.png",
                              "render/paint_sparkle.png"}),
     ("sample_data/sparkle/photo_ti40.png", {"render/sparkle.png", "render/paint_sparkle.png"}),
+    ("sample_data/envmaps/quarry_01_1k.hdr", {"sky/quarry/index.json", "render/paint_sky.png"}),
+    ("sample_data/coat_paint.csv", {"carpaint/coat.measurement.json",
+                                    "carpaint/coat.material.json", "carpaint/coat.fit.png",
+                                    "render/paint_sky.png"}),
     ("sample_data/print_image.png", {"rgbink/print.png", "rgbink/print.json", *PRINTS}),
     ("sample_data/ink_blue_b.csv", {
         "rgbink/blue.measurement.json", "rgbink/blue.material.json", "rgbink/blue.fit.png",
@@ -280,15 +290,17 @@ def test_renders_depend_on_every_file_they_read(tree):
 
 
 def test_environment_only_for_scenes_that_need_one(tree):
-    """Building a render alone from scratch (``make -n -B``) prefilters the sky (and fits
-    lobes) only when its scene has an [environment]: not for figure5 or the prints."""
+    """Building a render alone from scratch (``make -n -B``) prefilters the sky only when
+    its scene has an [environment] (not for figure5 or the prints), and fits lobes only
+    when an object of it names lobes (paint_sky's are the materials' own)."""
     needs = {}
     for target, scene in _render_scenes(tree):
         kinds = {c[0] for c in tree.commands("-B", target)}
         assert "render" in kinds
         needs[tree.rel(target)] = scene.environment is not None
         assert ("prefilter" in kinds) == needs[tree.rel(target)], tree.rel(target)
-        assert ("lobes" in kinds) == needs[tree.rel(target)], tree.rel(target)
+        lobes = any(o.lobes is not None for o in scene.objects)
+        assert ("lobes" in kinds) == lobes, tree.rel(target)
     assert needs["render/figure5.png"] is False and needs["render/paint_env.png"] is True
     # An edit of the prefiltered sky reaches only the renders under it.
     tree.touch("out/sky/index.json")
