@@ -227,13 +227,13 @@ def check_exponents(exponents, where: str = "basis") -> np.ndarray:
 from .samples import (CHANNELS, SAMPLE_SETS, HemispherePattern, SamplePattern,  # noqa: E402
                       Samples, check_channels, directional_albedo, mirror_rings,
                       parse_view_angles, read_sample_csv, sample_set, target_values)
-from .solve import (DEFAULT_SOLVER, FINISHED, STATUSES, WARM_SIMPLEX_MAX_SAMPLES,  # noqa: E402
-                    WEIGHT_SOLVERS, WeightFit, WeightSolver, WeightTable, check_design,
-                    check_energy, check_solver, default_time_limit_s, energy_excess,
-                    energy_note,
-                    fit_weight_table, unresolved_notes,
-                    fit_weights, lobe_columns, lobe_energy, lobe_half_width_deg,
-                    relative_weights, residual_errors, resolved_lobes)
+from .solvers import (DEFAULT_SOLVER, FINISHED, STATUSES,  # noqa: E402
+                      WARM_SIMPLEX_MAX_SAMPLES, WEIGHT_SOLVERS, WeightFit, WeightSolver,
+                      check_solver, relative_weights, residual_errors)
+from .energy import check_energy, energy_excess, energy_note, lobe_energy  # noqa: E402
+from .solve import (WeightTable, check_design, default_time_limit_s,  # noqa: E402
+                    fit_weight_table, fit_weights, lobe_columns, lobe_half_width_deg,
+                    resolved_lobes, unresolved_notes)
 from .basis import (BASIS_EVALS_PER_LOBE, BASIS_FLAT_REL, BASIS_FTOL_REL,  # noqa: E402
                     BASIS_PIN_LOG, BASIS_SOLVERS, BASIS_XTOL_LOG, BasisResult, BasisStep,
                     basis_notes, basis_objective, resolvable_exponent, select_basis)

@@ -15,7 +15,8 @@ import numpy as np
 from ..errors import InputError
 from . import EXPONENT_MAX, EXPONENT_MIN, LOBE_RESOLVED_MIN, design_matrix
 from .samples import Samples
-from .solve import fit_weights, lobe_columns, relative_weights, resolved_lobes
+from .solve import fit_weights, lobe_columns, resolved_lobes
+from .solvers import relative_weights
 
 # ------------------------------------------------------------ basis selection (§3.2) --
 

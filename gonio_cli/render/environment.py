@@ -272,9 +272,9 @@ LOBE_ALBEDO_MAX = 100.0
 
 def check_lobe_energy(lobes: Lobes) -> None:
     """Refuse a lobe table that reflects more than :data:`LOBE_ALBEDO_MAX` × the light it
-    receives at some view angle (:func:`gonio_cli.lobes.solve.lobe_energy` summed over its
+    receives at some view angle (:func:`gonio_cli.lobes.energy.lobe_energy` summed over its
     terms), naming the lobe that carries most of it."""
-    from ..lobes.solve import lobe_energy
+    from ..lobes.energy import lobe_energy
 
     terms = lobe_energy(lobes.exponents, lobes.view_angle_deg, lobes.diffuse,
                         lobes.directional_diffuse, lobes.gloss)         # (V, 1 + 2m, C)
