@@ -277,6 +277,9 @@ def environment_tables(scene: Scene, surfaces: list, environment) -> None:
         s.env_tables = [tables_for(environment, m, scene.grid_nm) for m in mats]
         for tables in s.env_tables:
             warn_blurred(tables, where, environment)
+            for table in tables:                    # read the maps its lobes mix, here
+                for level in np.flatnonzero(table.weights.max(axis=0) > 0):
+                    environment.level(int(level))
 
 
 def load_measured(path: Path, grid_nm: np.ndarray):
