@@ -45,6 +45,7 @@ import numpy as np
 from .. import log
 from ..brdf_components import DIFFUSE, Component, components
 from ..envmap import direction_to_spherical, lookup_angles
+from ..errors import InputError
 from ..geometry import Cosines
 
 #: View angles θv (degrees) of the per-material tables; 2° apart, then 89 and 89.9 so
@@ -351,6 +352,48 @@ def _next(values: np.ndarray, i0: np.ndarray) -> np.ndarray:
     return values[np.minimum(i0 + 1, len(values) - 1)]
 
 
+def surface_environment_xyz(environment, surface, where: str, normal: np.ndarray,
+                            view: np.ndarray, cov: np.ndarray | None, wavelength_nm,
+                            observer: np.ndarray | None = None) -> np.ndarray:
+    """Environment light (n, C) of one object (a :class:`gonio_cli.render.shade.Surface`)
+    by its method: its model's lobes (``env_tables``, :func:`model_environment_xyz`) or
+    seed 001's lobe weights (``lobes``, :func:`~.environment.environment_xyz`); a printed
+    object's inks weighted by their coverage ``cov`` (n, 3), and its substrate's Phong
+    term (:func:`~.environment.substrate_environment_xyz`) by what they leave bare."""
+    from ..schemas import Lobes
+    from .environment import environment_xyz, substrate_environment_xyz
+
+    def one(j: int, n, v):
+        if surface.env_method == "model":
+            return model_environment_xyz(environment, surface.env_tables[j], n, v,
+                                         wavelength_nm, observer)
+        return environment_xyz(environment, lobes[j], n, v, wavelength_nm, observer)
+
+    lobes = surface.lobes
+    fix = "fit its lobe weights with gonio lobes fit and give them in the scene"
+    if surface.env_method != "model":
+        if not surface.printed and not isinstance(lobes, Lobes):
+            raise InputError(f"{where} has no lobes; environment light needs gonio lobes fit",
+                             fix=fix)
+        if surface.printed and (isinstance(lobes, Lobes) or lobes is None or len(lobes) != 3):
+            raise InputError(f"{where} is printed: environment light needs one lobes file "
+                             "per ink (3)", fix=fix)
+        lobes = lobes if surface.printed else [lobes]
+    if not surface.printed:
+        return one(0, normal, view)
+    out = np.zeros((normal.shape[0], 3 if observer is None else observer.shape[1]))
+    for j in range(3):
+        sel = cov[:, j] > 0
+        if np.any(sel):
+            out[sel] += cov[sel, j, None] * one(j, normal[sel], view[sel])
+    bare = np.clip(1.0 - cov.sum(axis=1), 0.0, 1.0)
+    if surface.substrate is not None and np.any(bare > 0):
+        sel = bare > 0
+        out[sel] += bare[sel, None] * substrate_environment_xyz(
+            environment, surface.substrate, normal[sel], view[sel], wavelength_nm, observer)
+    return out
+
+
 def warn_blurred(tables: list[LobeTable], where: str, environment) -> None:
     """Say when a lobe is sharper than the chain's sharpest map (its reflection blurred)."""
     for table in tables:
@@ -361,5 +404,5 @@ def warn_blurred(tables: list[LobeTable], where: str, environment) -> None:
                      "prefilter with gonio prefilter ENV --chain")
 
 
-__all__ = ["LobeTable", "lobe_table", "material_tables", "tables_for", "model_environment_xyz",
+__all__ = ["LobeTable", "lobe_table", "material_tables", "tables_for", "surface_environment_xyz", "model_environment_xyz",
            "level_weights", "warn_blurred", "VIEW_ANGLES_DEG"]

@@ -87,7 +87,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..geometry import Cosines, cosines_from_dots, cosines_from_dots_into
-from ..schemas import Lobes, Material
+from ..schemas import Material
 from . import GBuffer, Light, Stats
 # The spectral kernels and their registry (gonio_cli.render.kernels), importable from here.
 from .kernels import (EXACT_BLOCK, FLOAT32_MIN_ALPHA, SINGLE_PRECISION, TABLE_KERNELS,
@@ -610,59 +610,10 @@ def _sparkle_term(surface: Surface, k: int, gbuffer: GBuffer, index: np.ndarray,
 def _environment_term(environment, surface: Surface, k: int, px: _Pixels,
                       cov: np.ndarray | None, wl: np.ndarray,
                       observer: np.ndarray | None = None) -> np.ndarray:
-    """Environment light of one object's pixels (n, 3) XYZ; printed: coverage-weighted."""
-    from .environment import environment_xyz, substrate_environment_xyz
+    """Environment light of one object's pixels (n, C) XYZ; printed: coverage-weighted
+    (:func:`gonio_cli.render.env_model.surface_environment_xyz`)."""
+    from .env_model import surface_environment_xyz
 
     where = f"object {k}" + (f" ({surface.name})" if surface.name else "")
-    fix = "fit its lobe weights with gonio lobes fit and give them in the scene"
-    if surface.env_method == "model":
-        return _model_environment_term(environment, surface, px, cov, wl, observer)
-    if not surface.printed:
-        if not isinstance(surface.lobes, Lobes):
-            raise InputError(f"{where} has no lobes; environment light needs gonio lobes fit",
-                             fix=fix)
-        return environment_xyz(environment, surface.lobes, px.get("normal"), px.get("view"), wl,
-                               observer)
-    lobes = surface.lobes
-    if isinstance(lobes, Lobes) or lobes is None or len(lobes) != 3:
-        raise InputError(f"{where} is printed: environment light needs one lobes file per "
-                         "ink (3)", fix=fix)
-    out = np.zeros((px.size, 3 if observer is None else observer.shape[1]))
-    normal, view = px.get("normal"), px.get("view")
-    for j, lob in enumerate(lobes):
-        sel = cov[:, j] > 0
-        if np.any(sel):
-            out[sel] += cov[sel, j, None] * environment_xyz(
-                environment, lob, normal[sel], view[sel], wl, observer)
-    bare = np.clip(1.0 - cov.sum(axis=1), 0.0, 1.0)
-    if surface.substrate is not None and np.any(bare > 0):
-        sel = bare > 0
-        out[sel] += bare[sel, None] * substrate_environment_xyz(
-            environment, surface.substrate, normal[sel], view[sel], wl, observer)
-    return out
-
-
-def _model_environment_term(environment, surface: Surface, px: _Pixels,
-                            cov: np.ndarray | None, wl: np.ndarray,
-                            observer: np.ndarray | None = None) -> np.ndarray:
-    """Environment light through the lobes of each material's own model (n, C);
-    printed: each ink's coverage-weighted, and the substrate's as seed 001's."""
-    from .env_model import model_environment_xyz
-    from .environment import substrate_environment_xyz
-
-    normal, view = px.get("normal"), px.get("view")
-    if not surface.printed:
-        return model_environment_xyz(environment, surface.env_tables[0], normal, view, wl,
-                                     observer)
-    out = np.zeros((px.size, 3 if observer is None else observer.shape[1]))
-    for j, tables in enumerate(surface.env_tables):
-        sel = cov[:, j] > 0
-        if np.any(sel):
-            out[sel] += cov[sel, j, None] * model_environment_xyz(
-                environment, tables, normal[sel], view[sel], wl, observer)
-    bare = np.clip(1.0 - cov.sum(axis=1), 0.0, 1.0)
-    if surface.substrate is not None and np.any(bare > 0):
-        sel = bare > 0
-        out[sel] += bare[sel, None] * substrate_environment_xyz(
-            environment, surface.substrate, normal[sel], view[sel], wl, observer)
-    return out
+    return surface_environment_xyz(environment, surface, where, px.get("normal"),
+                                   px.get("view"), cov, wl, observer)
