@@ -95,8 +95,10 @@ def test_png_exr_and_report(run_gonio, scene, tmp_path):
     doc = json.loads(rep.read_text())
     assert doc["schema"] == "gonio.render-report" and doc["schema_version"] == 1
     stages = [s["stage"] for s in doc["stages"]]
-    assert stages == ["scene", "meshes", "materials", "rasterize", "shade", "downsample",
-                      "tonemap", "write_exr", "write_png"]
+    assert stages == ["scene", "meshes", "materials", "rasterize", "shadows", "shade",
+                      "downsample", "tonemap", "write_exr", "write_png"]
+    lights = doc["counts"]["shadows"]    # lights cast shadows by default; a lone sphere
+    assert [l["skipped"] for l in lights] == ["one convex solid"] * 2      # needs no map
     assert "textures" not in stages and "environment" not in stages  # not needed here
     assert all(s["time_s"] >= 0 for s in doc["stages"])
     assert doc["time_s"] >= sum(s["time_s"] for s in doc["stages"])

@@ -10,7 +10,11 @@ between them are the dataclasses below, so each stage can be tested on its own:
                     → :class:`Mesh` in world space (transform applied, smooth normals).
 3. :mod:`.raster`   :class:`Camera` + meshes → :class:`GBuffer` (per pixel of the
                     supersampled image: object, position, normal, view direction, uv and
-                    its footprint), by a batched z-buffer (many triangles per array op).
+                    its footprint, facet normal), by a batched z-buffer (many triangles per
+                    array op).
+   :mod:`.shadow`   GBuffer + meshes + lights → each light's visibility per sample, from
+                    shadow maps (:mod:`.shadowmap`, :mod:`.depthmap`), soft-edged by the
+                    light's size; skipped for a lone convex solid (:mod:`.solid`).
 4. :mod:`.texture`  halftone masks → area-filtered coverage pyramid (mipmaps) and the
                     coverage of R, G, B ink and bare substrate per pixel.
 5. :mod:`.shade`    GBuffer + materials + :class:`Light` list (+ environment) → XYZ per
@@ -23,7 +27,8 @@ between them are the dataclasses below, so each stage can be tested on its own:
 Conventions (``docs/conventions.md``): right-handed world; camera ``eye``, ``target``, ``up``,
 ``fov_deg`` = full vertical field of view; pixel centres at (col + ½, row + ½), row 0 the
 top; BRDFs never include cos θi; a directional light has irradiance E at normal incidence,
-a point light intensity I (E = I/d²); light spectra are scaled so Σ S ȳ / Σ ȳ = 1.
+a point light intensity I (E = I/d²), each times the visibility V its shadows leave; light
+spectra are scaled so Σ S ȳ / Σ ȳ = 1.
 """
 
 from __future__ import annotations
@@ -72,9 +77,9 @@ class GBuffer:
     """What the rasterizer leaves at each pixel (H, W) of the supersampled image.
 
     object_id : (H, W) int, index into the scene's objects, −1 where nothing was hit
-    position : (H, W, 3) world position (None if not asked for: only point lights need
-        it) ; normal : (H, W, 3) unit shading normal, flipped towards the viewer on back
-        faces ; view : (H, W, 3) unit direction to the eye (ωo)
+    position : (H, W, 3) world position (None if not asked for: only point lights and
+        shadows need it) ; normal : (H, W, 3) unit shading normal, flipped towards the
+        viewer on back faces ; view : (H, W, 3) unit direction to the eye (ωo)
     uv : (H, W, 2) or None (perspective-correct) ; uv_footprint : (H, W) the size of the
         pixel in texture space (uv units), for the mip level ; ssaa : the supersampling
         factor (H = ssaa × camera.height)
@@ -82,6 +87,8 @@ class GBuffer:
         zeros, never NaN) or (n,) ascending flat indices into (H, W) of the covered
         samples (compact: position … uv_footprint hold one row per covered sample,
         (n, 3), (n, 2), (n,), in this order; the render pipeline's layout).
+    facet_normal : (H, W, 3) or (n, 3), or None (not asked for: only shadows read it):
+        the unit normal of each sample's triangle (world, either sign).
     """
 
     object_id: np.ndarray
@@ -92,6 +99,7 @@ class GBuffer:
     uv_footprint: np.ndarray | None = None
     ssaa: int = 1
     pixels: np.ndarray | None = None
+    facet_normal: np.ndarray | None = None
 
     @property
     def covered(self) -> np.ndarray:
@@ -108,11 +116,24 @@ class GBuffer:
         return flat if self.pixels is None else flat[self.pixels]
 
 
+#: Default angular diameter of a directional light (degrees): the sun's, seen from the
+#: earth (0.53°), for the width of its shadows' penumbrae (:mod:`.shadow`).
+SUN_ANGULAR_DIAMETER_DEG = 0.53
+#: Default radius of a point light (scene units): a small lamp (1 cm in a scene in metres,
+#: 1 % of the unit sphere's radius), for its shadows' penumbrae.
+POINT_LIGHT_RADIUS = 0.01
+
+
 @dataclass
 class Light:
     """A light. ``kind``: "directional" (``direction``: (3,) unit vector from the surface
     towards the light, ``irradiance`` E at normal incidence) or "point" (``position`` (3,),
-    ``intensity`` I, E = I/d²). ``spectrum``: (L,) on the working grid, Σ S ȳ / Σ ȳ = 1."""
+    ``intensity`` I, E = I/d²). ``spectrum``: (L,) on the working grid, Σ S ȳ / Σ ȳ = 1.
+
+    ``shadow``: whether the scene's meshes block it (:mod:`.shadow`, applied by the
+    render pipeline; :func:`.shade.shade_rows` takes the visibility it computes). Its
+    size, for the penumbrae: ``angular_diameter_deg`` (directional) and ``radius``
+    (point, scene units)."""
 
     kind: str
     spectrum: np.ndarray
@@ -121,6 +142,9 @@ class Light:
     position: np.ndarray | None = None
     intensity: float = 0.0
     name: str = ""
+    shadow: bool = True
+    angular_diameter_deg: float = SUN_ANGULAR_DIAMETER_DEG
+    radius: float = POINT_LIGHT_RADIUS
 
 
 #: How an ``[environment]`` lights an object (``[environment] method``; docs/render.md).

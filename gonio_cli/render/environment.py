@@ -197,7 +197,8 @@ def sun_light(environment: Environment, wavelength_nm):
     """The sun split off the map (``gonio prefilter --sun``) as a directional
     :class:`~gonio_cli.render.Light` on the working grid, or None: its linear-sRGB
     irradiance E_rgb becomes the spectrum D65 Σ_c E_c B_c (docs/conventions.md), scaled
-    to Σ S ȳ / Σ ȳ = 1 with ``irradiance`` its luminance."""
+    to Σ S ȳ / Σ ȳ = 1 with ``irradiance`` its luminance; it casts shadows whose penumbrae
+    are as wide as the sun's ``angular_diameter_deg`` makes them."""
     from . import Light
     from ..spectra import cmf_weights
 
@@ -210,7 +211,8 @@ def sun_light(environment: Environment, wavelength_nm):
         return None
     d = np.asarray(environment.sun["direction"], dtype=float)
     return Light("directional", spectrum / y, direction=d / np.linalg.norm(d), irradiance=y,
-                 name=f"the sun of {Path(environment.path).parent.name}")
+                 name=f"the sun of {Path(environment.path).parent.name}", shadow=True,
+                 angular_diameter_deg=float(environment.sun["angular_diameter_deg"]))
 
 
 # ------------------------------------------------------------------------------ colour --

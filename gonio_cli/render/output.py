@@ -59,8 +59,18 @@ def settings(scene: Scene) -> dict[str, Any]:
             "tonemap": out.tonemap, "adapt": out.adapt, "scene_white_xyz": white,
             "display_white": "D65 (sRGB)", "grid_nm": out.grid_nm,
             "objects": [{"name": o.name, "kind": o.kind, "mesh": o.mesh} for o in scene.objects],
-            "lights": [{"name": l.name, "kind": l.kind} for l in scene.lights],
+            "lights": [_light_settings(l) for l in scene.lights],
             "environment": (str(scene.environment.prefiltered) if scene.environment else None)}
+
+
+def _light_settings(light) -> dict[str, Any]:
+    """A light as the settings name it: name, kind, whether it casts shadows, and then
+    its size (angular diameter or radius)."""
+    out: dict[str, Any] = {"name": light.name, "kind": light.kind, "shadow": light.shadow}
+    if light.shadow:
+        out.update({"angular_diameter_deg": light.angular_diameter_deg}
+                   if light.kind == "directional" else {"radius": light.radius})
+    return out
 
 
 #: The colour that marks out-of-gamut pixels in the gamut-warning image: the mid grey
@@ -175,7 +185,7 @@ def write_report(path, scene: Scene, stats: Stats, *, total_s: float, png, exr=N
     from .pipeline import FRAME_STAGES
 
     order = ["scene", "meshes", "materials", "textures", "sparkles", "lobes", "environment",
-             "rasterize", "shade", "spectra", "downsample", "tonemap", "write_exr",
+             "rasterize", "shadows", "shade", "spectra", "downsample", "tonemap", "write_exr",
              "write_spectral_exr", "write_png"]
     names = [k for k in order if k in stats.time_s]
     names += [k for k in stats.time_s if k not in names and "." not in k]

@@ -11,6 +11,8 @@ in the run report only if it ran ("leave out what the scene does not need"):
 ``lobes``        lobe weights: only with an environment
 ``environment``  prefiltered maps: only if the scene has an ``[environment]``
 ``rasterize``    the batched z-buffer at ssaa × the image size
+``shadows``      shadow maps and the visibility of each light at each sample
+                 (:mod:`.shadow`): only for lights with ``shadow = true`` (the default)
 ``shade``        spectral shading → XYZ (and ``shade.*`` sub-stages of :mod:`.shade`)
 ``spectra``      only with a spectral image: radiance per wavelength (:func:`spectral_radiance`)
 ``downsample``   box filter of the ssaa (:func:`resolve`), XYZ → linear sRGB (IEC matrix)
@@ -18,8 +20,8 @@ in the run report only if it ran ("leave out what the scene does not need"):
 ``tonemap``      exposure, tone map, sRGB encoding, 8 bits
 ``write_exr``, ``write_png``, ``write_spectral_exr``   the files (atomic)
 
-The frame time of the issue is rasterize + shade + downsample + tonemap; the total is
-scene loading to images written (the CLI measures it from before ``load_scene``).
+The frame time of the issue is rasterize + shadows + shade + downsample + tonemap; the
+total is scene loading to images written (the CLI measures it from before ``load_scene``).
 
 Writing the frame out (images, their metadata, the run report) is
 :mod:`gonio_cli.render.output`, re-exported here. Why one module for the rest: loading
@@ -44,8 +46,8 @@ from ..errors import ArtifactError, GonioError, InputError
 from . import Stats
 from .scene import Scene
 
-#: Stages whose sum is the frame time (acceptance: rasterize, shade, tone map).
-FRAME_STAGES = ("rasterize", "shade", "downsample", "tonemap")
+#: Stages whose sum is the frame time (acceptance: rasterize, shadows, shade, tone map).
+FRAME_STAGES = ("rasterize", "shadows", "shade", "downsample", "tonemap")
 
 
 @dataclass
@@ -356,18 +358,41 @@ def memory_estimate(scene: Scene, spectra: bool = False) -> int:
     """Peak bytes of a frame's buffers (:func:`render_scene`), as if every sample were
     covered: the compact float32 G-buffer with its keys and indices
     (:func:`gonio_cli.render.raster.gbuffer_bytes`), the shaded rows, the supersampled
-    image of the resolve and the output images; with ``spectra``, plus
-    :func:`spectral_image_bytes`. Built-in meshes count :data:`MESH_BYTES_PER_TRIANGLE`
-    (:func:`mesh_triangles`); OBJ files and materials are not counted."""
+    image of the resolve and the output images, the shadows (:func:`shadow_bytes`); with
+    ``spectra``, plus :func:`spectral_image_bytes`. Built-in meshes count
+    :data:`MESH_BYTES_PER_TRIANGLE` (:func:`mesh_triangles`); OBJ files and materials are
+    not counted."""
     from .raster import gbuffer_bytes
 
     cam, ssaa = scene.camera, scene.output.ssaa
     samples = cam.width * cam.height * ssaa ** 2
     return (gbuffer_bytes(cam.height, cam.width, ssaa, uv=scene.needs_uvs,
-                          position=needs_positions(scene))
+                          position=needs_positions(scene), facet=shadowing_lights(scene) > 0)
             + samples * SHADE_BYTES_PER_SAMPLE + cam.width * cam.height * OUTPUT_BYTES_PER_PIXEL
-            + mesh_triangles(scene) * MESH_BYTES_PER_TRIANGLE
+            + mesh_triangles(scene) * MESH_BYTES_PER_TRIANGLE + shadow_bytes(scene)
             + (spectral_image_bytes(scene) if spectra else 0))
+
+
+#: Bytes per sample and shadowing light: its visibility (float32), kept for the shading.
+SHADOW_BYTES_PER_SAMPLE = 4
+#: Bytes per texel of a shadow map while it is used: the float32 map, its two bounds and
+#: the dilation's two temporaries.
+SHADOW_BYTES_PER_TEXEL = 20
+
+
+def shadow_bytes(scene: Scene) -> int:
+    """Bytes of the shadows: the visibilities of the shadowing lights, and the largest
+    map (:data:`gonio_cli.render.shadow.TEXELS_PER_SAMPLE` texels per sample, at most
+    :data:`~gonio_cli.render.shadow.MAX_MAP_SIDE` a side; maps are made one at a time)."""
+    from .shadow import MAX_MAP_SIDE, TEXELS_PER_SAMPLE
+
+    n = shadowing_lights(scene)
+    if not n:
+        return 0
+    cam = scene.camera
+    samples = cam.width * cam.height * scene.output.ssaa ** 2
+    texels = min(MAX_MAP_SIDE ** 2, int(TEXELS_PER_SAMPLE * samples))
+    return n * samples * SHADOW_BYTES_PER_SAMPLE + texels * SHADOW_BYTES_PER_TEXEL
 
 
 def spectral_image_bytes(scene: Scene) -> int:
@@ -419,9 +444,16 @@ def check_memory(scene: Scene, spectra: bool = False) -> int:
                  fix="use a coarser --grid-nm, or lower --width-px/--height-px or --ssaa")
 
 
-def needs_positions(scene: Scene) -> bool:
-    """World positions are read only by point lights."""
-    return any(light.kind == "point" for light in scene.lights)
+def needs_positions(scene: Scene, shadows: bool | None = None) -> bool:
+    """World positions are read only by point lights and by shadows (``shadows``: whether
+    maps will be made; None: whether any light casts shadows)."""
+    shadows = shadowing_lights(scene) > 0 if shadows is None else shadows
+    return shadows or any(light.kind == "point" for light in scene.lights)
+
+
+def shadowing_lights(scene: Scene) -> int:
+    """How many of the scene's lights cast shadows."""
+    return sum(1 for light in scene.lights if light.shadow)
 
 
 #: glibc's malloc returns freed blocks above a threshold that it moves at run time (from
@@ -494,23 +526,35 @@ def _render_steps(scene: Scene, stats: Stats, state: dict, spectra: bool = False
                 environment_tables(scene, surfaces, environment)
     yield "materials"
     from .raster import rasterize
+    from .shadowmap import lone_convex
 
     ssaa = scene.output.ssaa
+    # shadow maps unless no light casts shadows or the scene is one convex solid; the
+    # lights are the scene's and the environment's sun (gonio prefilter --sun)
+    lights = shading_lights(scene, environment)
+    maps = any(light.shadow for light in lights) and not lone_convex(meshes)
     with Stage(stats, "rasterize"):
         # compact float32 rows of covered samples; texture coordinates only when a mask
-        # or a sparkle texture will read them, positions only for point lights
+        # or a sparkle texture will read them, positions only for point lights and
+        # shadow maps, facet normals only for shadow maps
         gbuffer = rasterize(scene.camera, meshes, ssaa, uv=scene.needs_uvs, compact=True,
-                            dtype=np.float32, position=needs_positions(scene))
+                            dtype=np.float32, position=needs_positions(scene, maps),
+                            facet=maps)
+    visibility = None
+    if any(light.shadow for light in lights):
+        from .shadow import shadow_visibility
+
+        visibility = shadow_visibility(lights, meshes, gbuffer, stats)
     del meshes
     yield "rasterize"
     t0 = time.perf_counter()
-    rows = _shade_without_overflow(scene, gbuffer, surfaces, environment, stats)
+    rows = _shade_without_overflow(scene, gbuffer, surfaces, environment, stats, visibility)
     stats.time_s.setdefault("shade", time.perf_counter() - t0)
     yield "shade"
     radiance = None
     if spectra:
         with Stage(stats, "spectra"):
-            radiance = spectral_radiance(gbuffer, surfaces, scene, environment)
+            radiance = spectral_radiance(gbuffer, surfaces, scene, environment, visibility)
         yield "spectra"
     object_id, pixels = gbuffer.object_id, gbuffer.pixels
     del gbuffer                                               # its rows are no longer needed
@@ -557,7 +601,8 @@ def check_spectral_lobes(scene: Scene, surfaces: list) -> None:
                                      "(its default), or leave out --spectral-exr")
 
 
-def spectral_radiance(gbuffer, surfaces: list, scene: Scene, environment=None) -> np.ndarray:
+def spectral_radiance(gbuffer, surfaces: list, scene: Scene, environment=None,
+                      visibility=None) -> np.ndarray:
     """The spectral radiance image (H, W, n_λ) float32 on the working grid.
 
     The shading (:func:`gonio_cli.render.shade.shade_rows`) is linear in its channels'
@@ -567,9 +612,10 @@ def spectral_radiance(gbuffer, surfaces: list, scene: Scene, environment=None) -
     box-filtered as the XYZ (:func:`resolve`). Every model keeps its spectral path
     (``--spectral``): the goniochromatic table then holds one column per wavelength (a
     per-band table, same tolerance), the others are exact per wavelength. Σλ L cmf / Σ ȳ
-    of the result is the frame's XYZ to the tables' tolerance (1e-5 relative). Background
-    pixels hold the background's spectrum (docs/conventions.md's RGB → spectrum) times
-    the uncovered fraction, as the colour image does.
+    of the result is the frame's XYZ to the tables' tolerance (1e-5 relative), with the
+    same shadows (``visibility``, :func:`gonio_cli.render.shadow.shadow_visibility`).
+    Background pixels hold the background's spectrum (docs/conventions.md's RGB →
+    spectrum) times the uncovered fraction, as the colour image does.
     """
     from .shade import shade_rows
 
@@ -582,7 +628,7 @@ def spectral_radiance(gbuffer, surfaces: list, scene: Scene, environment=None) -
     for start in range(0, n, step):
         rows = shade_rows(gbuffer, surfaces, lights, wl, environment=environment,
                           spectral=scene.output.spectral, dtype=np.float32,
-                          observer=identity[:, start:start + step])
+                          observer=identity[:, start:start + step], visibility=visibility)
         band, coverage = resolve(rows, gbuffer.pixels, gbuffer.object_id, ssaa, scene.display)
         del rows
         out[..., start:start + step] = band
@@ -627,7 +673,8 @@ def scene_white(scene: Scene) -> np.ndarray | None:
     return scene_white_xyz(scene.lights, scene.grid_nm, scene.camera.target)
 
 
-def _shade_without_overflow(scene: Scene, gbuffer, surfaces, environment, stats: Stats):
+def _shade_without_overflow(scene: Scene, gbuffer, surfaces, environment, stats: Stats,
+                            visibility=None):
     """``shade_rows`` in float32; an overflow (light × reflectance beyond float32's 3.4e38,
     docs/conventions.md "Numeric ranges") is an error naming the scene, never black or
     NaN pixels in the images."""
@@ -639,7 +686,7 @@ def _shade_without_overflow(scene: Scene, gbuffer, surfaces, environment, stats:
         with np.errstate(over="raise"):
             return shade_rows(gbuffer, surfaces, lights, scene.grid_nm,
                               environment=environment, spectral=scene.output.spectral,
-                              stats=stats, dtype=np.float32)
+                              stats=stats, dtype=np.float32, visibility=visibility)
     except FloatingPointError:
         raise NumericError("shading overflowed float32 (a light's irradiance or intensity "
                            "times a material's reflectance is beyond 3.4e38)",

@@ -43,7 +43,8 @@ of a mesh that is a closed surface facing outwards (checked once at load,
 ``Mesh.closed``), seen from outside it and wholly beyond the near plane, are not tested
 at all: there every ray enters through a front face first (:func:`_closed_back_faces`).
 Only the winners are then interpolated, in the G-buffer's dtype (the pipeline: float32),
-into (c, n) component arrays: normal, view, and position, uv and its footprint when asked.
+into (c, n) component arrays: normal, view, and position, facet normal, uv and its
+footprint when asked.
 On this project's 2-core machine, a 512² frame of the 20 448-triangle OBJ sphere (warm
 process, median of 9, ``benchmarks/bench_render.py``) takes 3–5 ms set-up, 7–11 ms
 visibility (16–17 ms before closed meshes' back faces were skipped) and 5–8 ms
@@ -511,7 +512,8 @@ class _HitBuffers:
 
 
 def rasterize(camera: Camera, meshes: list[Mesh], ssaa: int = 1, uv: bool = True, *,
-              compact: bool = False, dtype=np.float64, position: bool = True) -> GBuffer:
+              compact: bool = False, dtype=np.float64, position: bool = True,
+              facet: bool = False) -> GBuffer:
     """Rasterize meshes (world space) seen by ``camera`` into a G-buffer.
 
     Parameters
@@ -533,7 +535,10 @@ def rasterize(camera: Camera, meshes: list[Mesh], ssaa: int = 1, uv: bool = True
     dtype : float dtype of the attributes (the pipeline: float32, half the memory and
         bandwidth; visibility is float32 and the interpolation float64 either way).
     position : bool
-        Store world positions (only point lights read them).
+        Store world positions (only point lights and shadows read them).
+    facet : bool
+        Store each sample's facet normal: the unit normal of its triangle's plane
+        (world; its sign is arbitrary), the geometry that the shadows compare with.
 
     Returns
     -------
@@ -544,23 +549,23 @@ def rasterize(camera: Camera, meshes: list[Mesh], ssaa: int = 1, uv: bool = True
     order of ``pixels``.
     """
     return rasterize_timed(camera, meshes, ssaa, uv, compact=compact, dtype=dtype,
-                           position=position)[0]
+                           position=position, facet=facet)[0]
 
 
 def gbuffer_bytes(height: int, width: int, ssaa: int, *, uv: bool, position: bool = True,
-                  dtype=np.float32) -> int:
+                  dtype=np.float32, facet: bool = False) -> int:
     """Largest memory (bytes) :func:`rasterize` (compact) needs for an image, whatever
     it covers: the int64 depth keys and the int32 object ids of every sample, plus at
     full coverage the sample and triangle indices and the attribute rows."""
     n = int(height) * int(width) * int(ssaa) ** 2
     item = np.dtype(dtype).itemsize
-    per_row = item * (3 * (1 + int(position)) + (3 if uv else 0)) + 4 + 4 + 4
+    per_row = item * (3 * (1 + int(position) + int(facet)) + (3 if uv else 0)) + 4 + 4 + 4
     return n * (8 + 4) + n * per_row
 
 
 def rasterize_timed(camera: Camera, meshes: list[Mesh], ssaa: int = 1, uv: bool = True, *,
-                    compact: bool = False, dtype=np.float64, position: bool = True
-                    ) -> tuple[GBuffer, dict[str, float]]:
+                    compact: bool = False, dtype=np.float64, position: bool = True,
+                    facet: bool = False) -> tuple[GBuffer, dict[str, float]]:
     """:func:`rasterize` plus wall times (s) of its passes: ``setup``, ``visibility``,
     ``interpolation`` (for the run report and the benchmark)."""
     ssaa = int(ssaa)
@@ -601,6 +606,7 @@ def rasterize_timed(camera: Camera, meshes: list[Mesh], ssaa: int = 1, uv: bool 
         def buffer(c):
             return np.zeros((h, w, c) if c else (h, w), dtype)
     gb.position = buffer(3) if position else None
+    gb.facet_normal = buffer(3) if facet else None
     gb.normal = buffer(3)
     gb.view = buffer(3)
     if has_uv:
@@ -708,7 +714,8 @@ def _interpolate(gb, pix, k, st, plane, obj, eye, basis, w, h, F) -> None:
     # or a risky normal needs d · N, then u, v
     n_attr = table.shape[0] // 3
     risky_any = bool(risky.any())
-    need_plane = gb.position is not None or gb.uv is not None or risky_any
+    need_plane = (gb.position is not None or gb.facet_normal is not None or gb.uv is not None
+                  or risky_any)
     attrs = [0, 1, 2] + ([3] if need_plane else []) + ([4, 5] if n_attr > 4 else [])
     rows_of = np.concatenate([[3 * a, 3 * a + 1, 3 * a + 2] for a in attrs])
     table = np.ascontiguousarray(table[rows_of])
@@ -785,6 +792,12 @@ def _interpolate_block(gb, pix, k, st, table, attrs, risky, eye, basis, w, h, F,
     if gb.position is not None:
         depth = st["q"][k] / s                                # along d = (dx, dy, 1)
         store("position", eye[:, None] + depth * ray)
+    if gb.facet_normal is not None:                           # N = (P1 − P0) × (P2 − P0)
+        gN = g[3 * attrs.index(3):3 * attrs.index(3) + 3]
+        b = basis.astype(table.dtype)                         # camera → world
+        fn = b[:, 0, None] * gN[0] + b[:, 1, None] * gN[1] + b[:, 2, None] * gN[2]
+        fn /= np.sqrt(np.einsum("im,im->m", fn, fn))
+        store("facet_normal", fn)
     if gb.uv is not None:
         gu = 3 * attrs.index(4)
         uv = np.stack([dot[4], dot[5]]) / s

@@ -20,8 +20,9 @@ Sections (see ``docs/render.md``)::
     [[object]]     mesh, translate, rotate_deg, scale, name and one of
                    material (+ lobes) | inks + mask (+ substrate, lobes, wrap) | measured
                    (+ sparkle, sparkle_color, sparkle_exponent, sparkle_scale)
-    [[light]]      type = "directional" (direction, irradiance) | "point" (position,
-                   intensity); spectrum = CIE name or CSV; name
+    [[light]]      type = "directional" (direction, irradiance, angular_diameter_deg) |
+                   "point" (position, intensity, radius); spectrum = CIE name or CSV;
+                   shadow = true | false; name
     [environment]  prefiltered (a gonio prefilter index.json), method   (optional)
     [output]       exposure (stops), tonemap, adapt, ssaa, spectral, grid_nm, background
 
@@ -57,7 +58,7 @@ from ..errors import InputError
 from ..names import pick
 from ..schemas import EXPONENT_RANGE, EXPOSURE_MAX_STOPS, MAX_MAGNITUDE
 from ..spectra import grid_spec
-from . import ENVIRONMENT_METHODS, Camera, Light
+from . import ENVIRONMENT_METHODS, POINT_LIGHT_RADIUS, SUN_ANGULAR_DIAMETER_DEG, Camera, Light
 
 #: Built-in meshes (``mesh = "builtin:NAME"``); anything else is an OBJ path.
 #: Options after "?" (``builtin:sphere?segments=48``) are checked by :mod:`.mesh`.
@@ -79,7 +80,15 @@ OBJECT_KEYS = ("name", "mesh", "translate", "rotate_deg", "scale", "material", "
 #: Keys that belong to an object with a ``sparkle`` texture (seed 004 §6).
 SPARKLE_KEYS = ("sparkle_color", "sparkle_exponent", "sparkle_scale")
 SUBSTRATE_KEYS = ("kd", "ks", "shininess")
-LIGHT_KEYS = ("type", "name", "direction", "irradiance", "position", "intensity", "spectrum")
+LIGHT_KEYS = ("type", "name", "direction", "irradiance", "position", "intensity", "spectrum",
+              "shadow", "angular_diameter_deg", "radius")
+#: The keys each light type takes beyond the common ones (the others' are refused).
+LIGHT_TYPE_KEYS = {"directional": ("direction", "irradiance", "angular_diameter_deg"),
+                   "point": ("position", "intensity", "radius")}
+#: Largest angular diameter of a directional light (degrees): its shadows' penumbrae are
+#: modelled as seen through a small cone (tan(α/2) ≈ α/2 within 1 % up to 20°, and the
+#: filter is cut at :data:`gonio_cli.render.shadow.MAX_FILTER_TEXELS` anyway).
+MAX_ANGULAR_DIAMETER_DEG = 20.0
 ENVIRONMENT_KEYS = ("prefiltered", "method")
 OUTPUT_KEYS = ("exposure", "tonemap", "adapt", "ssaa", "spectral", "grid_nm", "background")
 TOP_KEYS = ("vars", "camera", "object", "light", "environment", "output")
@@ -254,6 +263,11 @@ class _Checker:
         if nonzero and np.linalg.norm(v) < MIN_VECTOR_NORM:
             raise self.error(where, f"{value!r} has no direction (zero length)")
         return v
+
+    def boolean(self, value, where: str) -> bool:
+        if not isinstance(value, bool):
+            raise self.error(where, f"{value!r} is a {_tname(value)}, expected true or false")
+        return value
 
     def string(self, value, where: str) -> str:
         if not isinstance(value, str):
@@ -575,24 +589,30 @@ def _light(chk: _Checker, raw, number: int, grid: np.ndarray) -> Light:
     l = chk.table(raw, where)
     chk.keys(l, LIGHT_KEYS, where)
     kind = chk.choice(chk.required(l, "type", where), f"{where} type", LIGHT_TYPES)
-    needs = {"directional": ("direction", "irradiance"), "point": ("position", "intensity")}
-    for other in needs["point" if kind == "directional" else "directional"]:
+    for other in LIGHT_TYPE_KEYS["point" if kind == "directional" else "directional"]:
         if other in l:
             raise chk.error(f"{where} {other}", f"is not a key of a {kind} light",
-                            fix=f"a {kind} light has {' and '.join(needs[kind])}")
+                            fix=f"a {kind} light has {', '.join(LIGHT_TYPE_KEYS[kind])}")
     spectrum = light_spectrum(chk, l.get("spectrum", "D65"), f"{where} spectrum", grid)
     name = chk.string(l.get("name", f"light{number}"), f"{where} name")
+    shadow = chk.boolean(l.get("shadow", True), f"{where} shadow")
     if kind == "directional":
         d = chk.vector(chk.required(l, "direction", where), f"{where} direction", nonzero=True)
         return Light("directional", spectrum, direction=d / np.linalg.norm(d),
                      irradiance=chk.number(chk.required(l, "irradiance", where),
                                            f"{where} irradiance", lo=0.0, hi=MAX_MAGNITUDE),
-                     name=name)
+                     name=name, shadow=shadow,
+                     angular_diameter_deg=chk.number(
+                         l.get("angular_diameter_deg", SUN_ANGULAR_DIAMETER_DEG),
+                         f"{where} angular_diameter_deg", lo=0.0,
+                         hi=MAX_ANGULAR_DIAMETER_DEG))
     return Light("point", spectrum,
                  position=chk.vector(chk.required(l, "position", where), f"{where} position"),
                  intensity=chk.number(chk.required(l, "intensity", where),
                                       f"{where} intensity", lo=0.0, hi=MAX_MAGNITUDE),
-                 name=name)
+                 name=name, shadow=shadow,
+                 radius=chk.number(l.get("radius", POINT_LIGHT_RADIUS), f"{where} radius",
+                                   lo=0.0, hi=MAX_MAGNITUDE))
 
 
 def light_spectrum(chk: _Checker, value, where: str, grid: np.ndarray) -> np.ndarray:

@@ -5,9 +5,11 @@ Direct light (point and directional) is summed per pixel as docs/conventions.md 
     L_o(λ) = Σ_lights f(ωi, ωo, λ) · E · S(λ) · cos θi,    XYZ = Σλ L_o cmf / Σλ ȳ,
 
 with E the irradiance at normal incidence (directional: ``irradiance``; point: I / d²)
-and S the light's spectrum (Σ S ȳ / Σ ȳ = 1). **No shadows**: every light reaches every
-pixel whose normal faces it (cos θi > 0); occlusion by other objects (or by the object
-itself) is out of scope of this stage.
+and S the light's spectrum (Σ S ȳ / Σ ȳ = 1). Shadows enter as a visibility V in [0, 1]
+per sample and light (:mod:`.shadow`, computed by the pipeline before this stage):
+E cos θi becomes V E cos θi in every term a light feeds — each material path, the inks
+and substrate of a print, and the sparkles. Without a visibility (``visibility=None``,
+or None for a light) every light reaches every pixel whose normal faces it.
 
 Two spectral paths (``spectral=``):
 
@@ -283,10 +285,11 @@ class _Pixels:
 
 def shade(gbuffer: GBuffer, surfaces: Sequence[Surface], lights: Sequence[Light],
           wavelength_nm, environment=None, spectral: str = "table",
-          stats: Stats | None = None) -> np.ndarray:
+          stats: Stats | None = None, visibility=None) -> np.ndarray:
     """XYZ of every pixel of the GBuffer as an (H, W, 3) float64 image (background 0):
     :func:`shade_rows` (its parameters), placed into the image."""
-    rows = shade_rows(gbuffer, surfaces, lights, wavelength_nm, environment, spectral, stats)
+    rows = shade_rows(gbuffer, surfaces, lights, wavelength_nm, environment, spectral, stats,
+                      visibility=visibility)
     h, w = gbuffer.object_id.shape
     if gbuffer.pixels is None:
         return rows.reshape(h, w, 3)
@@ -298,14 +301,14 @@ def shade(gbuffer: GBuffer, surfaces: Sequence[Surface], lights: Sequence[Light]
 def shade_rows(gbuffer: GBuffer, surfaces: Sequence[Surface], lights: Sequence[Light],
                wavelength_nm, environment=None, spectral: str = "table",
                stats: Stats | None = None, dtype=np.float64,
-               observer: np.ndarray | None = None) -> np.ndarray:
+               observer: np.ndarray | None = None, visibility=None) -> np.ndarray:
     """XYZ of every pixel of the GBuffer (docs/conventions.md: XYZ = Σλ L cmf / Σλ ȳ).
 
     Parameters
     ----------
     gbuffer : :class:`~gonio_cli.render.GBuffer` (H, W); ``object_id`` indexes ``surfaces``.
     surfaces : one :class:`Surface` per scene object.
-    lights : point and directional :class:`~gonio_cli.render.Light` (no shadows).
+    lights : point and directional :class:`~gonio_cli.render.Light`.
     wavelength_nm : (n_λ,) the working grid of the materials and light spectra.
     environment : :class:`gonio_cli.render.environment.Environment` or None; the surfaces
         then need ``lobes`` (seed 001 eqs. 7-9).
@@ -317,6 +320,9 @@ def shade_rows(gbuffer: GBuffer, surfaces: Sequence[Surface], lights: Sequence[L
         or the G-buffer's dtype).
     observer : (n_λ, C) the channels' spectral weights, default cmf / Σ ȳ (XYZ, C = 3);
         columns of the identity give the radiance at C wavelengths (:func:`xyz_weights`).
+    visibility : None (no shadows) or one entry per light: None (unshadowed) or (rows,)
+        the fraction of the light that reaches each row's sample, in [0, 1]
+        (:func:`gonio_cli.render.shadow.shadow_visibility`).
 
     Returns
     -------
@@ -363,6 +369,12 @@ def shade_rows(gbuffer: GBuffer, surfaces: Sequence[Surface], lights: Sequence[L
     flat = {"position": (None if gbuffer.position is None
                          else gbuffer.position.reshape(-1, 3)),
             "normal": gbuffer.normal.reshape(-1, 3), "view": gbuffer.view.reshape(-1, 3)}
+    if visibility is not None:
+        if len(visibility) != len(lights):
+            raise InputError(f"{len(visibility)} visibilities for {len(lights)} lights")
+        for li, vis in enumerate(visibility):          # per light, (rows,) or None
+            if vis is not None:
+                flat[f"visibility{li}"] = np.asarray(vis).reshape(-1)
     if flat["position"] is None and any(L.kind == "point" for L in lights):
         raise InputError("point lights need the G-buffer's positions",
                          fix="rasterize with position=True")
@@ -490,6 +502,8 @@ def _direct(material, is_substrate: bool, tp: _Pixels, lights: Sequence[Light],
             scale = np.fmax(cos_i, 0, out=scratch("scale", m))
             scale *= e
             scale *= seen
+            if f"visibility{li}" in tp.flat:                  # shadows: V E cos θi
+                scale *= tp.block(f"visibility{li}", b)
             lit = np.greater(scale, 0, out=scratch("lit", m, np.bool_))
             n_lit = int(np.count_nonzero(lit))
             counts["lit_pixel_lights"] += n_lit
@@ -594,6 +608,8 @@ def _sparkle_term(surface: Surface, k: int, gbuffer: GBuffer, index: np.ndarray,
         cos_i = _dot(n, wi)
         cos_nh[:, j] = cosines_from_dots(cos_i, cos_o, _dot(v, wi)).cos_theta_h
         scale[:, j] = np.where((cos_i > 0) & (cos_o > 0), cos_i * e, 0.0)
+        if f"visibility{j}" in flat:                              # shadows: V E cos θi
+            scale[:, j] *= flat[f"visibility{j}"][rows]
     lit = scale > 0
     counts["sparkle_lit_pixel_lights"] += int(np.count_nonzero(lit))
     term = sp.table(t[sel], cos_nh)                               # (n_sel, n_lights)
