@@ -16,6 +16,12 @@ mean / p95 CIEDE2000 against Mitsuba 3's path tracer on the same scene at 128²
 (``--spp``; docs/reference.md has the 512² figures). The first render of a material
 computes its lobe tables (``environment.lobes``) and caches them on disk; the timed runs
 are the later ones, as on a user's machine.
+
+Then the sun's shadow: the same sphere on a grey Lambertian floor (y = −1) under the sky,
+seen from above, gonio (``--chain --sun``: the sun a shadowing light) against Mitsuba (the
+whole map, the sun in it): where the floor lies in the sphere's geometric umbra (the ray
+to the sun passes within 0.9 of the centre) and where it is sunlit (beyond 1.1), each
+renderer's mean luminance, their ratio, and the umbra's share of the lit floor's.
 """
 
 from __future__ import annotations
@@ -78,6 +84,55 @@ def error(ref: mr.ReferenceScene, work: Path, envs: dict, spp: int) -> dict[str,
     return out
 
 
+def floor_masks(ref: mr.ReferenceScene, sun: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(umbra, lit) pixel masks of the floor y = ref.floor_y: camera rays that reach the
+    floor without meeting the unit sphere, whose point's ray to ``sun`` passes within 0.9
+    (umbra) or beyond 1.1 (lit) of the sphere's centre: geometry, not either render."""
+    from gonio_cli.render.raster import pixel_rays
+
+    d = pixel_rays(ref.camera).reshape(-1, 3)
+    eye = np.asarray(ref.camera.eye, float)
+
+    def miss(origin, direction, radius):
+        b = direction @ -origin if origin.ndim == 1 else np.einsum("ij,ij->i", direction,
+                                                                     -origin)
+        c2 = (np.einsum("ij,ij->i", origin, origin) if origin.ndim == 2 else origin @ origin)
+        return c2 - np.clip(b, 0, None) ** 2 > radius ** 2     # closest approach ahead
+
+    t = (ref.floor_y - eye[1]) / d[:, 1]
+    ok = (t > 0) & miss(eye, d, 1.0)
+    p = eye + np.where(ok, t, 0)[:, None] * d
+    s = np.broadcast_to(sun, p.shape)
+    shape = (ref.camera.height, ref.camera.width)
+    return ((ok & ~miss(p, s, 0.9)).reshape(shape), (ok & miss(p, s, 1.1)).reshape(shape))
+
+
+def sun_shadow(paint: Path, work: Path, spp: int) -> None:
+    """The sphere's shadow on the floor under the sky's sun, gonio against Mitsuba."""
+    from gonio_cli.imageio import read_image
+    from gonio_cli.render import Camera
+
+    cam = Camera(np.array([2.0, 3.5, 5.0]), np.array([0.8, -1.0, -1.5]),
+                 np.array([0.0, 1.0, 0.0]), 45.0, 256, 192)
+    ref = mr.ReferenceScene(cam, paint, SKY, floor_y=-1.0)
+    folder = work / "shadow"
+    mr.run_gonio_process(["prefilter", SKY, "--chain", "--sun", "-o", folder / "chain"])
+    index = json.loads((folder / "chain/index.json").read_text())
+    exr = mr.render_gonio(ref, folder, {"prefiltered": (folder / "chain/index.json").resolve(),
+                                        "method": "model"})
+    mitsuba = mr.render_mitsuba(ref, folder / "mitsuba", spp=spp)
+    umbra, lit = floor_masks(ref, np.asarray(index["sun"]["direction"], float))
+    y_g = read_image(exr).pixels[..., 1].astype(float)
+    y_m = mitsuba.xyz[..., 1]
+    print(f"\n# the sun's shadow: sphere on a floor, 256 x 192, Mitsuba {mitsuba.spp} spp; "
+          f"umbra {umbra.sum()} px, lit floor {lit.sum()} px")
+    for name, y in (("gonio", y_g), ("Mitsuba", y_m)):
+        print(f"{name:8s} umbra Y {y[umbra].mean():.4f}, lit floor Y {y[lit].mean():.4f}, "
+              f"umbra / lit {y[umbra].mean() / y[lit].mean():.3f}")
+    print(f"umbra Y gonio / Mitsuba {y_g[umbra].mean() / y_m[umbra].mean():.3f}; lit floor "
+          f"{y_g[lit].mean() / y_m[lit].mean():.3f}")
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--out", type=Path, default=ROOT / "out", help="the demo's outputs")
@@ -104,6 +159,7 @@ def main() -> None:
             print(f"| {method} | {ssaa} | {r['wall_s']:.2f} s | {r['peak_mb']:.0f} | "
                   f"{r['frame_s'] * 1e3:.0f} ms | {r['environment_s'] * 1e3:.0f} ms | "
                   f"{m:.2f} / {p95:.2f} ({noise:.2f}) |")
+    sun_shadow(paint, work, a.spp * 4)
 
 
 if __name__ == "__main__":

@@ -59,7 +59,9 @@ class ReferenceScene:
     renders it; Mitsuba too, through the exported plugin, unless ``bsdf``); ``bsdf``: an RGL
     ``.bsdf`` Mitsuba's ``measured`` plugin renders instead; ``envmap``: an HDR lat-long
     map (EXR or Radiance HDR, linear sRGB); ``lights``: :class:`gonio_cli.render.Light`
-    (directional or point) with spectra on ``grid_nm``; ``ssaa``: gonio's supersampling."""
+    (directional or point) with spectra on ``grid_nm``; ``ssaa``: gonio's supersampling;
+    ``floor_y``: None, or a Lambertian floor of albedo :data:`FLOOR_ALBEDO` at that height
+    (a square of side 2 × :data:`FLOOR_HALF_SIZE` facing +y), for shadows on it."""
 
     camera: object
     material: Path
@@ -72,6 +74,7 @@ class ReferenceScene:
     lights: tuple = ()
     grid_nm: np.ndarray = field(default_factory=lambda: np.arange(380.0, 781.0, 10.0))
     ssaa: int = 2
+    floor_y: float | None = None
 
 
 def scene_from_toml(scene_path, envmap, *, bsdf=None, variables=None, width=None,
@@ -121,6 +124,7 @@ def write_gonio_scene(ref: ReferenceScene, path, environment: Mapping, *, lobes=
               f"scale = {_toml(ref.scale)}", f"material = {_toml(Path(ref.material).resolve())}"]
     if lobes is not None:
         lines.append(f"lobes = {_toml(Path(lobes).resolve())}")
+    lines += _floor_lines(ref, path.parent)
     for k, light in enumerate(ref.lights, 1):
         csv = path.with_name(f"{path.stem}.light{k}.csv")
         csv.write_text("wavelength_nm,value\n" + "".join(
@@ -278,6 +282,41 @@ def _shape(ref: ReferenceScene, bsdf: dict, mi) -> dict:
     return {**shape, "to_world": _to_world(ref, mi), "bsdf": bsdf}
 
 
+#: The reference floor: a grey Lambertian square (Cook–Torrance with ks = 0 in gonio,
+#: ``diffuse`` in Mitsuba), large enough for a unit sphere's shadow under a low sun.
+FLOOR_ALBEDO = 0.3
+FLOOR_HALF_SIZE = 6.0
+
+
+def floor_material(path) -> Path:
+    """The floor's gonio material (f = :data:`FLOOR_ALBEDO`/π exactly)."""
+    from ..schemas import Material, write_material
+
+    g = np.arange(380.0, 781.0, 10.0)
+    write_material(path, Material("cook-torrance", g, {
+        "kd": np.full(g.size, FLOOR_ALBEDO), "ks": np.zeros(g.size),
+        "m": np.full(g.size, 0.3), "f0": np.full(g.size, 0.04)}))
+    return Path(path)
+
+
+def _floor_lines(ref: ReferenceScene, folder: Path) -> list[str]:
+    if ref.floor_y is None:
+        return []
+    mat = floor_material(folder / "floor.material.json").resolve()
+    return ["", "[[object]]", 'name = "floor"', 'mesh = "builtin:plane"',
+            f"material = {_toml(mat)}", "rotate_deg = [-90.0, 0.0, 0.0]",
+            f"scale = {_toml(FLOOR_HALF_SIZE)}", f"translate = [0.0, {ref.floor_y!r}, 0.0]"]
+
+
+def _floor(ref: ReferenceScene, mi) -> dict:
+    t = (mi.ScalarTransform4f().translate([0.0, float(ref.floor_y), 0.0])
+         @ mi.ScalarTransform4f().rotate([1.0, 0.0, 0.0], -90.0)
+         @ mi.ScalarTransform4f().scale(FLOOR_HALF_SIZE))
+    return {"type": "rectangle", "to_world": t,
+            "bsdf": {"type": "diffuse", "reflectance": _spectrum(
+                ref.grid_nm, np.full(len(ref.grid_nm), FLOOR_ALBEDO))}}
+
+
 def _spectrum(grid, values) -> dict:
     return {"type": "spectrum", "value": [(float(w), float(v)) for w, v in zip(grid, values)]}
 
@@ -305,6 +344,8 @@ def mitsuba_scene_dict(ref: ReferenceScene, bsdf: dict, envmap: np.ndarray, spp:
                                  "rfilter": {"type": "box"}}},
              "object": _shape(ref, bsdf, mi),
              "environment": {"type": "envmap", "bitmap": mi.Bitmap(envmap)}}
+    if ref.floor_y is not None:
+        scene["floor"] = _floor(ref, mi)
     for k, light in enumerate(ref.lights):
         if light.kind == "directional":
             scene[f"light{k}"] = {"type": "directional",
