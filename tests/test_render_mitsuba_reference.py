@@ -311,3 +311,31 @@ def test_scene_set_up_round_trips_through_gonios_reader(tmp_path):
     world = d["object"]["to_world"] @ mi.ScalarPoint3f(*p)
     np.testing.assert_allclose(np.array(world), rotation_matrix(scene.rotate_deg)
                                @ (scene.scale * p) + scene.translate, rtol=1e-5)
+
+
+def test_the_floor_is_the_same_square_in_both(tmp_path):
+    """``floor_y``: gonio's scene gets a second object, builtin:plane turned to face +y,
+    scaled and lowered, of albedo FLOOR_ALBEDO (f = ρ/π: its material's kd, no ks);
+    Mitsuba's dict a rectangle taking the plane's corners to the same world points."""
+    from gonio_cli.render.mesh import rotation_matrix
+    from gonio_cli.render.scene import load_scene
+    from gonio_cli.schemas import read_material
+
+    mi.set_variant("scalar_rgb")
+    material, _ = lambertian(tmp_path)
+    (tmp_path / "index.json").write_text("{}")
+    scene = ref_.ReferenceScene(camera(32), material, tmp_path / "env.exr", floor_y=-1.0)
+    path = ref_.write_gonio_scene(scene, tmp_path / "s.toml",
+                                  {"prefiltered": tmp_path / "index.json"}, lobes=material)
+    floor = load_scene(path).objects[1]
+    assert floor.mesh == "builtin:plane" and floor.translate[1] == -1.0
+    kd = read_material(floor.material).params["kd"]
+    np.testing.assert_allclose(kd, ref_.FLOOR_ALBEDO)
+    d = ref_.mitsuba_scene_dict(scene, {"type": "diffuse"}, np.ones((4, 8, 3), np.float32), 4)
+    for corner in ([1.0, 1.0, 0.0], [-1.0, 1.0, 0.0], [1.0, -1.0, 0.0]):
+        p = np.array(corner)
+        want = (rotation_matrix(floor.rotate_deg) @ (np.asarray(floor.scale) * p)
+                + floor.translate)
+        got = np.array(d["floor"]["to_world"] @ mi.ScalarPoint3f(*p))
+        np.testing.assert_allclose(got, want, atol=1e-5)
+        assert abs(want[1] + 1.0) < 1e-9                      # on the floor's plane
