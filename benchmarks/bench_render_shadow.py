@@ -136,7 +136,8 @@ def kernel_parts(scene: Path, repeats: int) -> dict[str, float]:
     """The shadow stage alone on the scene's G-buffer, with its parts timed: median
     seconds of ``repeats`` calls."""
     from gonio_cli.render import shadow, shadowmap
-    from gonio_cli.render.pipeline import load_meshes, needs_positions
+    from gonio_cli.render.budget import needs_positions
+    from gonio_cli.render.pipeline import load_meshes
     from gonio_cli.render.raster import rasterize
     from gonio_cli.render.scene import load_scene
 

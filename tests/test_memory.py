@@ -193,7 +193,7 @@ linux_only = pytest.mark.skipif(not sys.platform.startswith("linux"),
 @linux_only
 def test_sphere_estimate_matches_the_measured_peak(scene):
     """builtin:sphere at 256 and 1536 segments (0.13 M and 4.7 M triangles), 64² frame."""
-    from gonio_cli.render.pipeline import memory_estimate
+    from gonio_cli.render.budget import memory_estimate
     from gonio_cli.render.scene import load_scene
 
     runs = {}
@@ -240,7 +240,7 @@ def test_prefilter_estimate_matches_the_measured_peak(tmp_path):
 def test_render_buffer_estimate_matches_the_measured_peak(scene):
     """A plane filling a 256² frame (every sample covered, the case the estimate
     assumes) at ssaa 1 and 8 (65 k and 4.2 M samples)."""
-    from gonio_cli.render.pipeline import memory_estimate
+    from gonio_cli.render.budget import memory_estimate
     from gonio_cli.render.scene import load_scene
 
     text = scene.read_text().replace("builtin:sphere?segments=${seg}", "builtin:plane")

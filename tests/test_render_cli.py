@@ -279,7 +279,7 @@ def test_buffers_beyond_the_machine_are_refused_before_allocating(run_gonio, sce
 def test_memory_estimate_bounds_the_measured_buffers(scene):
     """The estimate is the buffers' size at full coverage: at least the G-buffer and
     shading arrays a frame really holds."""
-    from gonio_cli.render.pipeline import memory_estimate
+    from gonio_cli.render.budget import memory_estimate
     from gonio_cli.render.scene import load_scene
 
     sc = load_scene(scene)

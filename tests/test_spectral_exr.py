@@ -280,11 +280,11 @@ def test_spectral_image_beyond_the_machine_is_refused(run_gonio, scene, tmp_path
     """Memory for the frame but not for H × W × n_λ: one line with the estimate and the
     options that lower it, exit 2, nothing written (and the same frame without
     --spectral-exr still renders)."""
-    from gonio_cli.render import pipeline
+    from gonio_cli.render import budget
     from gonio_cli.render.scene import load_scene
 
     sc = load_scene(scene)
-    plain, spectral = pipeline.memory_estimate(sc), pipeline.memory_estimate(sc, True)
+    plain, spectral = budget.memory_estimate(sc), budget.memory_estimate(sc, True)
     assert spectral - plain >= sc.camera.width * sc.camera.height * GRID.size * 4
     from gonio_cli import memory
 

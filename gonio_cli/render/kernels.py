@@ -80,7 +80,7 @@ def xyz_weights(spectrum: np.ndarray, wavelength_nm: np.ndarray,
 
     ``observer`` (n_λ, C) replaces cmf / Σ ȳ: every kernel is linear in these weights
     and returns C channels, so columns of the identity give the radiance at C
-    wavelengths (the spectral image, :func:`gonio_cli.render.pipeline.spectral_radiance`)."""
+    wavelengths (the spectral image, :func:`gonio_cli.render.spectral_pass.spectral_radiance`)."""
     if observer is None:
         from ..spectra import cmf_weights
 

@@ -14,7 +14,7 @@ in the run report only if it ran ("leave out what the scene does not need"):
 ``shadows``      shadow maps and the visibility of each light at each sample
                  (:mod:`.shadow`): only for lights with ``shadow = true`` (the default)
 ``shade``        spectral shading → XYZ (and ``shade.*`` sub-stages of :mod:`.shade`)
-``spectra``      only with a spectral image: radiance per wavelength (:func:`spectral_radiance`)
+``spectra``      only with a spectral image: radiance per wavelength (:func:`.spectral_pass.spectral_radiance`)
 ``downsample``   box filter of the ssaa (:func:`resolve`), XYZ → linear sRGB (IEC matrix)
                  on output pixels, background
 ``tonemap``      exposure, tone map, sRGB encoding, 8 bits
@@ -44,6 +44,11 @@ import numpy as np
 from .. import log
 from ..errors import ArtifactError, GonioError, InputError
 from . import Stats
+from .budget import check_memory, needs_positions
+from .env_scene import (background_rgb, environment_method, environment_tables,
+                        shading_lights)
+from .resolve import resolve
+from .spectral_pass import check_spectral_lobes, spectral_radiance
 from .scene import Scene
 
 #: Stages whose sum is the frame time (acceptance: rasterize, shadows, shade, tone map).
@@ -224,21 +229,6 @@ def build_surfaces(scene: Scene, stats: Stats) -> list:
     return surfaces
 
 
-def environment_method(scene: Scene, o) -> str:
-    """``model`` or ``lobes`` for one object (:data:`gonio_cli.render.ENVIRONMENT_METHODS`):
-    ``auto`` takes the object's lobes file where it names one, and a measured object
-    (it has no model lobes) always needs one."""
-    method = scene.environment.method
-    if method == "auto":
-        method = "lobes" if o.lobes is not None or o.measured is not None else "model"
-    if method == "model" and o.measured is not None:
-        raise InputError(f"[[object]] {o.index + 1} ({o.name}): a measured reference has no "
-                         "model lobes for [environment] method = 'model'",
-                         path=scene.display,
-                         fix="give it lobes (gonio lobes fit) and method = 'lobes' or 'auto'")
-    return method
-
-
 def _environment_lobes(scene: Scene, surfaces: list, read_lobes) -> None:
     """Each object's environment method; the lobe weights of those that use them."""
     lobes: dict[Path, Any] = {}
@@ -264,24 +254,6 @@ def _environment_lobes(scene: Scene, surfaces: list, read_lobes) -> None:
         key = f"[[object]] {o.index + 1} lobes"
         s.lobes = ([read(p, f"{key}[{k}]") for k, p in enumerate(o.lobes)]
                    if isinstance(o.lobes, list) else read(o.lobes, key))
-
-
-def environment_tables(scene: Scene, surfaces: list, environment) -> None:
-    """The lobe tables (:mod:`.env_model`) of every object lit by method ``model``,
-    from gonio's disk cache after the first render of a material with a chain."""
-    from .env_model import tables_for, warn_blurred
-
-    for o, s in zip(scene.objects, surfaces):
-        if getattr(s, "env_method", "lobes") != "model":
-            continue
-        where = f"{scene.display}: [[object]] {o.index + 1} ({o.name})"
-        mats = s.inks if s.printed else [s.material]
-        s.env_tables = [tables_for(environment, m, scene.grid_nm) for m in mats]
-        for tables in s.env_tables:
-            warn_blurred(tables, where, environment)
-            for table in tables:                    # read the maps its lobes mix, here
-                for level in np.flatnonzero(table.weights.max(axis=0) > 0):
-                    environment.level(int(level))
 
 
 def load_measured(path: Path, grid_nm: np.ndarray):
@@ -328,134 +300,6 @@ def load_mask_pyramid(path: Path):
 
 # ----------------------------------------------------------------------------- render --
 
-#: Bytes per covered sample of the shading and the resolve besides the G-buffer: the
-#: float32 XYZ row and its place in the float32 supersampled image.
-SHADE_BYTES_PER_SAMPLE = 12 + 12
-#: Bytes per output pixel: XYZ float64, linear float32, coverage, display uint8 and the
-#: encoders' copies.
-OUTPUT_BYTES_PER_PIXEL = 24 + 12 + 8 + 3 + 24
-#: Peak bytes per triangle of a mesh through loading, transform and the rasterizer's
-#: set-up: measured with ru_maxrss on a 64² frame of builtin:sphere?segments=1024 … 3072
-#: (1 M … 9.4 M triangles): 185 bytes a triangle above the baseline, linear in the count
-#: (tests/test_memory.py checks the estimate against a measured peak).
-MESH_BYTES_PER_TRIANGLE = 190
-
-
-#: Bytes per value (pixel × wavelength) of a spectral image: the float32 image and, while
-#: colour-science writes it, OpenImageIO's buffer growing one channel at a time (the old
-#: and the new buffer, float32 each).
-SPECTRAL_BYTES_PER_VALUE = 4 + 8
-#: Bytes per covered sample and wavelength of a pass of :func:`spectral_radiance`: the
-#: float32 shaded rows, a float64 accumulator of one term and an object's float32 rows.
-SPECTRAL_BYTES_PER_ROW_BAND = 4 + 8 + 8
-#: Most bytes the shading of one pass may take: wavelengths per pass are as many as fit
-#: (all 41 of the default grid up to ~330 k covered samples, e.g. a 480² frame at ssaa 2
-#: half covered takes two passes). Each pass repeats the geometry, so fewer is faster.
-SPECTRAL_PASS_BYTES = 1 << 28
-
-
-def memory_estimate(scene: Scene, spectra: bool = False) -> int:
-    """Peak bytes of a frame's buffers (:func:`render_scene`), as if every sample were
-    covered: the compact float32 G-buffer with its keys and indices
-    (:func:`gonio_cli.render.raster.gbuffer_bytes`), the shaded rows, the supersampled
-    image of the resolve and the output images, the shadows (:func:`shadow_bytes`); with
-    ``spectra``, plus :func:`spectral_image_bytes`. Built-in meshes count
-    :data:`MESH_BYTES_PER_TRIANGLE` (:func:`mesh_triangles`); OBJ files and materials are
-    not counted."""
-    from .raster import gbuffer_bytes
-
-    cam, ssaa = scene.camera, scene.output.ssaa
-    samples = cam.width * cam.height * ssaa ** 2
-    return (gbuffer_bytes(cam.height, cam.width, ssaa, uv=scene.needs_uvs,
-                          position=needs_positions(scene), facet=shadowing_lights(scene) > 0)
-            + samples * SHADE_BYTES_PER_SAMPLE + cam.width * cam.height * OUTPUT_BYTES_PER_PIXEL
-            + mesh_triangles(scene) * MESH_BYTES_PER_TRIANGLE + shadow_bytes(scene)
-            + (spectral_image_bytes(scene) if spectra else 0))
-
-
-#: Bytes per sample and shadowing light: its visibility (float32), kept for the shading.
-SHADOW_BYTES_PER_SAMPLE = 4
-#: Bytes per texel of a shadow map while it is used: the float32 map, its two bounds and
-#: the dilation's two temporaries.
-SHADOW_BYTES_PER_TEXEL = 20
-
-
-def shadow_bytes(scene: Scene) -> int:
-    """Bytes of the shadows: the visibilities of the shadowing lights, and the largest
-    map (:data:`gonio_cli.render.shadow.TEXELS_PER_SAMPLE` texels per sample, at most
-    :data:`~gonio_cli.render.shadow.MAX_MAP_SIDE` a side; maps are made one at a time)."""
-    from .shadow import MAX_MAP_SIDE, TEXELS_PER_SAMPLE
-
-    n = shadowing_lights(scene)
-    if not n:
-        return 0
-    cam = scene.camera
-    samples = cam.width * cam.height * scene.output.ssaa ** 2
-    texels = min(MAX_MAP_SIDE ** 2, int(TEXELS_PER_SAMPLE * samples))
-    return n * samples * SHADOW_BYTES_PER_SAMPLE + texels * SHADOW_BYTES_PER_TEXEL
-
-
-def spectral_image_bytes(scene: Scene) -> int:
-    """Bytes of the spectral image, H × W × n_λ values (:data:`SPECTRAL_BYTES_PER_VALUE`),
-    and of its shading passes (at most :data:`SPECTRAL_PASS_BYTES`)."""
-    cam = scene.camera
-    n = int(np.size(scene.grid_nm))
-    samples = cam.width * cam.height * scene.output.ssaa ** 2
-    return (cam.width * cam.height * n * SPECTRAL_BYTES_PER_VALUE
-            + min(samples * n * SPECTRAL_BYTES_PER_ROW_BAND, SPECTRAL_PASS_BYTES))
-
-
-def bands_per_pass(rows: int, n_wavelengths: int) -> int:
-    """Wavelengths per pass of :func:`spectral_radiance` for ``rows`` covered samples:
-    as many as :data:`SPECTRAL_PASS_BYTES` holds, at least 1."""
-    fit = SPECTRAL_PASS_BYTES // max(1, rows * SPECTRAL_BYTES_PER_ROW_BAND)
-    return int(max(1, min(n_wavelengths, fit)))
-
-
-def mesh_triangles(scene: Scene) -> int:
-    """Triangles of the scene's built-in meshes, one copy per object (each is
-    transformed into world space)."""
-    from .mesh import builtin_triangles
-
-    return sum(builtin_triangles(o.mesh) or 0 for o in scene.objects)
-
-
-def check_memory(scene: Scene, spectra: bool = False) -> int:
-    """Refuse, before allocating anything, a frame whose buffers and meshes exceed the
-    memory available (:func:`gonio_cli.memory.check`); the message gives the estimate
-    and the options that lower it. With ``spectra`` (a spectral image) the frame is
-    checked first, then frame + image. Returns the estimate in bytes."""
-    from ..memory import check
-
-    cam = scene.camera
-    frame = memory_estimate(scene)
-    triangles = mesh_triangles(scene)
-    if triangles * MESH_BYTES_PER_TRIANGLE > frame / 2:
-        check(frame, f"a {cam.width}x{cam.height} render of {triangles / 1e6:.1f} M "
-              "built-in mesh triangles", path=scene.display,
-              fix="lower segments= (and rings=) of the builtin: mesh")
-    check(frame, f"a {cam.width}x{cam.height} render at ssaa {scene.output.ssaa}",
-          path=scene.display, fix="lower --ssaa or --width-px/--height-px")
-    if not spectra:
-        return frame
-    return check(memory_estimate(scene, spectra=True),
-                 f"a {cam.width}x{cam.height} spectral image on {np.size(scene.grid_nm)} "
-                 "wavelengths with the frame's buffers", path=scene.display,
-                 fix="use a coarser --grid-nm, or lower --width-px/--height-px or --ssaa")
-
-
-def needs_positions(scene: Scene, shadows: bool | None = None) -> bool:
-    """World positions are read only by point lights and by shadows (``shadows``: whether
-    maps will be made; None: whether any light casts shadows)."""
-    shadows = shadowing_lights(scene) > 0 if shadows is None else shadows
-    return shadows or any(light.kind == "point" for light in scene.lights)
-
-
-def shadowing_lights(scene: Scene) -> int:
-    """How many of the scene's lights cast shadows."""
-    return sum(1 for light in scene.lights if light.shadow)
-
-
 #: glibc's malloc returns freed blocks above a threshold that it moves at run time (from
 #: 128 kB) to the system, so numpy's large temporaries come back as fresh pages and every
 #: array operation pays the page faults again (measured on the 512² frame under a VM:
@@ -485,7 +329,7 @@ def keep_freed_memory() -> bool:
 def render_scene(scene: Scene, stats: Stats | None = None, *, spectra: bool = False
                  ) -> Frame:
     """Render a scene; every stage's time goes into ``stats``. Returns the :class:`Frame`,
-    with its spectral image if ``spectra`` (:func:`spectral_radiance`).
+    with its spectral image if ``spectra`` (:func:`.spectral_pass.spectral_radiance`).
 
     The stages run under :func:`gonio_cli.log.progress`: a bar on a terminal when the
     render is still running after 2 s, nothing otherwise. Freed memory is kept for reuse
@@ -584,87 +428,6 @@ def _render_steps(scene: Scene, stats: Stats, state: dict, spectra: bool = False
     yield "tonemap"
 
 
-def check_spectral_lobes(scene: Scene, surfaces: list) -> None:
-    """A spectral image under an environment needs spectral lobe weights: weights fitted
-    in XYZ channels have no spectrum (refused before rendering, naming the file)."""
-    if scene.environment is None:
-        return
-    for o, s in zip(scene.objects, surfaces):
-        lobes = s.lobes if isinstance(s.lobes, list) else [s.lobes]
-        paths = o.lobes if isinstance(o.lobes, list) else [o.lobes]
-        for path, lob in zip(paths, lobes):
-            if lob is not None and lob.channel_kind != "spectral":
-                raise InputError(f"[[object]] {o.index + 1} lobes = {Path(path).name}: "
-                                 f"weights fitted in {lob.channel_kind} channels have no "
-                                 "spectrum for --spectral-exr", path=scene.display,
-                                 fix="fit them with gonio lobes fit --channels spectral "
-                                     "(its default), or leave out --spectral-exr")
-
-
-def spectral_radiance(gbuffer, surfaces: list, scene: Scene, environment=None,
-                      visibility=None) -> np.ndarray:
-    """The spectral radiance image (H, W, n_λ) float32 on the working grid.
-
-    The shading (:func:`gonio_cli.render.shade.shade_rows`) is linear in its channels'
-    spectral weights, so with columns of the identity as the observer instead of
-    cmf / Σ ȳ it returns L(λ) at those wavelengths: as few passes over the same G-buffer
-    as memory allows (:func:`bands_per_pass`; one for the demo scenes), each
-    box-filtered as the XYZ (:func:`resolve`). Every model keeps its spectral path
-    (``--spectral``): the goniochromatic table then holds one column per wavelength (a
-    per-band table, same tolerance), the others are exact per wavelength. Σλ L cmf / Σ ȳ
-    of the result is the frame's XYZ to the tables' tolerance (1e-5 relative), with the
-    same shadows (``visibility``, :func:`gonio_cli.render.shadow.shadow_visibility`).
-    Background pixels hold the background's spectrum (docs/conventions.md's RGB →
-    spectrum) times the uncovered fraction, as the colour image does.
-    """
-    from .shade import shade_rows
-
-    wl = np.asarray(scene.grid_nm, dtype=float)
-    n, ssaa, cam = wl.size, scene.output.ssaa, scene.camera
-    out = np.empty((cam.height, cam.width, n), np.float32)
-    identity = np.eye(n)
-    step = bands_per_pass(gbuffer.rows, n)
-    lights = shading_lights(scene, environment)
-    for start in range(0, n, step):
-        rows = shade_rows(gbuffer, surfaces, lights, wl, environment=environment,
-                          spectral=scene.output.spectral, dtype=np.float32,
-                          observer=identity[:, start:start + step], visibility=visibility)
-        band, coverage = resolve(rows, gbuffer.pixels, gbuffer.object_id, ssaa, scene.display)
-        del rows
-        out[..., start:start + step] = band
-    background = background_rgb(scene, environment)
-    if background is not None:
-        from ..spectra import rgb_spectral_basis
-
-        out += ((1.0 - coverage)[..., None]
-                * (background @ rgb_spectral_basis(wl).T)).astype(np.float32)
-    return out
-
-
-def background_rgb(scene: Scene, environment) -> np.ndarray | None:
-    """Linear sRGB behind the objects: ``[output] background`` (3,), None where it is 0,
-    or with ``background = "environment"`` the environment seen through each pixel centre
-    (H, W, 3) float32 (its sharpest prefiltered map: the map itself, less a split sun)."""
-    if isinstance(scene.output.background, str):
-        from ..envmap import direction_to_spherical, lookup_angles
-        from .raster import pixel_rays
-
-        theta, phi = direction_to_spherical(pixel_rays(scene.camera))
-        return lookup_angles(environment.level(len(environment.exponents) - 1), theta, phi)
-    background = np.asarray(scene.output.background, float)
-    return background if np.any(background != 0) else None
-
-
-def shading_lights(scene: Scene, environment) -> list:
-    """The scene's lights and the environment's sun (``gonio prefilter --sun``), if any:
-    what lights the surfaces. The sun is the environment's, so it does not enter the
-    scene white (a scene lit only by an environment is not adapted)."""
-    from .environment import sun_light
-
-    sun = None if environment is None else sun_light(environment, scene.grid_nm)
-    return list(scene.lights) + ([sun] if sun is not None else [])
-
-
 def scene_white(scene: Scene) -> np.ndarray | None:
     """The scene's white, XYZ (3,) with Y = 1: the lights' irradiance-weighted spectra
     (:func:`gonio_cli.render.tonemap.scene_white_xyz`); None without lights."""
@@ -693,86 +456,6 @@ def _shade_without_overflow(scene: Scene, gbuffer, surfaces, environment, stats:
                            path=scene.display,
                            fix="lower the lights' irradiance or intensity; check the "
                                "materials for huge values") from None
-
-
-def resolve(rows: np.ndarray, pixels: np.ndarray, object_id: np.ndarray, ssaa: int,
-            where: str = "", stats: Stats | None = None, *, matrix: np.ndarray | None = None
-            ) -> tuple[np.ndarray, ...]:
-    """The box filter of the supersampled frame: shaded rows → output XYZ and coverage
-    (and, with ``matrix``, the linear image ``tonemap.xyz_to_linear(xyz, matrix)``).
-
-    Parameters
-    ----------
-    rows : (n, C) XYZ (or any C channels, e.g. wavelengths) of the covered samples ;
-    pixels : (n,) their flat indices in the (ssaa H, ssaa W) image ; object_id : (ssaa H,
-    ssaa W), −1 on the background.
-
-    Returns
-    -------
-    xyz : (H, W, 3) float64, the mean over each ssaa × ssaa block (background 0), summed
-    in float32 (≤ 256 values: relative error ~1e-7);
-    coverage : (H, W) float64, the fraction of covered samples. Non-finite shaded
-    samples are set to black with one warning that counts them.
-    linear : (H, W, C) float32, only with ``matrix`` (C, C).
-
-    At ssaa 1 there is nothing to filter: the rows' product with the matrix (in the rows'
-    float32, ~1e-7 relative, as the G-buffer; on covered pixels only, zero elsewhere as
-    0 · M is) is scattered whole into a zeroed image, and with ``matrix`` the XYZ image
-    is returned as a function that makes it (:attr:`Frame.xyz` calls it when a report or
-    an XYZ EXR asks): the frame's time goes to what the PNG and EXR need.
-    """
-    n_bad = 0
-    if not np.isfinite(rows.sum()):          # the per-row mask only when needed (a sum of
-        bad = ~np.isfinite(rows).all(axis=-1)    # finite rows may still overflow: then 0)
-        n_bad = int(bad.sum())
-        if n_bad:
-            log.warn(f"{where}: {n_bad} sample(s) shaded to NaN or inf were set to black")
-            rows = np.where(bad[:, None], 0.0, rows)
-    if stats is not None:
-        stats.counts["nonfinite_samples"] = n_bad
-    hh, ww = object_id.shape
-    channels = rows.shape[1]
-    if ssaa == 1:
-        pixels = np.asarray(pixels, dtype=np.intp)
-        coverage = (object_id >= 0).astype(np.float64)
-
-        def xyz_image():
-            return _scatter_rows(rows.astype(np.float64), pixels,
-                                 hh * ww).reshape(hh, ww, channels)
-
-        if matrix is None:
-            return xyz_image(), coverage
-        linear = _scatter_rows(rows @ matrix.T.astype(rows.dtype), pixels, hh * ww)
-        return xyz_image, coverage, linear.reshape(hh, ww, channels)
-    from .raster import downsample
-
-    xyz = np.empty((hh // ssaa * (ww // ssaa), channels))
-    # one channel at a time through one reused float32 image (the rows' columns are
-    # contiguous: shade_rows stores them so), box-filtered by downsample's strided sums
-    image = np.empty(object_id.size, np.float32)
-    pixels = np.asarray(pixels, dtype=np.intp)                # converted once, not per channel
-    for c in range(channels):
-        image.fill(0.0)
-        image[pixels] = rows[:, c]
-        xyz[:, c] = downsample(image.reshape(hh, ww), ssaa, np.float32).reshape(-1)
-    coverage = downsample(object_id >= 0, ssaa, np.float32)
-    xyz = xyz.reshape(hh // ssaa, ww // ssaa, channels)
-    if matrix is None:
-        return xyz, coverage.astype(np.float64)
-    from .tonemap import xyz_to_linear
-
-    return xyz, coverage.astype(np.float64), xyz_to_linear(xyz, matrix)
-
-
-def _scatter_rows(rows: np.ndarray, pixels: np.ndarray, size: int) -> np.ndarray:
-    """(size, C) zeros of ``rows``' dtype with ``rows`` (n, C) at ``pixels`` (n,): each
-    row moved as one C-value item (a void view), 2.5× faster than numpy's row-of-floats
-    fancy assignment."""
-    rows = np.ascontiguousarray(rows)
-    item = np.dtype((np.void, rows.dtype.itemsize * rows.shape[1]))
-    out = np.zeros((size, rows.shape[1]), rows.dtype)
-    out.view(item).reshape(-1)[pixels] = rows.view(item).reshape(-1)
-    return out
 
 
 # ------------------------------------------------------------------------- re-exports --
