@@ -236,4 +236,3 @@ def chain_exponents(height: int, maximum: float = 1e6) -> list[float]:
     while 1.0 / np.sqrt(out[-1]) > texel and out[-1] * CHAIN_RATIO <= maximum:
         out.append(out[-1] * CHAIN_RATIO)
     return out
-
