@@ -41,11 +41,6 @@ class Component:
     evaluate: Callable[[Cosines], np.ndarray]
 
 
-def _col(x) -> np.ndarray:
-    """Geometry (...,) → (..., 1), to scale spectra (..., n_λ)."""
-    return np.asarray(x, dtype=float)[..., None]
-
-
 def _diffuse(rho_d) -> Component:
     rho_d = np.asarray(rho_d, dtype=float)
     return Component("diffuse", DIFFUSE,
@@ -112,7 +107,7 @@ def _goniochromatic_undercoat(p):
     n = brdf.UNDERCOAT_INDEX
 
     def through(f):
-        return lambda cos: (_col(brdf.coat_transmission(cos))
+        return lambda cos: (brdf.coat_transmission(cos)[..., None]
                             * f(refracted_cosines(cos, n)))
 
     body = _diffuse(rho_d)
@@ -123,7 +118,7 @@ def _goniochromatic_undercoat(p):
 def _goniochromatic_two_lobe(p):
     rho_2 = np.asarray(p["rho_2"], dtype=float)
     second = Component("lobe_2", GLOSSY,
-                       lambda cos: rho_2 * _col(brdf.ggx_lobe(cos, p["alpha_2"])))
+                       lambda cos: rho_2 * brdf.ggx_lobe(cos, p["alpha_2"])[..., None])
     return [_diffuse(p["rho_d"]), _eq5(p), second]
 
 

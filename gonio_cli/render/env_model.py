@@ -103,6 +103,11 @@ class LobeTable:
     weights: np.ndarray
     sharper: float
 
+    @property
+    def levels(self) -> np.ndarray:
+        """Indices of the chain's levels this lobe mixes at some view angle."""
+        return np.flatnonzero(self.weights.max(axis=0) > 0)
+
 
 @functools.lru_cache(maxsize=None)
 def _legendre(n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -329,7 +334,7 @@ def _block_xyz(environment, tables, matrices, normal, view) -> np.ndarray:
         axis = np.cos(beta)[:, None] * normal + np.sin(beta)[:, None] * tangent   # d_k
         theta, phi = direction_to_spherical(axis)
         p = np.zeros((n, 3), dtype=np.float32)
-        for level in np.flatnonzero(table.weights.max(axis=0) > 0):
+        for level in table.levels:
             wl = np.append(table.weights[:, level], table.weights[-1, level])   # row V
             live = np.flatnonzero(np.maximum(wl[:-1], wl[1:]) > 0)
             s = slice(starts[live[0]], starts[live[-1] + 1])      # their pixels: a slice

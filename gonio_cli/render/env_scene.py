@@ -31,7 +31,7 @@ def environment_tables(scene: Scene, surfaces: list, environment) -> None:
     from .env_model import tables_for, warn_blurred
 
     for o, s in zip(scene.objects, surfaces):
-        if getattr(s, "env_method", "lobes") != "model":
+        if s.env_method != "model":
             continue
         where = f"{scene.display}: [[object]] {o.index + 1} ({o.name})"
         mats = s.inks if s.printed else [s.material]
@@ -39,7 +39,7 @@ def environment_tables(scene: Scene, surfaces: list, environment) -> None:
         for tables in s.env_tables:
             warn_blurred(tables, where, environment)
             for table in tables:                    # read the maps its lobes mix, here
-                for level in np.flatnonzero(table.weights.max(axis=0) > 0):
+                for level in table.levels:
                     environment.level(int(level))
 
 

@@ -200,13 +200,13 @@ def sun_light(environment: Environment, wavelength_nm):
     to Σ S ȳ / Σ ȳ = 1 with ``irradiance`` its luminance; it casts shadows whose penumbrae
     are as wide as the sun's ``angular_diameter_deg`` makes them."""
     from . import Light
-    from ..spectra import cmf_weights
+    from ..spectra import luminance
 
     if environment.sun is None:
         return None
     wl = np.asarray(wavelength_nm, dtype=float)
     spectrum = rgb_spectral_basis(wl) @ np.asarray(environment.sun["irradiance_rgb"], float)
-    y = float(spectrum @ cmf_weights(wl)[:, 1])
+    y = float(luminance(spectrum, wl))
     if not y > 0:
         return None
     d = np.asarray(environment.sun["direction"], dtype=float)

@@ -365,7 +365,7 @@ def _render_steps(scene: Scene, stats: Stats, state: dict, spectra: bool = False
         with Stage(stats, "environment"), _SceneKey(scene, "[environment] prefiltered",
                                                      scene.environment.prefiltered):
             environment = load_environment(scene.environment.prefiltered)
-        if any(getattr(s, "env_method", "") == "model" for s in surfaces):
+        if any(s.env_method == "model" for s in surfaces):
             with Stage(stats, "environment.lobes"):
                 environment_tables(scene, surfaces, environment)
     yield "materials"
@@ -392,13 +392,16 @@ def _render_steps(scene: Scene, stats: Stats, state: dict, spectra: bool = False
     del meshes
     yield "rasterize"
     t0 = time.perf_counter()
-    rows = _shade_without_overflow(scene, gbuffer, surfaces, environment, stats, visibility)
+    rows = _shade_without_overflow(scene, gbuffer, surfaces, environment, lights, stats,
+                                   visibility)
     stats.time_s.setdefault("shade", time.perf_counter() - t0)
     yield "shade"
+    background = background_rgb(scene, environment)
     radiance = None
     if spectra:
         with Stage(stats, "spectra"):
-            radiance = spectral_radiance(gbuffer, surfaces, scene, environment, visibility)
+            radiance = spectral_radiance(gbuffer, surfaces, scene, lights, environment,
+                                         visibility, background)
         yield "spectra"
     object_id, pixels = gbuffer.object_id, gbuffer.pixels
     del gbuffer                                               # its rows are no longer needed
@@ -411,7 +414,6 @@ def _render_steps(scene: Scene, stats: Stats, state: dict, spectra: bool = False
         xyz, coverage, linear = resolve(rows, pixels, object_id, ssaa, scene.display, stats,
                                         matrix=matrix)
         del rows
-        background = background_rgb(scene, environment)
         if background is not None:
             linear += ((1.0 - coverage)[..., None] * background).astype(np.float32)
     stats.counts["covered_pixels"] = int(np.count_nonzero(coverage > 0))
@@ -436,15 +438,15 @@ def scene_white(scene: Scene) -> np.ndarray | None:
     return scene_white_xyz(scene.lights, scene.grid_nm, scene.camera.target)
 
 
-def _shade_without_overflow(scene: Scene, gbuffer, surfaces, environment, stats: Stats,
-                            visibility=None):
-    """``shade_rows`` in float32; an overflow (light × reflectance beyond float32's 3.4e38,
+def _shade_without_overflow(scene: Scene, gbuffer, surfaces, environment, lights: list,
+                            stats: Stats, visibility=None):
+    """``shade_rows`` in float32 under ``lights`` (:func:`.env_scene.shading_lights`); an
+    overflow (light × reflectance beyond float32's 3.4e38,
     docs/conventions.md "Numeric ranges") is an error naming the scene, never black or
     NaN pixels in the images."""
     from ..errors import NumericError
     from .shade import shade_rows
 
-    lights = shading_lights(scene, environment)
     try:
         with np.errstate(over="raise"):
             return shade_rows(gbuffer, surfaces, lights, scene.grid_nm,

@@ -9,7 +9,6 @@ import numpy as np
 
 from ..errors import InputError
 from .budget import bands_per_pass
-from .env_scene import background_rgb, shading_lights
 from .resolve import resolve
 from .scene import Scene
 
@@ -31,9 +30,11 @@ def check_spectral_lobes(scene: Scene, surfaces: list) -> None:
                                      "(its default), or leave out --spectral-exr")
 
 
-def spectral_radiance(gbuffer, surfaces: list, scene: Scene, environment=None,
-                      visibility=None) -> np.ndarray:
-    """The spectral radiance image (H, W, n_λ) float32 on the working grid.
+def spectral_radiance(gbuffer, surfaces: list, scene: Scene, lights: list, environment=None,
+                      visibility=None, background: np.ndarray | None = None) -> np.ndarray:
+    """The spectral radiance image (H, W, n_λ) float32 on the working grid, under
+    ``lights`` (the frame's: :func:`.env_scene.shading_lights`) with the frame's
+    ``background`` (linear sRGB, :func:`.env_scene.background_rgb`) or None.
 
     The shading (:func:`gonio_cli.render.shade.shade_rows`) is linear in its channels'
     spectral weights, so with columns of the identity as the observer instead of
@@ -54,7 +55,6 @@ def spectral_radiance(gbuffer, surfaces: list, scene: Scene, environment=None,
     out = np.empty((cam.height, cam.width, n), np.float32)
     identity = np.eye(n)
     step = bands_per_pass(gbuffer.rows, n)
-    lights = shading_lights(scene, environment)
     for start in range(0, n, step):
         rows = shade_rows(gbuffer, surfaces, lights, wl, environment=environment,
                           spectral=scene.output.spectral, dtype=np.float32,
@@ -62,7 +62,6 @@ def spectral_radiance(gbuffer, surfaces: list, scene: Scene, environment=None,
         band, coverage = resolve(rows, gbuffer.pixels, gbuffer.object_id, ssaa, scene.display)
         del rows
         out[..., start:start + step] = band
-    background = background_rgb(scene, environment)
     if background is not None:
         from ..spectra import rgb_spectral_basis
 
