@@ -73,24 +73,23 @@ light, inks with coverage, and no environment work without an environment
 (:mod:`.environment`), no sparkle work without a sparkle texture.
 
 The spectral kernels (the ``"table"`` forms above) and their registry are
-:mod:`gonio_cli.render.kernels`, re-exported here. Why one module for the rest: surfaces,
-lights and the direct, sparkle and environment terms are the one per-pixel loop of
-:func:`shade_rows`, sharing its blocks, scratch buffers and statistics; apart, each part
-would take the loop's state as arguments.
+:mod:`gonio_cli.render.kernels`, re-exported here; what covers an object is
+:mod:`.surface`, the sparkle term :mod:`.sparkle_term`, an object's environment term
+:func:`gonio_cli.render.env_model.surface_environment_xyz`. Here: the lights and the
+direct term, the one per-pixel loop of :func:`shade_rows`.
 """
 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
-from typing import Any, Callable, Sequence
+from typing import Any, Sequence
 
 import numpy as np
 
 from ..errors import InputError
-from ..geometry import Cosines, cosines_from_dots, cosines_from_dots_into
-from ..schemas import Material
+from ..geometry import Cosines, cosines_from_dots_into
 from . import GBuffer, Light, Stats
+from .surface import Surface, check_surface
 # The spectral kernels and their registry (gonio_cli.render.kernels), importable from here.
 from .kernels import (EXACT_BLOCK, FLOAT32_MIN_ALPHA, SINGLE_PRECISION, TABLE_KERNELS,
                       TABLE_MAX_SIZE, TABLE_MIN_SIZE, TABLE_REL_TOL, Directions, Kernel,
@@ -109,92 +108,6 @@ BLOCK = 16384
 #: A point light closer than this (scene units) to a shaded point is treated as at this
 #: distance, so E = I / d² stays finite on a surface that touches the light.
 MIN_LIGHT_DISTANCE = 1e-6
-
-#: Keys of a substrate dict (seed 000 Figure 8's Phong term).
-SUBSTRATE_KEYS = ("kd", "ks", "shininess", "spectrum")
-
-
-# ----------------------------------------------------------------------------- surface --
-
-@dataclass
-class Surface:
-    """What covers one scene object.
-
-    Attributes
-    ----------
-    material : a fitted :class:`~gonio_cli.schemas.Material`, or a measured reference
-        (anything with ``evaluate_directions(wi, wo, normal) -> (..., n_λ)`` in sr⁻¹,
-        :class:`gonio_cli.render.measured.MeasuredMaterial`). None for a printed object.
-    inks : three materials (R, G, B ink), for a printed object.
-    coverage : callable ``(uv (..., 2), footprint (...,)) -> (..., 3)``, the area-filtered
-        coverage of the three inks in [0, 1] (part A's ``MaskPyramid.coverage``).
-    substrate : None (black paper) or ``{"kd": .., "ks": .., "shininess": ..,
-        "spectrum": (n_λ,) reflectance (optional, default 1)}``, the dim Phong term.
-    lobes : a :class:`~gonio_cli.schemas.Lobes` (or one per ink for a printed object),
-        needed only under environment light by ``env_method`` "lobes" (seed 001 eqs. 7-9).
-    env_method : "lobes" or "model" (:data:`gonio_cli.render.ENVIRONMENT_METHODS`).
-    env_tables : for "model", one list of :class:`gonio_cli.render.env_model.LobeTable`
-        per material (one, or three inks).
-    name : for messages.
-    sparkle : a :class:`gonio_cli.sparkle.SparkleTexture` or None (seed 004 eq. 17; a
-        material or measured object only).
-    """
-
-    material: Any = None
-    inks: Sequence[Any] | None = None
-    coverage: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None
-    substrate: dict | None = None
-    lobes: Any = None
-    name: str = ""
-    sparkle: Any = None
-    env_method: str = "lobes"
-    env_tables: Any = None
-
-    @property
-    def printed(self) -> bool:
-        return self.inks is not None
-
-
-def check_surface(surface: Surface, index: int, wavelength_nm: np.ndarray) -> None:
-    """Refuse an incomplete surface, naming the object; validate the substrate dict."""
-    where = f"object {index}" + (f" ({surface.name})" if surface.name else "")
-    if surface.printed:
-        if surface.material is not None:
-            raise InputError(f"{where} has both a material and inks", fix="give one of them")
-        if len(surface.inks) != 3:
-            raise InputError(f"{where} has {len(surface.inks)} inks, not 3 (R, G, B)")
-        if surface.coverage is None:
-            raise InputError(f"{where} is printed but has no coverage (mask)")
-        materials = list(surface.inks)
-    else:
-        if surface.material is None:
-            raise InputError(f"{where} has neither a material nor inks")
-        materials = [surface.material]
-    if surface.sparkle is not None and surface.printed:
-        raise InputError(f"{where} is printed: sparkles need a material",
-                         fix="give the sparkle texture to a material object")
-    for m in materials:
-        wl = getattr(m, "wavelength_nm", None)
-        if wl is not None and not _same_grid(wl, wavelength_nm):
-            raise InputError(f"{where}: a material is on a {np.size(wl)}-sample spectral grid, "
-                             f"the render on {wavelength_nm.size}",
-                             fix="resample the material onto the render's grid when loading")
-    if surface.substrate is not None:
-        unknown = sorted(set(surface.substrate) - set(SUBSTRATE_KEYS))
-        if unknown:
-            raise InputError(f"{where}: unknown substrate key(s) {', '.join(unknown)}",
-                             fix=f"allowed: {', '.join(SUBSTRATE_KEYS)}")
-        for key in ("kd", "ks", "shininess"):
-            v = surface.substrate.get(key, 0.0)
-            if not (np.isfinite(v) and v >= 0):
-                raise InputError(f"{where}: substrate {key}={v!r} is not a number ≥ 0")
-
-
-def _same_grid(a, b) -> bool:
-    from ..spectra import same_grid
-
-    return same_grid(a, b)
-
 
 # -------------------------------------------------------------------------------- lights --
 
@@ -217,18 +130,6 @@ def incident(light: Light, position: np.ndarray) -> tuple[np.ndarray, np.ndarray
         dist2 = np.maximum(np.einsum("ij,ij->i", d, d), MIN_LIGHT_DISTANCE ** 2)
         return d / np.sqrt(dist2)[:, None], float(light.intensity) / dist2
     raise InputError(f"light kind {light.kind!r} is unknown", fix="use directional or point")
-
-
-def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Row-wise dot product of (n, 3) arrays, or of (n, 3) with one (3,) vector: (n,).
-
-    Written for speed at :data:`BLOCK` rows (measured at 8192 rows: BLAS ``dot`` 12 µs,
-    einsum 50 µs; three strided products 19 µs, einsum 40 µs, (a·b).sum 130 µs). Above
-    that, BLAS may start threads that cost milliseconds on a busy machine: einsum.
-    """
-    if b.ndim == 1:
-        return np.dot(a, b) if a.shape[0] <= BLOCK else np.einsum("ij,j->i", a, b)
-    return a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1] + a[:, 2] * b[:, 2]
 
 
 # ------------------------------------------------------------- per-pixel forms in place --
@@ -435,12 +336,14 @@ def shade_rows(gbuffer: GBuffer, surfaces: Sequence[Surface], lights: Sequence[L
                 obj_xyz[tp.sel] += acc
 
         if surface.sparkle is not None:
+            from .sparkle_term import sparkle_xyz
+
             t0 = time.perf_counter()
             if "sparkle_pixels" not in counts:
                 counts.update(sparkle_pixels=0, sparkle_lit_pixel_lights=0,
                               sparkle_minified_pixels=0)
-            obj_xyz += _sparkle_term(surface, k, gbuffer, index, flat, lights,
-                                     light_weights, wl, counts, channels)
+            obj_xyz += sparkle_xyz(surface, k, gbuffer, index, flat, lights,
+                                   light_weights, wl, counts, channels)
             sparkle_time += time.perf_counter() - t0
 
         if environment is not None:
@@ -547,79 +450,6 @@ def _dot_rows(a: np.ndarray, b: np.ndarray, out: np.ndarray, scratch) -> np.ndar
     for k in (1, 2):
         np.multiply(a[k], b[k], out=tmp)
         out += tmp
-    return out
-
-
-def mirror_peak(material, wavelength_nm: np.ndarray) -> float:
-    """f_mirror: the ȳ-weighted mean over λ of ``material``'s BRDF (sr⁻¹) at the mirror
-    configuration at normal incidence (θi = θo = 0), the scale of the sparkle lobe."""
-    from ..spectra import luminance
-
-    if isinstance(material, Material):
-        one = np.ones(1)
-        f = material.evaluate(Cosines(one, one, one, one))
-    else:
-        n = np.array([[0.0, 0.0, 1.0]])
-        f = material.evaluate_directions(n, n, n)
-    value = float(luminance(np.asarray(f, dtype=float).reshape(-1, np.size(wavelength_nm))[0],
-                            wavelength_nm))
-    return value if np.isfinite(value) and value > 0 else 0.0
-
-
-def sparkle_reflectance(rgb: np.ndarray, wavelength_nm: np.ndarray) -> np.ndarray:
-    """C_s(λ) (n_λ,): a linear-sRGB reflectance colour through the Mallett–Yuksel basis
-    (the conventions' RGB → spectrum without its D65 factor; (1, 1, 1) → 1)."""
-    from ..spectra import rgb_reflectance_basis
-
-    return rgb_reflectance_basis(wavelength_nm) @ np.asarray(rgb, dtype=float)
-
-
-def _sparkle_term(surface: Surface, k: int, gbuffer: GBuffer, index: np.ndarray,
-                  flat: dict, lights: Sequence[Light], light_weights, wl: np.ndarray,
-                  counts: dict, channels: int = 3) -> np.ndarray:
-    """XYZ (n, 3) of the sparkle lobe of one object's pixels (module docstring): work
-    only at samples whose texel has a bit set, and per light only where it is lit."""
-    from ..sparkle import sample_texture
-
-    sp = surface.sparkle
-    out = np.zeros((index.size, channels))
-    if gbuffer.uv is None:
-        raise InputError(f"object {k} has sparkles but the GBuffer has no uv",
-                         fix="give the mesh texture coordinates")
-    uv = gbuffer.uv.reshape(-1, 2)[index]
-    t = sample_texture(sp.texture, uv, sp.scale)
-    sel = np.flatnonzero(t)
-    counts["sparkle_pixels"] += int(sel.size)
-    if gbuffer.uv_footprint is not None:
-        texels = gbuffer.uv_footprint.reshape(-1)[index] * sp.scale * max(sp.texture.shape)
-        counts["sparkle_minified_pixels"] += int(np.count_nonzero(texels > 1.0))
-    peak = mirror_peak(surface.material, wl)
-    if sel.size == 0 or peak == 0.0 or not lights:
-        return out
-    rows = index[sel]
-    n, v = flat["normal"][rows], flat["view"][rows]
-    p = flat["position"][rows] if flat["position"] is not None else None
-    cos_o = _dot(n, v)
-    reflectance = sparkle_reflectance(sp.color, wl)
-    cos_nh = np.zeros((sel.size, len(lights)))
-    scale = np.zeros((sel.size, len(lights)))
-    for j, light in enumerate(lights):
-        wi, e = incident(light, p)
-        cos_i = _dot(n, wi)
-        cos_nh[:, j] = cosines_from_dots(cos_i, cos_o, _dot(v, wi)).cos_theta_h
-        scale[:, j] = np.where((cos_i > 0) & (cos_o > 0), cos_i * e, 0.0)
-        if f"visibility{j}" in flat:                              # shadows: V E cos θi
-            scale[:, j] *= flat[f"visibility{j}"][rows]
-    lit = scale > 0
-    counts["sparkle_lit_pixel_lights"] += int(np.count_nonzero(lit))
-    term = sp.table(t[sel], cos_nh)                               # (n_sel, n_lights)
-    acc = np.zeros((sel.size, channels))
-    for j, light in enumerate(lights):
-        if not lit[:, j].any():
-            continue
-        xyz = reflectance @ light_weights(light)                  # (3,) C_s S cmf / Σ ȳ
-        acc += (peak * term[:, j] * scale[:, j])[:, None] * xyz
-    out[sel] = acc
     return out
 
 
