@@ -15,7 +15,8 @@ import pytest
 
 from gonio_cli.batch.plan import read_plan
 from gonio_cli.render.mesh import rotation_matrix
-from gonio_cli.render.scene import axis_rotation, euler_xyz_deg, load_scene, orbit
+from gonio_cli.render.scene import load_scene
+from gonio_cli.render.turntable import axis_rotation, euler_xyz_deg, orbit
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLE_PLAN = ROOT / "sample_data" / "batch" / "turntable.toml"

@@ -291,7 +291,7 @@ def _matrix(r: _Reader, m, materials: Mapping[str, str]) -> None:
     if not isinstance(frames, int) or isinstance(frames, bool) or frames < 0:
         raise r.error(f"{where} frames", f"{frames!r} is not a number of frames",
                       fix="give 0 (no turntable) or N >= 1")
-    from ..render.scene import ORBITS
+    from ..render.turntable import ORBITS
 
     orbit = m.get("orbit", "camera")
     if orbit not in ORBITS:

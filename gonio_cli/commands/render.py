@@ -140,7 +140,7 @@ def render(
     declare(outs, loaded.inputs)  # the files the scene reads
     for k, names in zip(frames, named):
         if k is not None:
-            from ..render.scene import orbit as turn
+            from ..render.turntable import orbit as turn
 
             sc = turn(loaded, k, turntable, orbit)
         else:
@@ -176,7 +176,7 @@ def render(
 def check_turntable(turntable: int | None, frame: int | None, orbit: str) -> None:
     """Refuse turntable options that do not fit together."""
     from ..errors import InputError
-    from ..render.scene import ORBITS
+    from ..render.turntable import ORBITS
 
     if orbit not in ORBITS:
         raise InputError(f"--orbit {orbit!r} is unknown", fix=f"use one of {', '.join(ORBITS)}")

@@ -148,7 +148,7 @@ def load_meshes(scene: Scene) -> list:
 
 
 #: The fix of a material that does not cover the render's grid: only a grid given with
-#: ``--grid-nm`` can do that (otherwise :func:`.scene.choose_grid` follows the materials).
+#: ``--grid-nm`` can do that (otherwise :func:`.scene_grid.choose_grid` follows the materials).
 GRID_FIX = ("choose --grid-nm inside its range, or leave --grid-nm out and the grid "
             "follows the materials")
 

@@ -36,18 +36,15 @@ Light spectra are CIE illuminants by name (colour-science: ``D65``, ``A``, ``FL2
 a CSV ``wavelength_nm,value``, resampled onto the working grid (with a warning when the
 CSV is on another grid) and scaled so that Σ S ȳ / Σ ȳ = 1 (docs/conventions.md).
 
-Why one module: the scene file's validation, one error message per key with its fix,
-all through one checker (``_Checker``); the lights' spectra depend on the grid the
-objects' materials allow (:func:`choose_grid`), so the sections are read together.
+Here the loader, section by section; beside it the checker every key goes through
+(:mod:`.scene_check`), the types it fills (:mod:`.scene_types`), the grid choice
+(:mod:`.scene_grid`) and the turntable (:mod:`.turntable`).
 """
 
 from __future__ import annotations
 
-import json
-import math
 import os
-import re
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -55,23 +52,19 @@ import numpy as np
 
 from ..artifact import read_toml
 from ..errors import InputError
-from ..names import pick
 from ..schemas import EXPONENT_RANGE, EXPOSURE_MAX_STOPS, MAX_MAGNITUDE
 from ..spectra import grid_spec
 from . import ENVIRONMENT_METHODS, POINT_LIGHT_RADIUS, SUN_ANGULAR_DIAMETER_DEG, Camera, Light
-
-#: Built-in meshes (``mesh = "builtin:NAME"``); anything else is an OBJ path.
-#: Options after "?" (``builtin:sphere?segments=48``) are checked by :mod:`.mesh`.
-BUILTIN_PREFIX = "builtin:"
-BUILTIN_MESHES = ("sphere", "plane")
+from .scene_check import MIN_VECTOR_NORM, Checker, names_used, substitute
+from .scene_grid import choose_grid, spectral_ranges
+from .scene_types import (BUILTIN_MESHES, BUILTIN_PREFIX, Environment, Output, Scene,
+                          SceneObject, Substrate)
 
 from ..names import SPECTRAL_PATHS as SPECTRAL_MODES  # noqa: E402
 LIGHT_TYPES = ("directional", "point")
 
 #: Supersampling factors above this multiply memory by > 256 per pixel: refused.
 MAX_SSAA = 16
-#: A vector shorter than this has no direction (light direction, camera up).
-MIN_VECTOR_NORM = 1e-12
 
 CAMERA_KEYS = ("eye", "target", "up", "fov_deg", "width", "height")
 OBJECT_KEYS = ("name", "mesh", "translate", "rotate_deg", "scale", "material", "inks",
@@ -92,236 +85,6 @@ MAX_ANGULAR_DIAMETER_DEG = 20.0
 ENVIRONMENT_KEYS = ("prefiltered", "method")
 OUTPUT_KEYS = ("exposure", "tonemap", "adapt", "ssaa", "spectral", "grid_nm", "background")
 TOP_KEYS = ("vars", "camera", "object", "light", "environment", "output")
-
-_VAR = re.compile(r"\$\{([A-Za-z_][A-Za-z0-9_]*)\}")
-
-
-# ------------------------------------------------------------------------ dataclasses --
-
-@dataclass
-class Substrate:
-    """What shows between the ink dots of a print (seed 000 Figures 8–9).
-
-    ``kd``: Lambertian reflectance in [0, 1] (0: the black paper of seed 000);
-    ``ks``: weight of a dim, texture-independent normalised Phong highlight, in [0, 1]
-    (f = kd/π + ks (n + 2)/(2π) max(0, R·V)^n, Phong 1975, seed 000 ref. 27);
-    ``shininess``: its exponent n ≥ 0 (low, e.g. 2–10, as seed 000 uses).
-    """
-
-    kd: float = 0.0
-    ks: float = 0.0
-    shininess: float = 1.0
-
-
-@dataclass
-class SceneObject:
-    """One ``[[object]]``: a mesh, its transform and what it is made of.
-
-    Exactly one of: ``material`` (a gonio.material), ``inks`` (three gonio.material paths,
-    R, G, B) with ``mask`` (an RGB halftone mask image, docs/conventions.md) and ``substrate``, or
-    ``measured`` (a gonio.measurement, interpolated: the reference of seed 000 Figure 5).
-    ``lobes``: gonio.lobes weights for environment light (one path for ``material``,
-    three for ``inks``), or None. ``mesh`` is ``builtin:NAME`` or an absolute OBJ path.
-    ``sparkle``: a packed sparkle texture (``gonio sparkle``, seed 004 §6) or None, with
-    ``sparkle_color`` (linear sRGB reflectance colour C_s), ``sparkle_exponent`` (e of
-    eq. 17) and ``sparkle_scale`` (texture repeats over uv); material or measured only.
-    ``wrap``: the mask's addressing, a key of :data:`gonio_cli.render.texture.WRAP_MODES`
-    (``clamp``: a sheet with edges, the default; ``repeat``: the mask tiles); prints only.
-    """
-
-    index: int
-    mesh: str
-    translate: np.ndarray
-    rotate_deg: np.ndarray
-    scale: np.ndarray
-    name: str = ""
-    material: Path | None = None
-    inks: list[Path] | None = None
-    mask: Path | None = None
-    substrate: Substrate | None = None
-    lobes: Path | list[Path] | None = None
-    measured: Path | None = None
-    sparkle: Path | None = None
-    sparkle_color: np.ndarray = field(default_factory=lambda: np.ones(3))
-    sparkle_exponent: float = 24.0
-    sparkle_scale: float = 1.0
-    wrap: str = "clamp"
-
-    @property
-    def kind(self) -> str:
-        """"material", "print" or "measured"."""
-        return "print" if self.inks else ("measured" if self.measured else "material")
-
-    @property
-    def is_builtin(self) -> bool:
-        return self.mesh.startswith(BUILTIN_PREFIX)
-
-
-@dataclass
-class Environment:
-    """Prefiltered environment light: a ``gonio prefilter`` index.json (its maps hold
-    linear sRGB radiance; brightness is set by ``[output] exposure``)."""
-
-    prefiltered: Path
-    method: str = "auto"
-
-
-@dataclass
-class Output:
-    """``exposure``: stops (PNG only, × 2^exposure before the tone map); ``tonemap``: a key
-    of :data:`gonio_cli.render.tonemap.TONEMAPS`; ``adapt``: a key of
-    :data:`gonio_cli.render.tonemap.ADAPTATIONS` (the lights' white → the display's D65,
-    or ``none``); ``ssaa``: supersampling factor per axis;
-    ``spectral``: "table" or "exact"; ``grid_nm``: working grid START:STOP:STEP;
-    ``background``: linear sRGB (3,) of pixels no object covers, or "environment"."""
-
-    exposure: float = 0.0
-    tonemap: str = "neutral"
-    adapt: str = "bradford"
-    ssaa: int = 2
-    spectral: str = "table"
-    grid_nm: str = "380:780:10"
-    background: np.ndarray = field(default_factory=lambda: np.zeros(3))
-
-
-@dataclass
-class Scene:
-    """A validated scene; every path absolute. ``grid_nm``: (n_λ,) the working grid,
-    every light spectrum is on it. ``inputs``: every file the scene reads (provenance)."""
-
-    path: Path
-    camera: Camera
-    objects: list[SceneObject]
-    lights: list[Light]
-    environment: Environment | None
-    output: Output
-    grid_nm: np.ndarray
-    variables: dict[str, str] = field(default_factory=dict)
-    inputs: list[Path] = field(default_factory=list)
-    display: str = ""  # the path as the user gave it, for messages
-
-    @property
-    def needs_uvs(self) -> bool:
-        return any(o.mask is not None or o.sparkle is not None for o in self.objects)
-
-
-# ---------------------------------------------------------------------------- checker --
-
-class _Checker:
-    """Type checks that name the file and the key in every message."""
-
-    def __init__(self, path: Path, display: str):
-        self.path = path
-        self.display = display
-        self.base = path.parent
-
-    def error(self, where: str, message: str, fix: str | None = None) -> InputError:
-        return InputError(f"{where}: {message}" if where else message, path=self.display,
-                          fix=fix)
-
-    def table(self, value, where: str) -> dict:
-        if not isinstance(value, dict):
-            raise self.error(where, f"is a {_tname(value)}, expected a table")
-        return value
-
-    def keys(self, table: Mapping, allowed, where: str) -> None:
-        unknown = [k for k in table if k not in allowed]
-        if unknown:
-            raise self.error(where, f"unknown key {unknown[0]!r}",
-                             fix=f"allowed: {', '.join(allowed)}")
-
-    def required(self, table: Mapping, key: str, where: str):
-        if key not in table:
-            raise self.error(where, f"missing key {key!r}")
-        return table[key]
-
-    def number(self, value, where: str, *, lo=None, hi=None, lo_open=False,
-               hi_open=False) -> float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise self.error(where, f"{value!r} is a {_tname(value)}, expected a number")
-        x = float(value)
-        if not math.isfinite(x):
-            raise self.error(where, f"{value!r} is not a finite number")
-        if lo is not None and (x < lo or (lo_open and x == lo)):
-            raise self.error(where, f"{value!r} is below {'or at ' if lo_open else ''}{lo}")
-        if hi is not None and (x > hi or (hi_open and x == hi)):
-            raise self.error(where, f"{value!r} is above {'or at ' if hi_open else ''}{hi}")
-        return x
-
-    def integer(self, value, where: str, *, lo=None, hi=None) -> int:
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise self.error(where, f"{value!r} is a {_tname(value)}, expected an integer")
-        if (lo is not None and value < lo) or (hi is not None and value > hi):
-            raise self.error(where, f"{value} is outside [{lo}, {hi}]")
-        return int(value)
-
-    def vector(self, value, where: str, n: int = 3, *, nonzero=False) -> np.ndarray:
-        if not isinstance(value, list) or len(value) != n:
-            raise self.error(where, f"{value!r} is not a list of {n} numbers")
-        v = np.array([self.number(x, where, lo=-MAX_MAGNITUDE, hi=MAX_MAGNITUDE)
-                      for x in value], dtype=float)
-        if nonzero and np.linalg.norm(v) < MIN_VECTOR_NORM:
-            raise self.error(where, f"{value!r} has no direction (zero length)")
-        return v
-
-    def boolean(self, value, where: str) -> bool:
-        if not isinstance(value, bool):
-            raise self.error(where, f"{value!r} is a {_tname(value)}, expected true or false")
-        return value
-
-    def string(self, value, where: str) -> str:
-        if not isinstance(value, str):
-            raise self.error(where, f"{value!r} is a {_tname(value)}, expected a string")
-        return value
-
-    def choice(self, value, where: str, choices) -> str:
-        s = self.string(value, where)
-        if s not in choices:
-            raise self.error(where, f"{s!r} is unknown", fix=f"use one of {', '.join(choices)}")
-        return s
-
-    def file(self, value, where: str) -> Path:
-        s = self.string(value, where)
-        p = Path(s)
-        p = p if p.is_absolute() else self.base / p
-        if not p.is_file():
-            raise self.error(where, f"no such file {s!r} (looked for {os.path.normpath(p)})",
-                             fix="paths are relative to the scene file")
-        return Path(os.path.normpath(p))
-
-
-def _tname(value) -> str:
-    return {bool: "boolean", int: "integer", float: "number", str: "string", list: "list",
-            dict: "table"}.get(type(value), type(value).__name__)
-
-
-def _names_used(value) -> list[str]:
-    """Every ``${name}`` in the strings of a parsed TOML value, recursively."""
-    if isinstance(value, str):
-        return _VAR.findall(value)
-    if isinstance(value, list):
-        return [n for v in value for n in _names_used(v)]
-    if isinstance(value, dict):
-        return [n for v in value.values() for n in _names_used(v)]
-    return []
-
-
-def _substitute(value, variables: Mapping[str, str], chk: _Checker, where: str):
-    """Replace ``${name}`` in every string of a parsed TOML value, recursively."""
-    if isinstance(value, str):
-        def repl(m):
-            if m.group(1) not in variables:
-                raise chk.error(where, f"${{{m.group(1)}}} is not defined",
-                                fix="define it in [vars] or with --var NAME=VALUE")
-            return variables[m.group(1)]
-        return _VAR.sub(repl, value)
-    if isinstance(value, list):
-        return [_substitute(v, variables, chk, f"{where}[{k}]") for k, v in enumerate(value)]
-    if isinstance(value, dict):
-        return {k: _substitute(v, variables, chk, f"{where}.{k}" if where else k)
-                for k, v in value.items()}
-    return value
-
 
 # ------------------------------------------------------------------------------ loader --
 
@@ -352,7 +115,7 @@ def load_scene(path: str | os.PathLike, *, variables: Mapping[str, str] | None =
     """
     display = os.fspath(path)
     path = Path(path)
-    chk = _Checker(path.resolve(), display)
+    chk = Checker(path.resolve(), display)
     if doc is None:
         doc = read_scene_toml(path, display)
     chk.keys(doc, TOP_KEYS, "")
@@ -361,14 +124,14 @@ def load_scene(path: str | os.PathLike, *, variables: Mapping[str, str] | None =
     merged = {}
     for k, v in defaults.items():
         merged[k] = chk.string(v, f"[vars] {k}")
-    used = sorted(set(_names_used({k: v for k, v in doc.items() if k != "vars"})))
+    used = sorted(set(names_used({k: v for k, v in doc.items() if k != "vars"})))
     for name in variables or {}:
         if name not in used:
             raise chk.error("", f"--var {name}: the scene uses no ${{{name}}}",
                             fix=(f"its variables are {', '.join(used)}" if used else
                                  "it has no ${NAME} variables"))
     merged.update(variables or {})
-    doc = _substitute({k: v for k, v in doc.items() if k != "vars"}, merged, chk, "")
+    doc = substitute({k: v for k, v in doc.items() if k != "vars"}, merged, chk, "")
     overrides = {k: v for k, v in (overrides or {}).items() if v is not None}
 
     camera = _camera(chk, doc, overrides)
@@ -438,7 +201,7 @@ def load_scene(path: str | os.PathLike, *, variables: Mapping[str, str] | None =
                  dict(merged), list(dict.fromkeys(inputs)), display)
 
 
-def _camera(chk: _Checker, doc, overrides) -> Camera:
+def _camera(chk: Checker, doc, overrides) -> Camera:
     where = "[camera]"
     cam = chk.table(chk.required(doc, "camera", ""), where)
     chk.keys(cam, CAMERA_KEYS, where)
@@ -463,7 +226,7 @@ def _camera(chk: _Checker, doc, overrides) -> Camera:
     return Camera(eye, target, up, fov, size["width"], size["height"])
 
 
-def _output(chk: _Checker, doc, overrides) -> Output:
+def _output(chk: Checker, doc, overrides) -> Output:
     from .tonemap import ADAPTATIONS, TONEMAPS
 
     where = "[output]"
@@ -484,7 +247,7 @@ def _output(chk: _Checker, doc, overrides) -> Output:
         background=_background(chk, out, where, d.background))
 
 
-def _background(chk: _Checker, out: dict, where: str, default):
+def _background(chk: Checker, out: dict, where: str, default):
     """``[output] background``: linear sRGB (3 numbers), or "environment" (the
     ``[environment]`` seen through each pixel; checked against the scene by its parser)."""
     if "background" not in out:
@@ -495,7 +258,7 @@ def _background(chk: _Checker, out: dict, where: str, default):
     return chk.vector(out["background"], f"{where} background")
 
 
-def _object(chk: _Checker, raw, number: int) -> SceneObject:
+def _object(chk: Checker, raw, number: int) -> SceneObject:
     where = f"[[object]] {number}"
     o = chk.table(raw, where)
     chk.keys(o, OBJECT_KEYS, where)
@@ -584,7 +347,7 @@ def _object(chk: _Checker, raw, number: int) -> SceneObject:
     return obj
 
 
-def _light(chk: _Checker, raw, number: int, grid: np.ndarray) -> Light:
+def _light(chk: Checker, raw, number: int, grid: np.ndarray) -> Light:
     where = f"[[light]] {number}"
     l = chk.table(raw, where)
     chk.keys(l, LIGHT_KEYS, where)
@@ -615,7 +378,7 @@ def _light(chk: _Checker, raw, number: int, grid: np.ndarray) -> Light:
                                    lo=0.0, hi=MAX_MAGNITUDE))
 
 
-def light_spectrum(chk: _Checker, value, where: str, grid: np.ndarray) -> np.ndarray:
+def light_spectrum(chk: Checker, value, where: str, grid: np.ndarray) -> np.ndarray:
     """A light spectrum S (n_λ,) on ``grid``, Σ S ȳ / Σ ȳ = 1 (:func:`gonio_cli.spectra.
     unit_luminance`): a CIE illuminant name or a CSV ``wavelength_nm,value`` (relative to
     the scene file), read by :func:`gonio_cli.ingest.read_spectrum` (the reader of
@@ -658,136 +421,3 @@ def light_spectrum(chk: _Checker, value, where: str, grid: np.ndarray) -> np.nda
     return unit_luminance(spec, grid)
 
 
-# ------------------------------------------------------------------------ spectral grid --
-
-def _wavelength_range(path: Path) -> tuple[float, float] | None:
-    """(min, max) of a material's or measurement's ``wavelength_nm``, or None if the file
-    cannot be read so (the full read of the pipeline then names the problem)."""
-    try:
-        w = np.asarray(json.loads(path.read_text(encoding="utf-8"))["wavelength_nm"],
-                       dtype=float)
-    except (OSError, ValueError, KeyError, TypeError, IndexError):
-        return None
-    if w.ndim != 1 or w.size == 0 or not np.all(np.isfinite(w)):
-        return None
-    return float(w.min()), float(w.max())
-
-
-def spectral_ranges(objects: list[SceneObject]) -> list[tuple[str, float, float]]:
-    """(file name, min nm, max nm) of every material, ink and measured reference of the
-    scene's objects, each file once (only ``wavelength_nm`` is looked at here)."""
-    seen: dict[Path, tuple[str, float, float] | None] = {}
-    for o in objects:
-        for p in (o.material, o.measured, *(o.inks or [])):
-            if p is not None and p not in seen:
-                r = _wavelength_range(p)
-                seen[p] = None if r is None else (p.name, *r)
-    return [r for r in seen.values() if r is not None]
-
-
-#: What to do with materials that share no spectral range.
-REFIT_FIX = "re-ingest and refit them on one grid (gonio ingest --grid-nm)"
-
-
-def choose_grid(grid_nm: np.ndarray, ranges, where: str = "") -> tuple[np.ndarray, str | None]:
-    """The working grid of a scene whose materials span ``ranges``.
-
-    Parameters
-    ----------
-    grid_nm : (n_λ,) the scene's grid (``[output] grid_nm`` or its default), evenly spaced.
-    ranges : [(name, min nm, max nm)] of the materials (:func:`spectral_ranges`).
-    where : the scene file as the user named it, for the messages.
-
-    Returns
-    -------
-    (grid, note) : ``grid_nm`` itself and None when every material covers it (each is
-    then resampled onto it); otherwise the samples of ``grid_nm`` inside every material's
-    range (its step, a subset of its samples), and the one-line warning that says so.
-
-    Raises
-    ------
-    InputError : the materials share less than one step of the grid.
-    """
-    from ..spectra import WAVELENGTH_TOL_NM, covers
-
-    g = np.asarray(grid_nm, dtype=float)
-    short = [r for r in ranges if not covers([r[1], r[2]], g)]
-    if not short:
-        return g, None
-    spans = ", ".join(f"{name} {a:g}-{b:g} nm" for name, a, b in ranges)
-    lo, hi = max(r[1] for r in ranges), min(r[2] for r in ranges)
-    if hi < lo:
-        raise InputError(f"the materials share no range ({spans})", path=where or None,
-                         fix=REFIT_FIX)
-    step = float(g[1] - g[0])
-    tol = WAVELENGTH_TOL_NM / step
-    # the scene grid's samples inside [lo, hi]: never beyond the scene's own range
-    k0 = max(0, math.ceil((lo - g[0]) / step - tol))
-    k1 = min(g.size - 1, math.floor((hi - g[0]) / step + tol))
-    if k1 <= k0:
-        raise InputError(f"the materials' common range {lo:g}-{hi:g} nm holds less than one "
-                         f"{step:g} nm step of the scene's grid {g[0]:g}-{g[-1]:g} nm "
-                         f"({spans})", path=where or None, fix=REFIT_FIX)
-    chosen = g[0] + step * np.arange(k0, k1 + 1)
-    named = ", ".join(f"{name} {a:g}-{b:g} nm" for name, a, b in short[:3]) + (
-        ", ..." if len(short) > 3 else "")
-    note = (f"{where + ': ' if where else ''}not every material covers the scene's grid "
-            f"{g[0]:g}-{g[-1]:g} nm ({named}): rendering on their common range "
-            f"{grid_spec(chosen)} nm (choose another with --grid-nm)")
-    return chosen, note
-
-
-# ------------------------------------------------------------------------------ turntable --
-
-#: What a turntable turns (``gonio render --orbit``, ``orbit =`` in a batch plan):
-#: ``camera`` moves the eye about the target (the lights stay with the world, so
-#: highlights and colours shift as on a gonioreflectometer); ``object`` turns every
-#: object about the same axis under a fixed camera and fixed lights.
-ORBITS = ("camera", "object")
-
-
-def axis_rotation(axis, angle_deg: float) -> np.ndarray:
-    """(3, 3) right-handed rotation by ``angle_deg`` about ``axis`` (Rodrigues' formula,
-    R = I + sin θ K + (1 − cos θ) K², K the cross-product matrix of the unit axis)."""
-    k = np.asarray(axis, np.float64) / np.linalg.norm(axis)
-    kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    t = np.radians(angle_deg)
-    return np.eye(3) + np.sin(t) * kx + (1.0 - np.cos(t)) * (kx @ kx)
-
-
-def euler_xyz_deg(r: np.ndarray) -> np.ndarray:
-    """(3,) XYZ Euler angles in degrees of a rotation, the inverse of
-    :func:`gonio_cli.render.mesh.rotation_matrix` (R = Rz · Ry · Rx); at gimbal lock
-    (|R[2, 0]| = 1) the x angle is 0 and z carries the rest."""
-    sy = -float(np.clip(r[2, 0], -1.0, 1.0))
-    ay = np.arcsin(sy)
-    if abs(sy) < 1.0 - 1e-12:  # away from gimbal lock (cos y > ~1e-6)
-        ax, az = np.arctan2(r[2, 1], r[2, 2]), np.arctan2(r[1, 0], r[0, 0])
-    else:
-        ax, az = 0.0, np.arctan2(-r[0, 1], r[1, 1])
-    return np.degrees([ax, ay, az])
-
-
-def orbit(scene: Scene, frame: int, frames: int, mode: str = "camera") -> Scene:
-    """Frame ``frame`` of an ``frames``-step turntable: the scene turned by
-    360°·frame/frames about its up axis (the camera's ``up`` through its ``target``).
-
-    ``mode`` (a key of :data:`ORBITS`): ``camera`` turns the eye (and its up vector);
-    ``object`` turns each object the other way about the same axis (its placement
-    R·(s⊙p)+t becomes Q·R·(s⊙p) + Q·(t − target) + target), so the camera sees the
-    object's far side come round in the same direction.
-    """
-    from .mesh import rotation_matrix
-
-    pick(ORBITS, mode, "orbit")
-    cam = scene.camera
-    angle = 360.0 * frame / frames
-    if mode == "camera":
-        q = axis_rotation(cam.up, angle)
-        camera = replace(cam, eye=cam.target + q @ (cam.eye - cam.target), up=q @ cam.up)
-        return replace(scene, camera=camera)
-    q = axis_rotation(cam.up, -angle)
-    objects = [replace(o, rotate_deg=euler_xyz_deg(q @ rotation_matrix(o.rotate_deg)),
-                        translate=cam.target + q @ (o.translate - cam.target))
-               for o in scene.objects]
-    return replace(scene, objects=objects)
