@@ -1,9 +1,11 @@
-"""The one thing pyproject.toml cannot say without an experimental table: gonio's C kernel.
+"""The one thing pyproject.toml cannot say without an experimental table: gonio's C kernels.
 
-gonio_cli/halftone/_diffuse.c is the error-diffusion kernel in C (its header says why).
-It is optional: where no C compiler is found the install goes on, and halftone uses the
-numba build of the same kernel. -ffp-contract=off: no fused multiply-add, so the labels
-equal the reference's bit for bit.
+gonio_cli/halftone/_diffuse.c is the error-diffusion kernel in C, and
+gonio_cli/render/_envlookup.c the environment light of a material's lobes (each header says
+why). Both are optional: where no C compiler is found the install goes on, halftone uses
+the numba build of its kernel and render the numpy build of its lookups. _diffuse:
+-ffp-contract=off, no fused multiply-add, so the labels equal the reference's bit for bit;
+_envlookup: -fno-math-errno lets sqrt be one instruction (it only sees non-negatives).
 """
 
 from setuptools import Extension, setup
@@ -11,4 +13,7 @@ from setuptools import Extension, setup
 setup(ext_modules=[Extension("gonio_cli.halftone._diffuse",
                              sources=["gonio_cli/halftone/_diffuse.c"],
                              extra_compile_args=["-O2", "-ffp-contract=off"],
-                             optional=True)])
+                             optional=True),
+               Extension("gonio_cli.render._envlookup",
+                         sources=["gonio_cli/render/_envlookup.c"],
+                         extra_compile_args=["-O3", "-fno-math-errno"], optional=True)])

@@ -257,10 +257,40 @@ def _cook_torrance_kernel(material: Material, weights: np.ndarray) -> Kernel | N
     return kernel
 
 
+def _goniochromatic_layers_kernel(material: Material, weights: np.ndarray) -> Kernel | None:
+    """``goniochromatic-diffuse`` and ``-coat`` (:func:`gonio_cli.brdf.goniochromatic_coat`):
+    the Lambertian body ρ_d/π (one XYZ), eq. 5 through :func:`goniochromatic_table`
+    (:func:`_goniochromatic_kernel`) and the achromatic coat (one F0 for every λ): its
+    Torrance–Sparrow factor times the light's XYZ. Exact but for eq. 5's table."""
+    p = material.params
+    coat = material.model == "goniochromatic-coat"
+    f0 = np.atleast_1d(np.asarray(p.get("f0_coat", 0.0), dtype=float))
+    if f0.size != 1:
+        return None
+    eq5 = _goniochromatic_kernel(material, weights)
+    xyz_d = (np.asarray(p["rho_d"], dtype=float) / np.pi) @ weights
+    xyz_light = np.ones(weights.shape[0]) @ weights
+    k_coat = float(p["k_coat"]) if coat else 0.0
+
+    def kernel(cos, scale, directions):
+        out = eq5(cos, scale, directions)
+        out += scale[:, None].astype(out.dtype) * xyz_d
+        if coat:
+            g = torrance_sparrow(cos, p["alpha_coat"], f0)[:, 0] * (k_coat * scale)
+            out += g[:, None] * xyz_light
+        return out
+
+    kernel.table_size = eq5.table_size
+    kernel.cheap = False
+    return kernel
+
+
 #: Models with a faster spectral form than the 41-wavelength sum (STYLE 3). Each builder
 #: returns a :data:`Kernel`, or None where the form does not apply (then: exact).
 TABLE_KERNELS: dict[str, Callable[[Material, np.ndarray], Kernel | None]] = {
     "goniochromatic": _goniochromatic_kernel,
+    "goniochromatic-diffuse": _goniochromatic_layers_kernel,
+    "goniochromatic-coat": _goniochromatic_layers_kernel,
     "torrance-sparrow": _torrance_sparrow_kernel,
     "cook-torrance": _cook_torrance_kernel,
 }
