@@ -30,7 +30,7 @@ UV_VERSION := 0.13.9
 
 export PATH := $(abspath $(BIN)):$(PATH)
 
-.PHONY: demo test bench clean setup lock refresh-references schemas
+.PHONY: demo test bench clean setup lock refresh-references schemas readme-images readme-check
 .DEFAULT_GOAL := demo
 
 setup: $(STAMP)
@@ -79,6 +79,14 @@ $(OUT)/demo.txt: $(DEMO_TARGETS)
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
+
+# The README's images are demo outputs (tests/readme_images.py lists which): copy them
+# into docs/images, or check they are what the demo makes (CI runs the check after demo).
+readme-images: demo
+	$(BIN)/python tests/readme_images.py --write --out $(OUT)
+
+readme-check: demo
+	$(BIN)/python tests/readme_images.py --check --out $(OUT)
 
 bench: $(STAMP)
 	@for b in benchmarks/bench_*.py; do echo; echo "### $$b"; $(BIN)/python $$b || exit 1; done

@@ -125,7 +125,9 @@ def test_first_run_writes_24_frames_6_previews_manifest_and_sheet(runs):
     for r in records.values():
         assert r["attempts"] == 1 and r["time_s"] > 0 and r["worker"] and r["error"] is None
     assert runs["first mismatches"] == []  # the files are what the records say
-    assert sum(len(r["outputs"]) for r in records.values()) == 36
+    # one file per job, and each fit's plot beside its material (the sheet links it)
+    assert sum(len(r["outputs"]) for r in records.values()) == 36 + len(INKS)
+    assert all((out / i / f"{i}.fit.png").is_file() for i in INKS)
     assert len({r["worker"] for r in records.values()}) == 2  # both workers took jobs
     command = records["render/green/panel/frame003"]["command"]
     assert command.startswith("gonio render scenes/panel.toml -o ${out}/green/panel.frame003.png")

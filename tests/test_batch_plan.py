@@ -306,3 +306,46 @@ orbit = "object"
     pv = next(p for p in previews if p.key == "preview/b/t-illuminant=A-exposure=1")
     assert pv.inputs == tuple(str(tmp_path / "out" / "b" / f"t-illuminant=A-exposure=1.frame"
                                   f"{k:03d}.png") for k in range(3))
+
+
+def test_a_material_sets_its_own_render_options_and_fits_draw_their_plot(tmp_path):
+    """[[material]] render = {…} goes to that material's renders only, over the matrix's;
+    a fit from CSV also writes NAME.fit.png (one more output: the contact sheet links it),
+    unless the plan names the plot itself."""
+    for name in ("a.csv", "b.csv", "s.toml"):
+        (tmp_path / name).write_text("x")
+    plan = _write(tmp_path / "plan.toml", """
+[[material]]
+name = "a"
+csv = ["a.csv"]
+render = { exposure-stops = -1.5 }
+
+[[material]]
+name = "b"
+csv = ["b.csv"]
+fit = { plot = "${out}/plots/b.png" }
+
+[matrix]
+scenes = ["s.toml"]
+render = { exposure-stops = 2, ssaa = 1 }
+""")
+    p = read_plan(plan, tmp_path / "out")
+    jobs = {j.key: j for j in p.jobs}
+
+    def option(job, name):
+        return job.argv[job.argv.index(name) + 1]
+
+    assert option(jobs["render/a/s"], "--exposure-stops") == "-1.5"
+    assert option(jobs["render/b/s"], "--exposure-stops") == "2"
+    assert option(jobs["render/a/s"], "--ssaa") == "1"
+    assert jobs["fit/a"].outputs == (str(tmp_path / "out/a/a.material.json"),
+                                     str(tmp_path / "out/a/a.fit.png"))
+    assert option(jobs["fit/b"], "--plot") == str(tmp_path / "out/plots/b.png")
+
+
+def test_a_material_cannot_set_what_the_matrix_sets(run_gonio, tmp_path):
+    (tmp_path / "a.csv").write_text("x")
+    (tmp_path / "s.toml").write_text("x")
+    plan = _write(tmp_path / "plan.toml", '[[material]]\nname = "a"\ncsv = ["a.csv"]\n'
+                  'render = { frame = 2 }\n\n[matrix]\nscenes = ["s.toml"]\n')
+    _refused(run_gonio, plan, tmp_path / "out", "[[material]] a render", "'frame'")

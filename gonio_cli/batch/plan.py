@@ -38,7 +38,7 @@ from typing import Any, Mapping
 from ..errors import InputError
 
 TOP_KEYS = ("material", "matrix", "job")
-MATERIAL_KEYS = ("name", "csv", "ingest", "fit", "material")
+MATERIAL_KEYS = ("name", "csv", "ingest", "fit", "material", "render")
 MATRIX_KEYS = ("scenes", "frames", "orbit", "vars", "render", "material_var", "needs")
 JOB_KEYS = ("key", "command", "inputs", "output", "options", "needs")
 
@@ -108,6 +108,7 @@ class _Reader:
     def __init__(self, path: Path, outdir: Path):
         self.path, self.outdir, self.base = path, outdir, path.parent
         self.jobs: list[Job] = []
+        self.material_render: dict[str, dict] = {}   # [[material]] render = {…}, by name
 
     def error(self, where: str, message: str, fix: str | None = None) -> PlanError:
         return PlanError(f"{where}: {message}" if where else message, path=self.path, fix=fix)
@@ -244,7 +245,10 @@ def _array(r: _Reader, value, name: str) -> list:
 
 
 def _materials(r: _Reader, raw) -> dict[str, str]:
-    """Each [[material]]: its ingest and fit jobs (or its file) → {name: material path}."""
+    """Each [[material]]: its ingest and fit jobs (or its file) → {name: material path};
+    its own render options (``render = {…}``, over the matrix's) go to ``r.material_render``.
+    A fit also draws its plot (``NAME.fit.png``, the contact sheet links it) unless the
+    plan gives ``plot`` itself."""
     out: dict[str, str] = {}
     for k, m in enumerate(_array(r, raw, "material")):
         where = f"[[material]] {k + 1}"
@@ -258,6 +262,11 @@ def _materials(r: _Reader, raw) -> dict[str, str]:
         if ("csv" in m) == ("material" in m):
             raise r.error(where, "needs either csv (to ingest and fit) or material (a file)")
         subst = {"material": name}
+        own = m.get("render", {})
+        if not isinstance(own, dict):
+            raise r.error(f"{where} render", f"{own!r} is not a table of gonio render options",
+                          fix='e.g. render = { exposure-stops = -1 }')
+        r.material_render[name] = own
         if "material" in m:
             for key in ("ingest", "fit"):
                 if key in m:
@@ -270,7 +279,8 @@ def _materials(r: _Reader, raw) -> dict[str, str]:
         words, extra = r.option_words(m.get("ingest", {}), f"{where} ingest", subst)
         r.add(f"ingest/{name}", "ingest", r.strings(m["csv"], f"{where} csv"), measurement,
               words, extra, [], where, {**labels, "role": "ingest"})
-        words, extra = r.option_words(m.get("fit", {}), f"{where} fit", subst)
+        fit_options = {"plot": f"{OUT}/{name}/{name}.fit.png", **m.get("fit", {})}
+        words, extra = r.option_words(fit_options, f"{where} fit", subst)
         r.add(f"fit/{name}", "fit", [measurement], material, words, extra, [], where,
               {**labels, "role": "fit"})
         out[name] = material
@@ -304,17 +314,20 @@ def _matrix(r: _Reader, m, materials: Mapping[str, str]) -> None:
     material_var = m.get("material_var", "material")
     needs = r.strings(m["needs"], f"{where} needs") if "needs" in m else []
     render_opts = m.get("render", {})
-    for opt in ("output", "o", "turntable", "frame", "orbit"):
-        if opt in render_opts:
-            raise r.error(f"{where} render", f"{opt!r} is set by the matrix",
-                          fix="use frames and orbit in [matrix]; outputs are named for you")
+    for opts, at in [(render_opts, f"{where} render")] + [
+            (o, f"[[material]] {n} render") for n, o in r.material_render.items()]:
+        for opt in ("output", "o", "turntable", "frame", "orbit"):
+            if opt in opts:
+                raise r.error(at, f"{opt!r} is set by the matrix",
+                              fix="use frames and orbit in [matrix]; outputs are named for you")
     for scene in scenes:
         stem = Path(scene).stem
         for combo in itertools.product(*values):
             tag = "".join(f"-{n}={v}" for n, v in zip(names, combo))
             for name, material in materials.items():
                 subst = {"material": name, "scene": stem}
-                words, extra = r.option_words(render_opts, f"{where} render", subst)
+                words, extra = r.option_words({**render_opts, **r.material_render[name]},
+                                              f"{where} render", subst)
                 words += [w for n, v in zip(names, combo) for w in ("--var", f"{n}={v}")]
                 words += ["--var", f"{material_var}={material}"]
                 labels = {"material": name, "scene": stem + tag, "vars": dict(zip(names, combo))}

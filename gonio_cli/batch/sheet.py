@@ -2,10 +2,16 @@
 
 Every image the batch wrote is a thumbnail linked to the full image, grouped by material
 and scene, with the material's fit verdict and colour errors (read from its
-gonio.material file), each job's time and status, and the turntable previews (animated
-PNGs, which browsers play in an ``<img>``). Failed jobs are listed with their one-line
-errors. Links are relative, so the folder can be copied or served as it is; images
-larger than twice the thumbnail width get a small copy in ``OUTDIR/thumbs/``.
+gonio.material file) and links to the material and its fit plot, each job's time and
+status, and the turntable previews (animated PNGs, which browsers play in an ``<img>``).
+Failed jobs are listed with their one-line errors. Links are relative, so the folder can
+be copied or served as it is.
+
+Thumbnails are shown at their own pixel size, never stretched: an image up to
+:data:`NATIVE_MAX_PX` is its own thumbnail; a larger one gets a copy reduced by a whole
+factor in ``OUTDIR/thumbs/``. Under every frame the sheet says what the eye would miss in
+a thumbnail (:func:`frame_flags`): the share of its covered pixels clipped at white (any
+channel at 255) above :data:`CLIP_WARN`, and a frame that is nearly black.
 """
 
 from __future__ import annotations
@@ -17,19 +23,30 @@ from typing import Any, Mapping, Sequence
 
 from . import SHEET_NAME
 
-#: Thumbnail width in CSS pixels (the full image is a click away).
-THUMB_PX = 128
+#: Largest side (pixels) of an image shown as it is; a larger one is reduced by the smallest
+#: whole factor that brings it to this size or below (the full image is a click away).
+NATIVE_MAX_PX = 256
+
+#: Share of a frame's covered pixels (not pure black) with a channel at 255 above which the
+#: sheet says the frame clips: the batch's target is < 1 % (lower the material's exposure:
+#: ``render = { exposure-stops = -1 }`` in its [[material]]).
+CLIP_WARN = 0.01
+
+#: A frame whose brightest 1 % of pixels have an encoded luma below this (0–1) is said to
+#: be nearly black (5 % grey: what a thumbnail shows as black on a screen).
+DARK_P99 = 0.05
 
 _CSS = """
 body{font:14px/1.4 system-ui,sans-serif;margin:1.5em;background:#fafafa;color:#222}
 h1{font-size:1.4em}h2{margin-top:1.6em;border-bottom:1px solid #ccc}h3{font-size:1em}
 .row{display:flex;flex-wrap:wrap;gap:10px;align-items:flex-start}
 figure{margin:0;text-align:center;font-size:12px}
-figure img{width:%dpx;height:auto;image-rendering:auto;background:#000;display:block}
+figure img{background:#000;display:block;margin:auto}
 figure.preview img{outline:2px solid #48c}
+figcaption .warn{color:#b00;font-weight:bold}
 .good{color:#170}.poor{color:#a60}.failed,.blocked{color:#b00}
 table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:2px 6px;text-align:left}
-""" % THUMB_PX
+"""
 
 
 def _e(text: Any) -> str:
@@ -66,41 +83,86 @@ def _verdict(material_path: str | None) -> str:
 THUMBS_DIR = "thumbs"
 
 
-def thumbnail(outdir: str, image: str) -> str:
-    """A small copy of ``image`` for the sheet (``OUTDIR/thumbs/…``, remade when older
-    than the image), or the image itself if it is small already or animated (a
-    turntable preview plays as it is)."""
+def thumbnail(outdir: str, image: str) -> tuple[str, int, int]:
+    """The image the sheet shows for ``image`` and its size in pixels (width, height): the
+    image itself when its larger side is at most :data:`NATIVE_MAX_PX` or it is animated (a
+    turntable preview plays as it is), else a copy reduced by a whole factor
+    (``OUTDIR/thumbs/…``, remade when older than the image)."""
     from PIL import Image
 
     with Image.open(image) as im:
-        if max(im.size) <= 2 * THUMB_PX or getattr(im, "n_frames", 1) > 1:
-            return image
+        w, h = im.size
+        factor = -(-max(w, h) // NATIVE_MAX_PX)                 # ceil
+        if factor <= 1 or getattr(im, "n_frames", 1) > 1:
+            return image, w, h
+        size = (max(1, w // factor), max(1, h // factor))
         thumb = os.path.join(outdir, THUMBS_DIR, os.path.relpath(image, outdir))
         if os.path.isfile(thumb) and os.path.getmtime(thumb) >= os.path.getmtime(image):
-            return thumb
-        small = im.convert("RGB")
-        small.thumbnail((2 * THUMB_PX, 2 * THUMB_PX))  # sharp on 2x displays
+            return thumb, *size
+        small = im.convert("RGB").reduce(factor)
     from ..artifact import atomic_path, make_folder
 
     make_folder(os.path.dirname(thumb))
     with atomic_path(thumb) as tmp:
         small.save(tmp, format="PNG")
-    return thumb
+    return thumb, small.width, small.height
 
 
-def _figure(outdir: str, rec: Mapping[str, Any], caption: str, preview: bool = False) -> str:
+def frame_flags(image: str) -> list[str]:
+    """What a thumbnail hides in a rendered frame (an 8-bit PNG): the share of its covered
+    pixels (not pure black) clipped at white, when above :data:`CLIP_WARN`, and "nearly
+    black" when its brightest 1 % lies below :data:`DARK_P99` of white in encoded luma
+    (Rec. 709 weights on the stored values). An unreadable image says so."""
+    import numpy as np
+    from PIL import Image
+
+    try:
+        with Image.open(image) as im:
+            rgb = np.asarray(im.convert("RGB"), dtype=np.float32) / 255.0
+    except (OSError, ValueError):
+        return ["unreadable image"]
+    flags = []
+    covered = rgb.max(axis=-1) > 0
+    clipped = np.count_nonzero((rgb.max(axis=-1) >= 1.0) & covered)
+    share = clipped / max(int(np.count_nonzero(covered)), 1)
+    if share > CLIP_WARN:
+        flags.append(f"{share:.0%} clipped")
+    luma = rgb @ np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
+    if np.percentile(luma, 99) < DARK_P99:
+        flags.append("nearly black")
+    return flags
+
+
+def _figure(outdir: str, rec: Mapping[str, Any], caption: str, preview: bool = False,
+            links: str = "") -> str:
     if not rec.get("outputs") or not os.path.isfile(rec["outputs"][0]["path"]):
-        return (f"<figure><div class='{_e(rec['status'])}' style='width:{THUMB_PX}px'>"
+        return (f"<figure><div class='{_e(rec['status'])}' style='width:96px'>"
                 f"{_e(rec['status'])}</div><figcaption>{_e(caption)}</figcaption></figure>")
     image = rec["outputs"][0]["path"]
-
-    def rel(path: str) -> str:
-        return _e(os.path.relpath(path, outdir).replace(os.sep, "/"))
-
+    shown, w, h = thumbnail(outdir, image)
+    flags = "" if preview else "".join(f"<br><span class='warn'>{_e(f)}</span>"
+                                       for f in frame_flags(image))
     cls = " class='preview'" if preview else ""
-    return (f"<figure{cls}><a href='{rel(image)}'><img src='{rel(thumbnail(outdir, image))}' "
-            f"alt='{_e(rec['key'])}' class='thumb'></a><figcaption>{_e(caption)}"
-            "</figcaption></figure>")
+    return (f"<figure{cls}><a href='{_rel(outdir, image)}'><img src='{_rel(outdir, shown)}' "
+            f"width='{w}' height='{h}' alt='{_e(rec['key'])}' class='thumb'></a>"
+            f"<figcaption>{_e(caption)}{flags}{links}</figcaption></figure>")
+
+
+def _rel(outdir: str, path: str) -> str:
+    return _e(os.path.relpath(path, outdir).replace(os.sep, "/"))
+
+
+def _material_links(outdir: str, fit: Mapping[str, Any] | None) -> tuple[str, str]:
+    """(line, caption links) to a fitted material and its fit plot (the fit job's outputs:
+    the material file, then the plot where the plan asked for one)."""
+    paths = [o["path"] for o in (fit or {}).get("outputs", []) if os.path.isfile(o["path"])]
+    json_files = [p for p in paths if p.endswith(".json")]
+    plots = [p for p in paths if p.lower().endswith(".png")]
+    links = ([f"<a href='{_rel(outdir, json_files[0])}'>material</a>"] if json_files else []) \
+        + ([f"<a href='{_rel(outdir, plots[0])}'>fit plot</a>"] if plots else [])
+    if not links:
+        return "", ""
+    return " · ".join(links), "<br>" + " · ".join(links)
 
 
 def write_sheet(outdir: str | os.PathLike, records: Sequence[Mapping[str, Any]], *,
@@ -128,8 +190,9 @@ def write_sheet(outdir: str | os.PathLike, records: Sequence[Mapping[str, Any]],
                 if o["path"].lower().endswith(".png"))
     body = [f"<h1>{_e(title)}</h1>",
             f"<p>{len(records)} jobs, {n_img} images, {len(failed)} failed. "
-            "Click a thumbnail for the full image; turntable previews have a blue frame."
-            "</p>"]
+            "Thumbnails at their own pixel size; click one for the full image. Turntable "
+            f"previews have a blue frame; a frame with more than {CLIP_WARN:.0%} of its "
+            "pixels clipped, or nearly black, says so in red.</p>"]
     if failed:
         body.append("<h2>Failed jobs</h2><table><tr><th>job</th><th>status</th>"
                     "<th>error</th></tr>")
@@ -145,8 +208,9 @@ def write_sheet(outdir: str | os.PathLike, records: Sequence[Mapping[str, Any]],
             line += (f" ({fit['status']}, {fit.get('time_s', 0):.2f} s)" if line else
                      f"fit: <span class='{_e(fit['status'])}'>{_e(fit['status'])}</span> "
                      f"{_e(fit.get('error') or '')}")
-        if line:
-            body.append(f"<p>{line}</p>")
+        links, caption_links = _material_links(outdir, fit)
+        if line or links:
+            body.append(f"<p>{line}{' — ' if line and links else ''}{links}</p>")
         for scene, recs in scenes.items():
             body.append(f"<h3>{_e(scene)}</h3><div class='row'>")
             for r in recs:
@@ -158,7 +222,8 @@ def write_sheet(outdir: str | os.PathLike, records: Sequence[Mapping[str, Any]],
                 else:
                     frame = labels.get("frame")
                     body.append(_figure(outdir, r, (f"frame {frame}, " if frame is not None
-                                                    else "") + f"{t}, {r['status']}"))
+                                                    else "") + f"{t}, {r['status']}",
+                                        links=caption_links))
             body.append("</div>")
     if other:
         body.append("<h2>Other images</h2><div class='row'>")
