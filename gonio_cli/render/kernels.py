@@ -260,8 +260,8 @@ def _cook_torrance_kernel(material: Material, weights: np.ndarray) -> Kernel | N
 def _goniochromatic_layers_kernel(material: Material, weights: np.ndarray) -> Kernel | None:
     """``goniochromatic-diffuse`` and ``-coat`` (:func:`gonio_cli.brdf.goniochromatic_coat`):
     the Lambertian body ρ_d/π (one XYZ), eq. 5 through :func:`goniochromatic_table`
-    (:func:`_goniochromatic_kernel`) and the achromatic coat (one F0 for every λ): its
-    Torrance–Sparrow factor times the light's XYZ. Exact but for eq. 5's table."""
+    (:func:`_goniochromatic_kernel`, in place) and the achromatic coat (one F0 for every
+    λ): its Torrance–Sparrow factor times the light's XYZ. Exact but for eq. 5's table."""
     p = material.params
     coat = material.model == "goniochromatic-coat"
     f0 = np.atleast_1d(np.asarray(p.get("f0_coat", 0.0), dtype=float))
@@ -272,16 +272,31 @@ def _goniochromatic_layers_kernel(material: Material, weights: np.ndarray) -> Ke
     xyz_light = np.ones(weights.shape[0]) @ weights
     k_coat = float(p["k_coat"]) if coat else 0.0
 
-    def kernel(cos, scale, directions):
-        out = eq5(cos, scale, directions)
-        out += scale[:, None].astype(out.dtype) * xyz_d
-        if coat:
-            g = torrance_sparrow(cos, p["alpha_coat"], f0)[:, 0] * (k_coat * scale)
-            out += g[:, None] * xyz_light
-        return out
+    def accumulate(cos, scale, out, scratch):
+        """out (3, m) += XYZ of the m pixels."""
+        eq5.accumulate(cos, scale, out, scratch)
+        g = scale
+        if coat:                                     # k F G D / (4 ci co) · E cos θi
+            g = torrance_sparrow(cos, p["alpha_coat"], f0)[:, 0]
+            g *= k_coat
+            g *= scale
+        tmp = scratch("layer", scale.shape[0])
+        for c in range(out.shape[0]):
+            np.multiply(scale, scale.dtype.type(xyz_d[c]), out=tmp)
+            out[c] += tmp
+            if coat:
+                np.multiply(g, xyz_light[c], out=tmp)
+                out[c] += tmp
 
+    def kernel(cos, scale, directions):
+        ci = np.asarray(cos.cos_theta_i)
+        out = np.zeros((weights.shape[1], ci.shape[0]), ci.dtype)
+        accumulate(cos, np.asarray(scale, ci.dtype), out, Scratch(ci.dtype, ci.shape[0]))
+        return out.T
+
+    kernel.accumulate = accumulate
     kernel.table_size = eq5.table_size
-    kernel.cheap = False
+    kernel.cheap = True
     return kernel
 
 
