@@ -99,6 +99,7 @@ static void pixel(const double *nn, const double *vv, const double *view_deg, Py
                   const Py_ssize_t *first,
                   const double *cos_beta, const double *sin_beta, const double *weights, const double *matrices,
                   Py_ssize_t K, const Map *maps, const int64_t *used, const int64_t *n_used,
+                  const int *at_normal,
                   Py_ssize_t L, Py_ssize_t C, double *out) {
     double cos_v = nn[0] * vv[0] + nn[1] * vv[1] + nn[2] * vv[2];
     cos_v = cos_v < 0.0 ? 0.0 : (cos_v > 1.0 ? 1.0 : cos_v);
@@ -110,16 +111,25 @@ static void pixel(const double *nn, const double *vv, const double *view_deg, Py
     for (int j = 0; j < 3; j++) { tg[j] = cos_v * nn[j] - vv[j]; norm += tg[j] * tg[j]; }
     norm = sqrt(norm);
     for (int j = 0; j < 3; j++) tg[j] = norm > 1e-12 ? tg[j] / norm : 0.0;
+    double theta_n = 0.0, phi_n = 0.0;
+    int have_normal = 0;
     for (Py_ssize_t k = 0; k < K; k++) {
         const double *ck = cos_beta + k * V, *sk = sin_beta + k * V;
-        double cb = ck[i0] + t * (ck[i0 + 1] - ck[i0]);
-        double sb = sk[i0] + t * (sk[i0 + 1] - sk[i0]), d[3];
-        for (int j = 0; j < 3; j++) d[j] = cb * nn[j] + sb * tg[j];
-        /* θ = acos(d_y / |d|) = atan2(|d_xz|, d_y); a zero d is the zenith (θ = 0) */
-        double theta = fast_atan2(sqrt(d[0] * d[0] + d[2] * d[2]), d[1]);
-        double phi = fast_atan2(d[0], -d[2]);
-        if (phi < 0.0) phi += 2.0 * M_PI;
-        if (phi >= 2.0 * M_PI) phi = 0.0;
+        double theta, phi;
+        if (at_normal[k] && have_normal) {           /* a diffuse body: its axis is N */
+            theta = theta_n;
+            phi = phi_n;
+        } else {
+            double cb = ck[i0] + t * (ck[i0 + 1] - ck[i0]);
+            double sb = sk[i0] + t * (sk[i0 + 1] - sk[i0]), d[3];
+            for (int j = 0; j < 3; j++) d[j] = cb * nn[j] + sb * tg[j];
+            /* θ = acos(d_y / |d|) = atan2(|d_xz|, d_y); a zero d is the zenith (θ = 0) */
+            theta = fast_atan2(sqrt(d[0] * d[0] + d[2] * d[2]), d[1]);
+            phi = fast_atan2(d[0], -d[2]);
+            if (phi < 0.0) phi += 2.0 * M_PI;
+            if (phi >= 2.0 * M_PI) phi = 0.0;
+            if (at_normal[k]) { theta_n = theta; phi_n = phi; have_normal = 1; }
+        }
         const double *w0 = weights + (k * V + i0) * L, *w1 = w0 + L;
         double p[3] = {0.0, 0.0, 0.0}, rgb[3];
         for (int64_t u = 0; u < n_used[k]; u++) {  /* the levels lobe k mixes somewhere */
@@ -149,6 +159,7 @@ static PyObject *run(PyObject *self, PyObject *args) {
     Py_buffer bmaps[MAX_LEVELS];
     Map maps[MAX_LEVELS];
     int64_t used[MAX_LEVELS * MAX_LOBES], n_used[MAX_LOBES];
+    int at_normal[MAX_LOBES];                        /* β = 0 at every view: the axis is N */
     Py_ssize_t got = 0;
     PyObject *result = NULL;
     if (L > MAX_LEVELS || K > MAX_LOBES
@@ -168,6 +179,9 @@ static PyObject *run(PyObject *self, PyObject *args) {
     }
     for (Py_ssize_t k = 0; k < K; k++) {             /* per lobe, the levels it ever mixes */
         const double *wk = (const double *)bw.buf + k * V * L;
+        const double *sk = (const double *)bsb.buf + k * V;
+        at_normal[k] = 1;
+        for (Py_ssize_t r = 0; r < V; r++) at_normal[k] &= fabs(sk[r]) <= 1e-12;
         n_used[k] = 0;
         for (Py_ssize_t l = 0; l < L; l++) {
             int any = 0;
@@ -192,7 +206,8 @@ static PyObject *run(PyObject *self, PyObject *args) {
         double *out = bout.buf;
         Py_BEGIN_ALLOW_THREADS
         for (Py_ssize_t i = 0; i < n; i++)
-            pixel(nn + 3 * i, vv + 3 * i, deg, V, first, cb, sb, w, mat, K, maps, used, n_used, L, C,
+            pixel(nn + 3 * i, vv + 3 * i, deg, V, first, cb, sb, w, mat, K, maps, used, n_used,
+                  at_normal, L, C,
                   out + C * i);
         Py_END_ALLOW_THREADS
     }
