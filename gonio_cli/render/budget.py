@@ -53,7 +53,8 @@ def memory_estimate(scene: Scene, spectra: bool = False) -> int:
     cam, ssaa = scene.camera, scene.output.ssaa
     samples = cam.width * cam.height * ssaa ** 2
     return (gbuffer_bytes(cam.height, cam.width, ssaa, uv=scene.needs_uvs,
-                          position=needs_positions(scene), facet=shadowing_lights(scene) > 0)
+                          position=needs_positions(scene),
+                          facet=shadowing_lights(scene) > 0 or occludes(scene))
             + samples * SHADE_BYTES_PER_SAMPLE + cam.width * cam.height * OUTPUT_BYTES_PER_PIXEL
             + mesh_triangles(scene) * MESH_BYTES_PER_TRIANGLE + shadow_bytes(scene)
             + (spectral_image_bytes(scene) if spectra else 0))
@@ -131,10 +132,16 @@ def check_memory(scene: Scene, spectra: bool = False) -> int:
 
 
 def needs_positions(scene: Scene, shadows: bool | None = None) -> bool:
-    """World positions are read only by point lights and by shadows (``shadows``: whether
-    maps will be made; None: whether any light casts shadows)."""
-    shadows = shadowing_lights(scene) > 0 if shadows is None else shadows
+    """World positions are read only by point lights, by shadows and by the occlusion of
+    the environment (``shadows``: whether maps will be made; None: whether any light
+    casts shadows or the environment is occluded)."""
+    shadows = shadowing_lights(scene) > 0 or occludes(scene) if shadows is None else shadows
     return shadows or any(light.kind == "point" for light in scene.lights)
+
+
+def occludes(scene: Scene) -> bool:
+    """Whether the scene's meshes occlude its environment (``[environment] occlusion``)."""
+    return scene.environment is not None and scene.environment.occlusion > 0
 
 
 def shadowing_lights(scene: Scene) -> int:
