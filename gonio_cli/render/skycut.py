@@ -14,7 +14,8 @@ small ones. K need not be a power of two: the brightest region is cut next.
 Which map: the environment's residual (``gonio prefilter --sun`` has taken the sun out
 as a light of its own, which casts its own shadow), read at the level of the chain with
 the fewest texels and, among those, the sharpest exponent (quarry_01's chain: E = 64 on
-128 × 64, lobes ~10° wide, finer than any region of K ≤ 64 (≥ 0.2 sr each, ~30° across).
+128 × 64: lobes ~10° wide, finer than the regions of K ≤ 64, ~0.2 sr and ~30° across
+or more). Without ``--sun`` the map keeps its sun, and the cut puts regions round it.
 """
 
 from __future__ import annotations
