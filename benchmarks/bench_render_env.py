@@ -21,7 +21,8 @@ Then the sun's shadow: the same sphere on a grey Lambertian floor (y = −1) und
 seen from above, gonio (``--chain --sun``: the sun a shadowing light) against Mitsuba (the
 whole map, the sun in it): where the floor lies in the sphere's geometric umbra (the ray
 to the sun passes within 0.9 of the centre) and where it is sunlit (beyond 1.1), each
-renderer's mean luminance, their ratio, and the umbra's share of the lit floor's.
+renderer's mean luminance, their ratio, and the umbra's share of the lit floor's; and the
+time of gonio's occlusion of the sky (``[environment] occlusion``, on by default) in it.
 """
 
 from __future__ import annotations
@@ -131,6 +132,30 @@ def sun_shadow(paint: Path, work: Path, spp: int) -> None:
               f"umbra / lit {y[umbra].mean() / y[lit].mean():.3f}")
     print(f"umbra Y gonio / Mitsuba {y_g[umbra].mean() / y_m[umbra].mean():.3f}; lit floor "
           f"{y_g[lit].mean() / y_m[lit].mean():.3f}")
+    occlusion_cost(folder)
+
+
+def occlusion_cost(folder: Path) -> None:
+    """The occlusion of the sky by the sphere and the floor in that render: its stage's
+    time (best of 3 warm ``gonio render`` processes' run reports) beside the frame's, and
+    its counts."""
+    scene = folder / "gonio.toml"
+    args = [process.gonio_command(), "-q", "render", str(scene), "-o",
+            str(folder / "timed.png"), "--report", str(folder / "timed.json")]
+    process.run_measured(args)
+    best = None
+    for _ in range(3):
+        process.run_measured(args)
+        report = json.loads((folder / "timed.json").read_text())
+        stages = {s["stage"]: s["time_s"] for s in report["stages"]}
+        if best is None or stages.get("occlusion", 0.0) < best[0].get("occlusion", 0.0):
+            best = (stages, report)
+    stages, report = best
+    counts = report["counts"].get("occlusion", {})
+    print(f"occlusion {stages.get('occlusion', 0.0) * 1e3:.0f} ms of a frame of "
+          f"{report['frame_time_s'] * 1e3:.0f} ms (shadows {stages.get('shadows', 0.0) * 1e3:.0f}"
+          f" ms); {counts.get('directions')} directions, {counts.get('nodes')} nodes, "
+          f"{counts.get('own_samples')} samples computed on their own")
 
 
 def main() -> None:

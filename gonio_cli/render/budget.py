@@ -44,7 +44,8 @@ def memory_estimate(scene: Scene, spectra: bool = False) -> int:
     """Peak bytes of a frame's buffers (:func:`render_scene`), as if every sample were
     covered: the compact float32 G-buffer with its keys and indices
     (:func:`gonio_cli.render.raster.gbuffer_bytes`), the shaded rows, the supersampled
-    image of the resolve and the output images, the shadows (:func:`shadow_bytes`); with
+    image of the resolve and the output images, the shadows (:func:`shadow_bytes`), the
+    occlusion of the environment (:data:`OCCLUSION_BYTES_PER_SAMPLE`); with
     ``spectra``, plus :func:`spectral_image_bytes`. Built-in meshes count
     :data:`MESH_BYTES_PER_TRIANGLE` (:func:`mesh_triangles`); OBJ files and materials are
     not counted."""
@@ -53,12 +54,18 @@ def memory_estimate(scene: Scene, spectra: bool = False) -> int:
     cam, ssaa = scene.camera, scene.output.ssaa
     samples = cam.width * cam.height * ssaa ** 2
     return (gbuffer_bytes(cam.height, cam.width, ssaa, uv=scene.needs_uvs,
-                          position=needs_positions(scene), facet=shadowing_lights(scene) > 0)
+                          position=needs_positions(scene),
+                          facet=shadowing_lights(scene) > 0 or occludes(scene))
             + samples * SHADE_BYTES_PER_SAMPLE + cam.width * cam.height * OUTPUT_BYTES_PER_PIXEL
             + mesh_triangles(scene) * MESH_BYTES_PER_TRIANGLE + shadow_bytes(scene)
+            + (samples * OCCLUSION_BYTES_PER_SAMPLE if occludes(scene) else 0)
             + (spectral_image_bytes(scene) if spectra else 0))
 
 
+#: Bytes per sample of the occlusion of the environment (:mod:`.occlusion`): its four
+#: nodes (int32) and their weights (float32) while V is carried to the samples, and V
+#: (float32) kept for the shading.
+OCCLUSION_BYTES_PER_SAMPLE = 4 * 4 + 4 * 4 + 4
 #: Bytes per sample and shadowing light: its visibility (float32), kept for the shading.
 SHADOW_BYTES_PER_SAMPLE = 4
 #: Bytes per texel of a shadow map while it is used: the float32 map, its two bounds and
@@ -131,10 +138,16 @@ def check_memory(scene: Scene, spectra: bool = False) -> int:
 
 
 def needs_positions(scene: Scene, shadows: bool | None = None) -> bool:
-    """World positions are read only by point lights and by shadows (``shadows``: whether
-    maps will be made; None: whether any light casts shadows)."""
-    shadows = shadowing_lights(scene) > 0 if shadows is None else shadows
+    """World positions are read only by point lights, by shadows and by the occlusion of
+    the environment (``shadows``: whether maps will be made; None: whether any light
+    casts shadows or the environment is occluded)."""
+    shadows = shadowing_lights(scene) > 0 or occludes(scene) if shadows is None else shadows
     return shadows or any(light.kind == "point" for light in scene.lights)
+
+
+def occludes(scene: Scene) -> bool:
+    """Whether the scene's meshes occlude its environment (``[environment] occlusion``)."""
+    return scene.environment is not None and scene.environment.occlusion > 0
 
 
 def shadowing_lights(scene: Scene) -> int:

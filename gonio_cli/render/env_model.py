@@ -31,8 +31,10 @@ material's directional albedo, exactly (the furnace test, ``tests/test_env_model
 
 What it misses: a lobe is taken as round about d_k (a microfacet lobe seen at grazing
 angles is stretched vertically); the environment below the surface's tangent plane
-leaks into lobes near the horizon; no occlusion of the sky by the scene. Tables are per
-material and view angle (:data:`VIEW_ANGLES_DEG`), linear in θv between them.
+leaks into lobes near the horizon; the scene occludes the sky of the diffuse lobes only
+(:func:`surface_environment_xyz`'s ``visibility``, :mod:`gonio_cli.render.occlusion`).
+Tables are per material and view angle (:data:`VIEW_ANGLES_DEG`), linear in θv between
+them.
 """
 
 from __future__ import annotations
@@ -419,22 +421,45 @@ def _next(values: np.ndarray, i0: np.ndarray) -> np.ndarray:
     return values[np.minimum(i0 + 1, len(values) - 1)]
 
 
+def _occluded_model_xyz(environment, tables: list[LobeTable], normal, view, wavelength_nm,
+                        observer, visibility) -> np.ndarray:
+    """:func:`model_environment_xyz` with the light of the diffuse lobes times
+    ``visibility`` (n,) (the share of the irradiance the scene lets through,
+    :mod:`gonio_cli.render.occlusion`), the glossy lobes as they are; None: unoccluded."""
+    diffuse = [t for t in tables if t.kind == DIFFUSE]
+    if visibility is None or not diffuse:
+        return model_environment_xyz(environment, tables, normal, view, wavelength_nm,
+                                     observer)
+    out = np.asarray(visibility, float)[:, None] * model_environment_xyz(
+        environment, diffuse, normal, view, wavelength_nm, observer)
+    glossy = [t for t in tables if t.kind != DIFFUSE]
+    if glossy:
+        out += model_environment_xyz(environment, glossy, normal, view, wavelength_nm,
+                                     observer)
+    return out
+
+
 def surface_environment_xyz(environment, surface, where: str, normal: np.ndarray,
                             view: np.ndarray, cov: np.ndarray | None, wavelength_nm,
-                            observer: np.ndarray | None = None) -> np.ndarray:
+                            observer: np.ndarray | None = None,
+                            visibility: np.ndarray | None = None) -> np.ndarray:
     """Environment light (n, C) of one object (a :class:`gonio_cli.render.shade.Surface`)
     by its method: its model's lobes (``env_tables``, :func:`model_environment_xyz`) or
     seed 001's lobe weights (``lobes``, :func:`~.environment.environment_xyz`); a printed
     object's inks weighted by their coverage ``cov`` (n, 3), and its substrate's Phong
-    term (:func:`~.environment.substrate_environment_xyz`) by what they leave bare."""
+    term (:func:`~.environment.substrate_environment_xyz`) by what they leave bare.
+    ``visibility`` (n,) or None: the share of each pixel's diffuse irradiance the scene
+    lets through (:mod:`gonio_cli.render.occlusion`), applied to the diffuse lobes only
+    (the model's Lambertian bodies, seed 001's K_D, the substrate's kd)."""
     from ..schemas import Lobes
     from .environment import environment_xyz, substrate_environment_xyz
 
-    def one(j: int, n, v):
+    def one(j: int, n, v, vis=visibility):
         if surface.env_method == "model":
-            return model_environment_xyz(environment, surface.env_tables[j], n, v,
-                                         wavelength_nm, observer)
-        return environment_xyz(environment, lobes[j], n, v, wavelength_nm, observer)
+            return _occluded_model_xyz(environment, surface.env_tables[j], n, v,
+                                       wavelength_nm, observer, vis)
+        return environment_xyz(environment, lobes[j], n, v, wavelength_nm, observer,
+                               diffuse_scale=vis)
 
     lobes = surface.lobes
     fix = "fit its lobe weights with gonio lobes fit and give them in the scene"
@@ -452,12 +477,14 @@ def surface_environment_xyz(environment, surface, where: str, normal: np.ndarray
     for j in range(3):
         sel = cov[:, j] > 0
         if np.any(sel):
-            out[sel] += cov[sel, j, None] * one(j, normal[sel], view[sel])
+            out[sel] += cov[sel, j, None] * one(j, normal[sel], view[sel],
+                                                None if visibility is None else visibility[sel])
     bare = np.clip(1.0 - cov.sum(axis=1), 0.0, 1.0)
     if surface.substrate is not None and np.any(bare > 0):
         sel = bare > 0
         out[sel] += bare[sel, None] * substrate_environment_xyz(
-            environment, surface.substrate, normal[sel], view[sel], wavelength_nm, observer)
+            environment, surface.substrate, normal[sel], view[sel], wavelength_nm, observer,
+            None if visibility is None else visibility[sel])
     return out
 
 

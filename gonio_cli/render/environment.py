@@ -319,7 +319,8 @@ def _mirror_of_view(view: np.ndarray, normal: np.ndarray, cos_v: np.ndarray) -> 
 
 def environment_xyz(environment: Environment, lobes: Lobes, normal: np.ndarray,
                     view: np.ndarray, wavelength_nm,
-                    observer: np.ndarray | None = None) -> np.ndarray:
+                    observer: np.ndarray | None = None,
+                    diffuse_scale: np.ndarray | None = None) -> np.ndarray:
     """XYZ of environment light reflected by a lobe-fitted material, seed 001 eqs. 7-9.
 
     Parameters
@@ -330,11 +331,12 @@ def environment_xyz(environment: Environment, lobes: Lobes, normal: np.ndarray,
     wavelength_nm : (n_λ,) the render's grid (for spectral weights).
     observer : (n_λ, C) or None, the channels' weights instead of cmf / Σ ȳ
         (:func:`channel_matrices`); the result then has C channels.
+    diffuse_scale : (n,) or None, a factor on the diffuse term (eq. 9) only: the share
+        of the irradiance the scene lets through (:mod:`.occlusion`).
 
     Returns
     -------
-    (n, 3) float64 XYZ, radiance units as :func:`gonio_cli.render.shade.shade`. No
-    occlusion of the environment by the scene (no shadows).
+    (n, 3) float64 XYZ, radiance units as :func:`gonio_cli.render.shade.shade`.
 
     Notes
     -----
@@ -383,7 +385,8 @@ def environment_xyz(environment: Environment, lobes: Lobes, normal: np.ndarray,
         cos_v = np.clip(np.einsum("ij,ij->i", nb, vb), 0.0, 1.0)
         i0, _, t = view_interpolation(cos_v, lobes.view_angle_deg)
         reflected = _mirror_of_view(vb, nb, cos_v)               # R, mirror of V about N
-        columns = [lookup(diffuse, nb)]                          # P_1(N), eq. 9
+        columns = [lookup(diffuse, nb) * (1.0 if diffuse_scale is None   # P_1(N), eq. 9
+                                          else np.asarray(diffuse_scale[b], float)[:, None])]
         for stack in stacks:
             p = lookup(stack, reflected)                         # P_E(R) of every lobe
             columns += [p, cos_v[:, None] * p]
@@ -398,8 +401,10 @@ def environment_xyz(environment: Environment, lobes: Lobes, normal: np.ndarray,
 
 def substrate_environment_xyz(environment: Environment, substrate: dict, normal: np.ndarray,
                               view: np.ndarray, wavelength_nm,
-                              observer: np.ndarray | None = None) -> np.ndarray:
-    """The Phong substrate of :mod:`.shade` under the environment: (n, 3) XYZ.
+                              observer: np.ndarray | None = None,
+                              diffuse_scale: np.ndarray | None = None) -> np.ndarray:
+    """The Phong substrate of :mod:`.shade` under the environment: (n, 3) XYZ; its kd
+    term times ``diffuse_scale`` (n,) if given (:mod:`.occlusion`).
 
     f cos θi = spectrum · (kd/π (L·N) + ks (n+2)/(2π) (L·N)(R_L·V)^n) is exactly a diffuse
     lobe K_D = kd/π and a directional-diffuse lobe of exponent n, so eqs. 7 and 9 apply.
@@ -413,6 +418,8 @@ def substrate_environment_xyz(environment: Environment, substrate: dict, normal:
     ks = float(substrate.get("ks", 0.0))
     n = float(substrate.get("shininess", 1.0))
     out = kd * (lookup(environment.diffuse, normal) @ m)
+    if diffuse_scale is not None:
+        out *= np.asarray(diffuse_scale, float)[:, None]
     if ks > 0:
         if environment.has(n):
             cos_v = np.clip(np.einsum("ij,ij->i", normal, view), 0.0, 1.0)

@@ -13,6 +13,9 @@ in the run report only if it ran ("leave out what the scene does not need"):
 ``rasterize``    the batched z-buffer at ssaa × the image size
 ``shadows``      shadow maps and the visibility of each light at each sample
                  (:mod:`.shadow`): only for lights with ``shadow = true`` (the default)
+``occlusion``    the share of the environment's diffuse light the meshes let through
+                 (:mod:`.occlusion`): only with an ``[environment]`` whose
+                 ``occlusion`` is not false; skipped (said so) for a convex solid
 ``shade``        spectral shading → XYZ (and ``shade.*`` sub-stages of :mod:`.shade`)
 ``spectra``      only with a spectral image: radiance per wavelength (:func:`.spectral_pass.spectral_radiance`)
 ``downsample``   box filter of the ssaa (:func:`resolve`), XYZ → linear sRGB (IEC matrix)
@@ -20,7 +23,8 @@ in the run report only if it ran ("leave out what the scene does not need"):
 ``tonemap``      exposure, tone map, sRGB encoding, 8 bits
 ``write_exr``, ``write_png``, ``write_spectral_exr``   the files (atomic)
 
-The frame time of the issue is rasterize + shadows + shade + downsample + tonemap; the
+The frame time of the issue is rasterize + shadows + occlusion + shade + downsample +
+tonemap; the
 total is scene loading to images written (the CLI measures it from before ``load_scene``).
 
 Writing the frame out (images, their metadata, the run report) is
@@ -52,7 +56,7 @@ from .spectral_pass import check_spectral_lobes, spectral_radiance
 from .scene import Scene
 
 #: Stages whose sum is the frame time (acceptance: rasterize, shadows, shade, tone map).
-FRAME_STAGES = ("rasterize", "shadows", "shade", "downsample", "tonemap")
+FRAME_STAGES = ("rasterize", "shadows", "occlusion", "shade", "downsample", "tonemap")
 
 
 @dataclass
@@ -376,7 +380,9 @@ def _render_steps(scene: Scene, stats: Stats, state: dict, spectra: bool = False
     # shadow maps unless no light casts shadows or the scene is one convex solid; the
     # lights are the scene's and the environment's sun (gonio prefilter --sun)
     lights = shading_lights(scene, environment)
-    maps = any(light.shadow for light in lights) and not lone_convex(meshes)
+    occlusion = environment is not None and scene.environment.occlusion > 0
+    maps = ((any(light.shadow for light in lights) or occlusion)
+            and not lone_convex(meshes))
     with Stage(stats, "rasterize"):
         # compact float32 rows of covered samples; texture coordinates only when a mask
         # or a sparkle texture will read them, positions only for point lights and
@@ -384,16 +390,13 @@ def _render_steps(scene: Scene, stats: Stats, state: dict, spectra: bool = False
         gbuffer = rasterize(scene.camera, meshes, ssaa, uv=scene.needs_uvs, compact=True,
                             dtype=np.float32, position=needs_positions(scene, maps),
                             facet=maps)
-    visibility = None
-    if any(light.shadow for light in lights):
-        from .shadow import shadow_visibility
-
-        visibility = shadow_visibility(lights, meshes, gbuffer, stats)
+    visibility, env_visibility = _visibilities(scene, lights, environment, meshes, gbuffer,
+                                               stats)
     del meshes
     yield "rasterize"
     t0 = time.perf_counter()
     rows = _shade_without_overflow(scene, gbuffer, surfaces, environment, lights, stats,
-                                   visibility)
+                                   visibility, env_visibility)
     stats.time_s.setdefault("shade", time.perf_counter() - t0)
     yield "shade"
     background = background_rgb(scene, environment)
@@ -401,7 +404,7 @@ def _render_steps(scene: Scene, stats: Stats, state: dict, spectra: bool = False
     if spectra:
         with Stage(stats, "spectra"):
             radiance = spectral_radiance(gbuffer, surfaces, scene, lights, environment,
-                                         visibility, background)
+                                         visibility, background, env_visibility)
         yield "spectra"
     object_id, pixels = gbuffer.object_id, gbuffer.pixels
     del gbuffer                                               # its rows are no longer needed
@@ -430,6 +433,27 @@ def _render_steps(scene: Scene, stats: Stats, state: dict, spectra: bool = False
     yield "tonemap"
 
 
+def _visibilities(scene: Scene, lights: list, environment, meshes: list, gbuffer,
+                  stats: Stats):
+    """Per light its shadows' visibility (:func:`.shadow.shadow_visibility`; None when no
+    light casts shadows) and the share of the environment's diffuse light the meshes let
+    through (:func:`.occlusion.occlusion_visibility`; None without an occluded
+    ``[environment]``)."""
+    visibility = env_visibility = None
+    if any(light.shadow for light in lights):
+        from .shadow import shadow_visibility
+
+        visibility = shadow_visibility(lights, meshes, gbuffer, stats)
+    if environment is not None and scene.environment.occlusion > 0:
+        from .occlusion import occlusion_visibility
+        from .skycut import environment_directions
+
+        env_visibility = occlusion_visibility(
+            environment_directions(environment, scene.environment.occlusion), meshes,
+            gbuffer, stats)
+    return visibility, env_visibility
+
+
 def scene_white(scene: Scene) -> np.ndarray | None:
     """The scene's white, XYZ (3,) with Y = 1: the lights' irradiance-weighted spectra
     (:func:`gonio_cli.render.tonemap.scene_white_xyz`); None without lights."""
@@ -439,7 +463,7 @@ def scene_white(scene: Scene) -> np.ndarray | None:
 
 
 def _shade_without_overflow(scene: Scene, gbuffer, surfaces, environment, lights: list,
-                            stats: Stats, visibility=None):
+                            stats: Stats, visibility=None, env_visibility=None):
     """``shade_rows`` in float32 under ``lights`` (:func:`.env_scene.shading_lights`); an
     overflow (light × reflectance beyond float32's 3.4e38,
     docs/conventions.md "Numeric ranges") is an error naming the scene, never black or
@@ -451,7 +475,8 @@ def _shade_without_overflow(scene: Scene, gbuffer, surfaces, environment, lights
         with np.errstate(over="raise"):
             return shade_rows(gbuffer, surfaces, lights, scene.grid_nm,
                               environment=environment, spectral=scene.output.spectral,
-                              stats=stats, dtype=np.float32, visibility=visibility)
+                              stats=stats, dtype=np.float32, visibility=visibility,
+                              env_visibility=env_visibility)
     except FloatingPointError:
         raise NumericError("shading overflowed float32 (a light's irradiance or intensity "
                            "times a material's reflectance is beyond 3.4e38)",

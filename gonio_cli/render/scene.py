@@ -23,7 +23,7 @@ Sections (see ``docs/render.md``)::
     [[light]]      type = "directional" (direction, irradiance, angular_diameter_deg) |
                    "point" (position, intensity, radius); spectrum = CIE name or CSV;
                    shadow = true | false; name
-    [environment]  prefiltered (a gonio prefilter index.json), method   (optional)
+    [environment]  prefiltered (a gonio prefilter index.json), method, occlusion (optional)
     [output]       exposure (stops), tonemap, adapt, ssaa, spectral, grid_nm, background
 
 The working spectral grid (:func:`choose_grid`): ``--grid-nm`` when given; else the
@@ -55,7 +55,7 @@ from ..errors import InputError
 from ..schemas import EXPONENT_RANGE, EXPOSURE_MAX_STOPS, MAX_MAGNITUDE
 from ..spectra import grid_spec
 from . import ENVIRONMENT_METHODS, POINT_LIGHT_RADIUS, SUN_ANGULAR_DIAMETER_DEG, Camera, Light
-from .scene_check import MIN_VECTOR_NORM, Checker, names_used, substitute
+from .scene_check import MIN_VECTOR_NORM, Checker, names_used, substitute, type_name
 from .scene_grid import choose_grid, spectral_ranges
 from .scene_types import (BUILTIN_MESHES, BUILTIN_PREFIX, Environment, Output, Scene,
                           SceneObject, Substrate)
@@ -82,7 +82,7 @@ LIGHT_TYPE_KEYS = {"directional": ("direction", "irradiance", "angular_diameter_
 #: modelled as seen through a small cone (tan(α/2) ≈ α/2 within 1 % up to 20°, and the
 #: filter is cut at :data:`gonio_cli.render.shadow.MAX_FILTER_TEXELS` anyway).
 MAX_ANGULAR_DIAMETER_DEG = 20.0
-ENVIRONMENT_KEYS = ("prefiltered", "method")
+ENVIRONMENT_KEYS = ("prefiltered", "method", "occlusion")
 OUTPUT_KEYS = ("exposure", "tonemap", "adapt", "ssaa", "spectral", "grid_nm", "background")
 TOP_KEYS = ("vars", "camera", "object", "light", "environment", "output")
 
@@ -174,7 +174,8 @@ def load_scene(path: str | os.PathLike, *, variables: Mapping[str, str] | None =
             chk.file(chk.required(env, "prefiltered", "[environment]"),
                      "[environment] prefiltered"),
             chk.choice(env.get("method", "auto"), "[environment] method",
-                       tuple(ENVIRONMENT_METHODS)))
+                       tuple(ENVIRONMENT_METHODS)),
+            _occlusion(chk, env.get("occlusion", True)))
     if isinstance(output.background, str) and environment is None:
         raise chk.error("[output] background", "is 'environment' but the scene has no "
                         "[environment]", fix="add an [environment] or give 3 numbers")
@@ -256,6 +257,20 @@ def _background(chk: Checker, out: dict, where: str, default):
         chk.choice(out["background"], f"{where} background", ("environment",))
         return "environment"
     return chk.vector(out["background"], f"{where} background")
+
+
+def _occlusion(chk: Checker, value) -> int:
+    """``[environment] occlusion``: true (:data:`~.occlusion.DEFAULT_DIRECTIONS` sky
+    regions), false (none: 0) or a number of regions in [1, :data:`~.occlusion.MAX_DIRECTIONS`]."""
+    from .occlusion import DEFAULT_DIRECTIONS, MAX_DIRECTIONS
+
+    if isinstance(value, bool):
+        return DEFAULT_DIRECTIONS if value else 0
+    if not isinstance(value, int):
+        raise chk.error("[environment] occlusion", f"{value!r} is a {type_name(value)}, "
+                        "expected true, false or a number of directions",
+                        fix=f"use true, false or an integer in [1, {MAX_DIRECTIONS}]")
+    return chk.integer(value, "[environment] occlusion", lo=1, hi=MAX_DIRECTIONS)
 
 
 def _object(chk: Checker, raw, number: int) -> SceneObject:

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from . import Camera, Light
+from .occlusion import DEFAULT_DIRECTIONS
 
 #: Built-in meshes (``mesh = "builtin:NAME"``); anything else is an OBJ path.
 #: Options after "?" (``builtin:sphere?segments=48``) are checked by :mod:`.mesh`.
@@ -79,10 +80,13 @@ class SceneObject:
 @dataclass
 class Environment:
     """Prefiltered environment light: a ``gonio prefilter`` index.json (its maps hold
-    linear sRGB radiance; brightness is set by ``[output] exposure``)."""
+    linear sRGB radiance; brightness is set by ``[output] exposure``). ``occlusion``:
+    the directions (sky regions) of its occlusion by the scene's meshes
+    (:mod:`gonio_cli.render.occlusion`), 0 for none."""
 
     prefiltered: Path
     method: str = "auto"
+    occlusion: int = DEFAULT_DIRECTIONS
 
 
 @dataclass

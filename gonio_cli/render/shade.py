@@ -9,7 +9,9 @@ and S the light's spectrum (Σ S ȳ / Σ ȳ = 1). Shadows enter as a visibility 
 per sample and light (:mod:`.shadow`, computed by the pipeline before this stage):
 E cos θi becomes V E cos θi in every term a light feeds — each material path, the inks
 and substrate of a print, and the sparkles. Without a visibility (``visibility=None``,
-or None for a light) every light reaches every pixel whose normal faces it.
+or None for a light) every light reaches every pixel whose normal faces it. The
+environment's diffuse light is multiplied by its own visibility (``env_visibility``,
+:mod:`.occlusion`).
 
 Two spectral paths (``spectral=``):
 
@@ -186,11 +188,11 @@ class _Pixels:
 
 def shade(gbuffer: GBuffer, surfaces: Sequence[Surface], lights: Sequence[Light],
           wavelength_nm, environment=None, spectral: str = "table",
-          stats: Stats | None = None, visibility=None) -> np.ndarray:
+          stats: Stats | None = None, visibility=None, env_visibility=None) -> np.ndarray:
     """XYZ of every pixel of the GBuffer as an (H, W, 3) float64 image (background 0):
     :func:`shade_rows` (its parameters), placed into the image."""
     rows = shade_rows(gbuffer, surfaces, lights, wavelength_nm, environment, spectral, stats,
-                      visibility=visibility)
+                      visibility=visibility, env_visibility=env_visibility)
     h, w = gbuffer.object_id.shape
     if gbuffer.pixels is None:
         return rows.reshape(h, w, 3)
@@ -202,7 +204,8 @@ def shade(gbuffer: GBuffer, surfaces: Sequence[Surface], lights: Sequence[Light]
 def shade_rows(gbuffer: GBuffer, surfaces: Sequence[Surface], lights: Sequence[Light],
                wavelength_nm, environment=None, spectral: str = "table",
                stats: Stats | None = None, dtype=np.float64,
-               observer: np.ndarray | None = None, visibility=None) -> np.ndarray:
+               observer: np.ndarray | None = None, visibility=None,
+               env_visibility=None) -> np.ndarray:
     """XYZ of every pixel of the GBuffer (docs/conventions.md: XYZ = Σλ L cmf / Σλ ȳ).
 
     Parameters
@@ -224,6 +227,10 @@ def shade_rows(gbuffer: GBuffer, surfaces: Sequence[Surface], lights: Sequence[L
     visibility : None (no shadows) or one entry per light: None (unshadowed) or (rows,)
         the fraction of the light that reaches each row's sample, in [0, 1]
         (:func:`gonio_cli.render.shadow.shadow_visibility`).
+    env_visibility : None (no occlusion of the environment) or (rows,) the share of each
+        row's diffuse environment irradiance the scene lets through, in [0, 1]
+        (:func:`gonio_cli.render.occlusion.occlusion_visibility`), applied to the
+        environment light of diffuse lobes.
 
     Returns
     -------
@@ -276,6 +283,8 @@ def shade_rows(gbuffer: GBuffer, surfaces: Sequence[Surface], lights: Sequence[L
         for li, vis in enumerate(visibility):          # per light, (rows,) or None
             if vis is not None:
                 flat[f"visibility{li}"] = np.asarray(vis).reshape(-1)
+    if env_visibility is not None:
+        flat["env_visibility"] = np.asarray(env_visibility).reshape(-1)
     if flat["position"] is None and any(L.kind == "point" for L in lights):
         raise InputError("point lights need the G-buffer's positions",
                          fix="rasterize with position=True")
@@ -461,5 +470,6 @@ def _environment_term(environment, surface: Surface, k: int, px: _Pixels,
     from .env_model import surface_environment_xyz
 
     where = f"object {k}" + (f" ({surface.name})" if surface.name else "")
+    vis = px.get("env_visibility") if "env_visibility" in px.flat else None
     return surface_environment_xyz(environment, surface, where, px.get("normal"),
-                                   px.get("view"), cov, wl, observer)
+                                   px.get("view"), cov, wl, observer, vis)

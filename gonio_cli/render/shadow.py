@@ -199,9 +199,10 @@ def _filter(view: View, x, y, d, gx, gy, bias, kernel, radius) -> np.ndarray:
     return (top + v * (bottom - top)).mean(axis=1)
 
 
-def _visibility(view: View, q: np.ndarray, n: np.ndarray):
+def _visibility(view: View, q: np.ndarray, n: np.ndarray, window_test: bool = True):
     """Visibility (m,) float32 of lit samples q (3, m) in the map's frame on facets of
-    normal n (3, m), float32, on one map; and how many needed the filter."""
+    normal n (3, m), float32, on one map; and how many needed the filter (all of them
+    without ``window_test``: :func:`light_visibility`)."""
     f32 = np.float32
     x, y, d, gx, gy, t, d0, kernel = view.project(q, n)
     bias = t * f32(BIAS_SLOPE_TEXELS)
@@ -228,7 +229,8 @@ def _visibility(view: View, q: np.ndarray, n: np.ndarray):
     top += bias
     lo = view.lo.reshape(-1).take(idx, mode="clip")
     hi = view.hi.reshape(-1).take(idx, mode="clip")
-    edge = np.flatnonzero(np.where(centre, lo <= top, hi > top))
+    edge = (np.flatnonzero(np.where(centre, lo <= top, hi > top)) if window_test
+            else np.arange(d.size))
     vis = np.where(centre, f32(0), f32(1))
     if edge.size:
         kernel = np.broadcast_to(kernel, d.shape)[edge].astype(np.float64)
@@ -242,12 +244,17 @@ def _visibility(view: View, q: np.ndarray, n: np.ndarray):
     return vis, edge.size
 
 
-def light_visibility(light: Light, meshes: list[Mesh], p: np.ndarray, n: np.ndarray):
+def light_visibility(light: Light, meshes: list[Mesh], p: np.ndarray, n: np.ndarray,
+                     window_test: bool = True):
     """Visibility (m,) float32 of lit samples p (3, m) float32 on facets of normal n
     (3, m) from one light, and counts: the maps' sizes and the samples that needed the
-    filter."""
+    filter. ``window_test`` False runs the filter at every sample: the one-texel test
+    (module docstring) takes the receiver's plane at its highest over the widest window,
+    which for a wide light (a region of the sky, :mod:`.occlusion`) at oblique incidence
+    rises above blockers whose penumbra does reach the sample; a directional map then
+    skips its local bounds (the filter's blocker search starts from the whole map's)."""
     if light.kind == "directional":
-        views = [(slice(None), directional_view(light, p, meshes))]
+        views = [(slice(None), directional_view(light, p, meshes, local=window_test))]
     else:
         views = point_views(light, p, meshes)
     vis = np.empty(p.shape[1], np.float32)
@@ -258,7 +265,7 @@ def light_visibility(light: Light, meshes: list[Mesh], p: np.ndarray, n: np.ndar
         vs = np.empty(q.shape[1], np.float32)
         for start in range(0, q.shape[1], BLOCK):
             b = slice(start, start + BLOCK)
-            vs[b], n_edge = _visibility(view, q[:, b], ns[:, b])
+            vs[b], n_edge = _visibility(view, q[:, b], ns[:, b], window_test)
             filtered += n_edge
         vis[sel] = vs
     return vis, {"maps": [list(v.depth.shape[::-1]) for _, (v, _) in views],

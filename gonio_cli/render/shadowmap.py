@@ -18,6 +18,7 @@ one, so the stage can skip its maps (the output is the same, tests/test_render_s
 
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -137,31 +138,65 @@ class View:
         return _rotate(self.basis, p - self.origin.astype(p.dtype)[:, None])
 
 
-def _make_view(depth, front, samples_d_min, kernel_max, cap, **fields) -> View:
+def _make_view(depth, front, samples_d_min, kernel_max, cap, local: bool = True,
+               **fields) -> View:
     """A :class:`View` with its bounds over the widest filter its samples can ask for:
     the nearest surface in the map in front of the farthest sample (radius ``widest``,
     at most ``cap`` texels: the map's margin beyond the samples). Its taps read texels
     up to widest + s + ½ from the sample (s ≤ max(1, widest / 8): the texel of the
-    filter's bilinear taps, :mod:`.shadow`; ½: the sample anywhere in its own texel)."""
+    filter's bilinear taps, :mod:`.shadow`; ½: the sample anywhere in its own texel).
+    Without ``local`` the bounds are the whole map's ((1, 1) arrays, which a clipped
+    lookup reads at every texel): for lookups that filter every sample anyway."""
     nearest = float(front.max())                     # −inf where empty: never a blocker
     nearest = nearest if np.isfinite(nearest) else samples_d_min
     widest = max(min(kernel_max * (nearest - samples_d_min), cap), MIN_FILTER_TEXELS)
     reach = int(np.ceil(widest + max(1.0, widest / 8.0) + 0.5))
+    if not local:
+        return View(depth, front, np.full((1, 1), depth.min(), np.float32),
+                    np.full((1, 1), front.max(), np.float32), reach, widest, **fields)
     return View(depth, front, dilate(depth, reach, np.minimum),
                 dilate(front, reach, np.maximum), reach, widest, **fields)
 
 
+#: Meshes of at most this many faces keep their caster blocks (:func:`_mesh_blocks`,
+#: ~100 bytes a face) while they live: the occlusion of the environment
+#: (:mod:`.occlusion`) renders a map of the same meshes for each of its directions.
+KEEP_CASTERS_MAX_FACES = CASTER_BLOCK
+
+_KEPT: dict[int, tuple[weakref.ref, list]] = {}
+
+
+def _mesh_blocks(m: Mesh) -> list:
+    """A mesh's triangles in blocks of (corners (3 corners, 3, t) world float64, their
+    face normals (3, t) unnormalised, e1 × e2: outwards on a closed mesh); kept per mesh
+    object up to :data:`KEEP_CASTERS_MAX_FACES` faces (the mesh is not changed in place
+    after loading)."""
+    kept = _KEPT.get(id(m))
+    if kept is not None and kept[0]() is m:
+        return kept[1]
+    vt = np.ascontiguousarray(np.asarray(m.vertices, np.float64).T)         # (3, V)
+    faces = np.asarray(m.faces, np.int64)
+    blocks = []
+    for start in range(0, len(faces), CASTER_BLOCK):
+        f = faces[start:start + CASTER_BLOCK].T                        # (3 corners, t)
+        c = np.stack([np.stack([vt[k][f[j]] for k in range(3)]) for j in range(3)])
+        e1, e2 = c[1] - c[0], c[2] - c[0]
+        blocks.append((c, np.stack([e1[1] * e2[2] - e1[2] * e2[1],
+                                    e1[2] * e2[0] - e1[0] * e2[2],
+                                    e1[0] * e2[1] - e1[1] * e2[0]])))
+    if len(faces) <= KEEP_CASTERS_MAX_FACES:
+        for key in [k for k, (ref, _) in _KEPT.items() if ref() is None]:
+            del _KEPT[key]                                        # meshes since freed
+        _KEPT[id(m)] = (weakref.ref(m), blocks)
+    return blocks
+
+
 def _casters(meshes: list[Mesh], closed: bool):
     """The triangles of the open (``closed`` False) or of the closed meshes, in blocks
-    of corners (3 corners, 3, t) world float64."""
+    of (corners (3 corners, 3, t) world float64, face normals (3, t)): :func:`_mesh_blocks`."""
     for m in meshes:
-        if bool(m.closed) != closed:
-            continue
-        vt = np.ascontiguousarray(np.asarray(m.vertices, np.float64).T)     # (3, V)
-        faces = np.asarray(m.faces, np.int64)
-        for start in range(0, len(faces), CASTER_BLOCK):
-            f = faces[start:start + CASTER_BLOCK].T                    # (3 corners, t)
-            yield np.stack([np.stack([vt[c][f[k]] for c in range(3)]) for k in range(3)])
+        if bool(m.closed) == closed:
+            yield from _mesh_blocks(m)
 
 
 def render_maps(meshes: list[Mesh], towards, project, width: int, height: int):
@@ -171,14 +206,12 @@ def render_maps(meshes: list[Mesh], towards, project, width: int, height: int):
     ``towards(corner0 (3, t))`` is the direction to the light ((3,) or (3, t)),
     ``project(corners (3, 3, t))`` gives the rasterizer's X, Y, D (module :mod:`.depthmap`)."""
     depth = empty_map(width, height)
-    for c in _casters(meshes, closed=False):
+    for c, _ in _casters(meshes, closed=False):
         rasterize_depth(*project(c), depth)
     front = depth.copy()
-    for c in _casters(meshes, closed=True):
-        e1, e2 = c[1] - c[0], c[2] - c[0]
+    for c, normal in _casters(meshes, closed=True):
         t = np.asarray(towards(c[0])).reshape(3, -1)
-        away = ((e1[1] * e2[2] - e1[2] * e2[1]) * t[0] + (e1[2] * e2[0] - e1[0] * e2[2]) * t[1]
-                + (e1[0] * e2[1] - e1[1] * e2[0]) * t[2]) < 0
+        away = (normal[0] * t[0] + normal[1] * t[1] + normal[2] * t[2]) < 0
         rasterize_depth(*project(c[:, :, away]), depth)
         rasterize_depth(*project(c[:, :, ~away]), front)
     # from inside a closed mesh (a lamp in a room) its far side can be the nearest
@@ -223,9 +256,9 @@ def _box_corners(meshes: list[Mesh]) -> np.ndarray:
     return np.asarray(out, np.float64).reshape(-1, 3).T
 
 
-def directional_view(light: Light, p: np.ndarray, meshes: list[Mesh]):
+def directional_view(light: Light, p: np.ndarray, meshes: list[Mesh], local: bool = True):
     """The orthographic map of a directional light over lit samples ``p`` (3, m): the
-    :class:`View` and the samples in its frame (3, m)."""
+    :class:`View` and the samples in its frame (3, m); ``local``: as :func:`_make_view`."""
     L = np.asarray(light.direction, np.float64)
     L = L / np.linalg.norm(L)
     basis = _light_basis(-L)
@@ -242,7 +275,7 @@ def directional_view(light: Light, p: np.ndarray, meshes: list[Mesh]):
 
     depth, front = render_maps(meshes, lambda c0: L, project, w, h)
     return _make_view(depth, front, 0.0, scale * tan_half,
-                      reach * scale + MIN_FILTER_TEXELS, basis=basis, origin=np.zeros(3),
+                      reach * scale + MIN_FILTER_TEXELS, local, basis=basis, origin=np.zeros(3),
                       perspective=False, scale=scale, x0=x0, y1=y1, far=far,
                       kernel=scale * tan_half), q
 

@@ -31,7 +31,8 @@ def check_spectral_lobes(scene: Scene, surfaces: list) -> None:
 
 
 def spectral_radiance(gbuffer, surfaces: list, scene: Scene, lights: list, environment=None,
-                      visibility=None, background: np.ndarray | None = None) -> np.ndarray:
+                      visibility=None, background: np.ndarray | None = None,
+                      env_visibility=None) -> np.ndarray:
     """The spectral radiance image (H, W, n_λ) float32 on the working grid, under
     ``lights`` (the frame's: :func:`.env_scene.shading_lights`) with the frame's
     ``background`` (linear sRGB, :func:`.env_scene.background_rgb`) or None.
@@ -44,7 +45,8 @@ def spectral_radiance(gbuffer, surfaces: list, scene: Scene, lights: list, envir
     (``--spectral``): the goniochromatic table then holds one column per wavelength (a
     per-band table, same tolerance), the others are exact per wavelength. Σλ L cmf / Σ ȳ
     of the result is the frame's XYZ to the tables' tolerance (1e-5 relative), with the
-    same shadows (``visibility``, :func:`gonio_cli.render.shadow.shadow_visibility`).
+    same shadows (``visibility``, :func:`gonio_cli.render.shadow.shadow_visibility`) and
+    occlusion of the environment (``env_visibility``, :mod:`.occlusion`).
     Background pixels hold the background's spectrum (docs/conventions.md's RGB →
     spectrum) times the uncovered fraction, as the colour image does.
     """
@@ -58,7 +60,8 @@ def spectral_radiance(gbuffer, surfaces: list, scene: Scene, lights: list, envir
     for start in range(0, n, step):
         rows = shade_rows(gbuffer, surfaces, lights, wl, environment=environment,
                           spectral=scene.output.spectral, dtype=np.float32,
-                          observer=identity[:, start:start + step], visibility=visibility)
+                          observer=identity[:, start:start + step], visibility=visibility,
+                          env_visibility=env_visibility)
         band, coverage = resolve(rows, gbuffer.pixels, gbuffer.object_id, ssaa, scene.display)
         del rows
         out[..., start:start + step] = band
