@@ -131,10 +131,11 @@ def check_memory(scene: Scene, spectra: bool = False) -> int:
 
 
 def needs_positions(scene: Scene, shadows: bool | None = None) -> bool:
-    """World positions are read only by point lights and by shadows (``shadows``: whether
+    """World positions are read only by point lights, glints and by shadows (``shadows``: whether
     maps will be made; None: whether any light casts shadows)."""
     shadows = shadowing_lights(scene) > 0 if shadows is None else shadows
-    return shadows or any(light.kind == "point" for light in scene.lights)
+    return (shadows or any(light.kind == "point" for light in scene.lights)
+            or any(o.glint_density is not None for o in scene.objects))
 
 
 def shadowing_lights(scene: Scene) -> int:

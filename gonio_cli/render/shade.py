@@ -241,6 +241,7 @@ def shade_rows(gbuffer: GBuffer, surfaces: Sequence[Surface], lights: Sequence[L
                               "environment_pixels": 0}
     env_time = 0.0
     sparkle_time = 0.0
+    glint_time = 0.0
     weights_of: dict[bytes, np.ndarray] = {}
 
     def light_weights(light: Light) -> np.ndarray:
@@ -346,6 +347,16 @@ def shade_rows(gbuffer: GBuffer, surfaces: Sequence[Surface], lights: Sequence[L
                                    light_weights, wl, counts, channels)
             sparkle_time += time.perf_counter() - t0
 
+        if surface.glint is not None:
+            from .glint_term import glint_xyz
+
+            t0 = time.perf_counter()
+            if "glint_samples" not in counts:
+                counts.update(glint_samples=0, glint_flakes=0, glint_glints=0)
+            obj_xyz += glint_xyz(surface, f"object {k} ({surface.name})", index, flat,
+                                 lights, light_weights, wl, counts, channels)
+            glint_time += time.perf_counter() - t0
+
         if environment is not None:
             t0 = time.perf_counter()
             obj_xyz += _environment_term(environment, surface, k, px, cov, wl, observer)
@@ -360,6 +371,8 @@ def shade_rows(gbuffer: GBuffer, surfaces: Sequence[Surface], lights: Sequence[L
             stats.time_s["shade.environment"] = env_time
         if "sparkle_pixels" in counts:
             stats.time_s["shade.sparkle"] = sparkle_time
+        if "glint_samples" in counts:
+            stats.time_s["shade.glint"] = glint_time
         stats.counts["shade"] = counts
     return out
 
