@@ -257,15 +257,6 @@ def beckmann_d(cos_theta_h, m) -> np.ndarray:
     return np.exp(-tan2 / m2) / (m2 * ch ** 4)
 
 
-def beckmann_p22(slope_x, slope_y, m) -> np.ndarray:
-    """Seed 004 eq. (9) in slope space: the density of microfacet slopes
-    x̃ = (−n_x/n_z, −n_y/n_z), p22 = exp(−|x̃|²/m²) / (π m²) per unit slope², so that
-    D(h) / π = p22(x̃_h) / cos⁴θh (|x̃_h|² = tan²θh) and ∫ p22 d²x̃ = 1. Separable: a
-    Gaussian of variance m²/2 per axis (the glints' flakes, :mod:`gonio_cli.glint`)."""
-    m2 = np.asarray(m, dtype=float) ** 2
-    return np.exp(-(np.square(slope_x) + np.square(slope_y)) / m2) / (np.pi * m2)
-
-
 def dlog_beckmann_dlog_m(cos_theta_h, m) -> np.ndarray:
     """∂ log D / ∂ log m of seed 004 eq. (9): 2 tan²θh / m² − 2. Shape as the broadcast
     of ``cos_theta_h[..., None]`` and ``m`` (as :func:`gonio_cli.brdf.beckmann_d`)."""

@@ -10,18 +10,22 @@ import numpy as np
 import pytest
 
 from gonio_cli import glint as G
-from gonio_cli.brdf import beckmann_p22, cook_torrance
+from gonio_cli.brdf import cook_torrance
+from gonio_cli.glint import beckmann_p22
 from gonio_cli.errors import InputError
 from gonio_cli.geometry import Cosines
 from gonio_cli.render import GBuffer, Light
-from gonio_cli.render.glint_term import (GlintView, lobe_tables, lobe_xyz, light_gamma)
+from gonio_cli.render.glint_term import GlintView, light_cone, lobe_tables, lobe_xyz
 from gonio_cli.render.shade import Surface, shade
 from gonio_cli.schemas import Material
 from gonio_cli.spectra import cmf_weights, illuminant, parse_grid
 
 WL = parse_grid("380:780:10")
 M = 0.3                                    # the demo paint's flake slope (m ≈ 0.28–0.32)
-GAMMA = float(np.tan(np.radians(1.1)))     # a 1° flake under the sample sky's 1.87° sun
+#: the cone of a 1° flake under the sample sky's 1.87° sun (light_cone), slope units
+CONE = (float(np.tan(np.radians(1.0))) - float(np.tan(np.radians(1.87 / 4))),
+        float(np.tan(np.radians(1.0))) + float(np.tan(np.radians(1.87 / 4))))
+BIN = 2 * CONE[1]
 SPACING = 0.004                            # the demo's sample spacing at 512²
 
 
@@ -52,16 +56,17 @@ def direction(theta_deg, phi_deg=0.0):
     return np.array([np.sin(t) * np.cos(f), np.sin(t) * np.sin(f), np.cos(t)])
 
 
-def smoothed_p22_ratio(sx, sy, m, gamma, n=400):
-    """(p22 ∗ K)(x̃_h) / p22(x̃_h) by a midpoint quadrature over the cone's disc: the
-    expectation of r (K uniform over the disc of radius γ, module docstring)."""
-    r = (np.arange(n) + 0.5) / n * gamma
+def smoothed_p22_ratio(sx, sy, m, cone, n=400):
+    """(p22 ∗ K)(x̃_h) / p22(x̃_h) by a midpoint quadrature in polar coordinates over the
+    cone (flat to r_in, linear to 0 at r_out, normalised here): the expectation of r."""
+    r_in, r_out = cone
+    r = (np.arange(n) + 0.5) / n * r_out
     t = (np.arange(n) + 0.5) / n * 2 * np.pi
     rr, tt = np.meshgrid(r, t)
     x, y = sx + rr * np.cos(tt), sy + rr * np.sin(tt)
-    area = rr * (gamma / n) * (2 * np.pi / n)
-    mean = np.sum(beckmann_p22(x, y, m) * area) / (np.pi * gamma ** 2)
-    return mean / beckmann_p22(sx, sy, m)
+    profile = np.clip((r_out - rr) / (r_out - r_in), 0, 1) if r_out > r_in else 1.0 + 0 * rr
+    weight = profile * rr * (r_out / n) * (2 * np.pi / n)
+    return np.sum(beckmann_p22(x, y, m) * weight) / np.sum(weight) / beckmann_p22(sx, sy, m)
 
 
 @pytest.mark.parametrize("theta_h, theta_o", [(0.0, 0.0), (8.0, 20.0), (18.0, 50.0)])
@@ -70,15 +75,15 @@ def test_expectation_is_the_smooth_lobe(theta_h, theta_o):
     the cone), within 4 standard errors of the mean (≤ 4 %: a wide 3° cone over 300 000
     independent footprints; a 5 % error of the flakes' count or brightness fails)."""
     n = 300000
-    gamma = float(np.tan(np.radians(3.0)))
+    cone = (float(np.tan(np.radians(1.5))), float(np.tan(np.radians(3.0))))
     layer = G.GlintLayer(density=1e5, share=0.5, angle_rad=np.radians(3.0), m=M, seed=7)
     p, nrm = plane_samples(n, 4 * layer.cell * 2)          # ≥ 4 cells apart (level ≤ 1)
     h = np.tile(direction(theta_h, 30.0), (n, 1))
     v = np.tile(direction(theta_o, 200.0), (n, 1))
-    r, counts = G.glint_ratio(p, nrm, v, h, np.full(n, SPACING), layer, gamma, 2 * gamma)
+    r, counts = G.glint_ratio(p, nrm, v, h, np.full(n, SPACING), layer, cone, 2 * cone[1])
     assert counts["samples"] == n and counts["glints"] > 5000   # the test sees glints
     sx, sy = -h[0, 0] / h[0, 2], -h[0, 1] / h[0, 2]
-    truth = smoothed_p22_ratio(sx, sy, M, gamma)
+    truth = smoothed_p22_ratio(sx, sy, M, cone)
     assert abs(truth - 1.0) < 0.05                            # K blurs p22 by < 5 %
     sem = r.std() / np.sqrt(n)
     assert sem < 0.01                                         # so 4 sem ≤ 4 %
@@ -92,19 +97,21 @@ def test_expectation_broadcasts_over_shapes():
     n = np.tile([0.0, 0.0, 1.0], (6, 1))
     v = np.tile(direction(10.0), (6, 1))
     h = np.tile(direction(5.0), (6, 1))
-    r, _ = G.glint_ratio(p, n, v, h, np.full(6, SPACING), layer, GAMMA, 2 * GAMMA)
+    r, _ = G.glint_ratio(p, n, v, h, np.full(6, SPACING), layer, CONE, BIN)
     assert np.all(r == r[0])
 
 
 def test_a_flake_is_as_bright_as_the_source_times_its_reflectance(monkeypatch):
     """One flake (spread 0) at the filter's centre, its normal on the half vector, at normal
-    incidence under a sun of angular diameter δ: the added radiance is
+    incidence under a sun of angular diameter δ = 2° (enough expected glints that r is not
+    blended towards 1, glint.MIN_GLINTS): the added radiance is
     s · (its share f(0) / N of the footprint) · (the lobe's reflectance 4 ks F) · L_sun,
     L_sun = E / Ω, Ω = 2π (1 − cos δ/2) the sun's solid angle (computed here)."""
     layer = G.GlintLayer(3e5, 1.0, 0.0, M)
     sun = Light("directional", np.ones(WL.size), direction=np.array([0.0, 0.0, 1.0]),
-                irradiance=3.0, angular_diameter_deg=0.53)
-    gamma = light_gamma(layer, sun)
+                irradiance=3.0, angular_diameter_deg=2.0)    # a bloomed sun (sky.exr: 1.87°)
+    cone = light_cone(layer, sun)
+    assert cone[0] == cone[1]                                 # a perfect mirror: the disc
     x = np.array([[0.1, 0.2, 0.0]])
     n = np.array([[0.0, 0.0, 1.0]])
 
@@ -112,7 +119,7 @@ def test_a_flake_is_as_bright_as_the_source_times_its_reflectance(monkeypatch):
         return np.array([0]), x[:, :2].copy(), np.zeros(1), np.zeros(1), np.ones(1)
 
     monkeypatch.setattr(G, "_flakes", one_flake)
-    r, counts = G.glint_ratio(x, n, n, n, np.array([SPACING]), layer, gamma, 2 * gamma)
+    r, counts = G.glint_ratio(x, n, n, n, np.array([SPACING]), layer, cone, 2 * cone[1])
     assert counts["glints"] == 1
     ks = 0.07
     cos = Cosines(*(np.ones(1),) * 4)
@@ -120,11 +127,11 @@ def test_a_flake_is_as_bright_as_the_source_times_its_reflectance(monkeypatch):
     added = layer.share * (r[0] - 1.0) * lobe * sun.irradiance   # s (r − 1) f_lobe E cos θi
     expected = layer.density * SPACING ** 2                   # N under the filter (θo = 0)
     share = (3.0 / np.pi) / expected                          # f(0) / N
-    omega = 2 * np.pi * (1 - np.cos(np.radians(0.53) / 2))
+    omega = 2 * np.pi * (1 - np.cos(np.radians(2.0) / 2))
     truth = share * 4 * ks * 1.0 * sun.irradiance / omega     # F = f0 = 1 at θd = 0
     # the glint replaces s of the smooth lobe there: added + s · f_lobe E is the flake alone;
-    # slope-space disc vs spherical cap and tan vs angle differ by O(δ²) ~ 1e-5
-    assert added + layer.share * lobe * sun.irradiance == pytest.approx(truth, rel=1e-4)
+    # slope-space disc vs spherical cap and tan vs angle differ by O(δ²): (δ/4)² ≈ 8e-5
+    assert added + layer.share * lobe * sun.irradiance == pytest.approx(truth, rel=3e-4)
 
 
 def test_no_glint_far_from_every_flake_normal(monkeypatch):
@@ -134,14 +141,13 @@ def test_no_glint_far_from_every_flake_normal(monkeypatch):
     p, n = plane_samples(2000, 0.01)
     v = np.tile(direction(30.0, 180.0), (2000, 1))
     h = np.tile(direction(60.0), (2000, 1))
-    r, counts = G.glint_ratio(p, n, v, h, np.full(2000, SPACING), layer, GAMMA, 2 * GAMMA)
+    r, counts = G.glint_ratio(p, n, v, h, np.full(2000, SPACING), layer, CONE, BIN)
     assert np.all(r == 1.0) and counts["glints"] == 0
     x = np.array([[0.1, 0.2, 0.0]])
     monkeypatch.setattr(G, "_flakes", lambda *a: (np.array([0]), x[:, :2].copy(),
-                                                   np.array([3 * GAMMA]), np.zeros(1),
+                                                   np.array([1.5 * CONE[1]]), np.zeros(1),
                                                    np.ones(1)))
-    r, counts = G.glint_ratio(x, n[:1], n[:1], n[:1], np.array([SPACING]), layer, GAMMA,
-                              2 * GAMMA)
+    r, counts = G.glint_ratio(x, n[:1], n[:1], n[:1], np.array([SPACING]), layer, CONE, BIN)
     assert counts["glints"] == 0 and r[0] == 0.0
 
 
@@ -159,8 +165,7 @@ def test_flakes_stay_under_a_tiny_camera_move():
     for turn in (0.0, 0.1):
         v = np.tile(direction(10.0 + turn, 190.0), (k * k, 1))
         h = (wi + v) / np.linalg.norm(wi + v, axis=1, keepdims=True)
-        out.append(G.glint_ratio(p, n, v, h, np.full(k * k, SPACING), layer, GAMMA,
-                                 2 * GAMMA)[0])
+        out.append(G.glint_ratio(p, n, v, h, np.full(k * k, SPACING), layer, CONE, BIN)[0])
     a, b = out[0] > 1.0, out[1] > 1.0
     assert a.sum() > 50                                       # glints to compare
     assert np.sum(a & b) >= 0.9 * a.sum()
@@ -177,10 +182,10 @@ def test_turning_object_carries_its_flakes():
     p, n = plane_samples(5000, 0.003)
     v = np.tile(direction(5.0, 40.0), (5000, 1))
     h = np.tile(direction(4.0, 10.0), (5000, 1))
-    ra, _ = G.glint_ratio(p, n, v, h, np.full(5000, SPACING), a, GAMMA, 2 * GAMMA)
+    ra, _ = G.glint_ratio(p, n, v, h, np.full(5000, SPACING), a, CONE, BIN)
     world = lambda x: x @ rot.T                                # noqa: E731
     rb, _ = G.glint_ratio(world(p) + [2.0, 0.0, 0.0], world(n), world(v), world(h),
-                          np.full(5000, SPACING), b, GAMMA, 2 * GAMMA)
+                          np.full(5000, SPACING), b, CONE, BIN)
     assert np.any(ra != 1.0)
     np.testing.assert_allclose(rb, ra, rtol=1e-9, atol=1e-9)   # round-off of the rotation
 

@@ -30,7 +30,7 @@ import numpy as np
 from ..brdf import COS_EPS, beckmann_d, vgroove_g
 from ..errors import InputError
 from ..geometry import Cosines
-from ..glint import MAX_STRETCH, MIN_GLINTS
+from ..glint import MAX_STRETCH, MIN_GLINTS, cone_area
 
 #: Entries of the lobe tables over cos θh ∈ [0, 1].
 TABLE_SIZE = 4097
@@ -102,11 +102,15 @@ def lobe_xyz(tables: np.ndarray, cos: Cosines) -> np.ndarray:
     return geo[:, None] * (t0 + schlick * t1)
 
 
-def light_gamma(layer, light) -> float:
-    """The mirror cone's radius (slope units): the flake's spread and the light's h-space
-    radius (a quarter of its angular diameter; 0 for a point light) in quadrature."""
+def light_cone(layer, light) -> tuple[float, float]:
+    """The mirror cone (r_in, r_out) in slope units (:func:`gonio_cli.glint.cone_profile`):
+    the light's disc in h (radius ρ_s: a quarter of its angular diameter, 0 for a point
+    light) seen through the flake's spread (radius ρ_f, ``angle_rad``): flat to |ρ_s − ρ_f|,
+    falling to 0 at ρ_s + ρ_f (a linear stand-in for the discs' convolution, with its
+    area). A perfect flake (ρ_f = 0) sees the disc itself: F · L_source inside it."""
     src = np.radians(light.angular_diameter_deg) / 4.0 if light.kind == "directional" else 0.0
-    return float(np.tan(np.hypot(layer.angle_rad, src)))
+    rho_s, rho_f = float(np.tan(src)), float(np.tan(layer.angle_rad))
+    return abs(rho_s - rho_f), rho_s + rho_f
 
 
 def glint_xyz(surface, where: str, rows: np.ndarray, flat: dict, lights, light_weights,
@@ -129,20 +133,21 @@ def glint_xyz(surface, where: str, rows: np.ndarray, flat: dict, lights, light_w
     # p22(0) π: with γ², the expected glints at θh = 0, the most any sample can have
     reach = float(layer.density * np.max(spacing, initial=0.0) ** 2 * MAX_STRETCH
                   / layer.m ** 2)
-    gammas = [light_gamma(layer, light) for light in lights]
-    bin_width = 2.0 * max(gammas, default=0.0)
+    cones = [light_cone(layer, light) for light in lights]
+    bin_width = 2.0 * max((c[1] for c in cones), default=0.0)
     for j, light in enumerate(lights):
         wi, e = incident(light, p)
         cos_i = _dot(n, wi)
         scale = np.where((cos_i > 0) & (cos_o > 0), cos_i * e, 0.0)
         if f"visibility{j}" in flat:                              # shadows: V E cos θi
             scale = scale * flat[f"visibility{j}"][rows]
-        if gammas[j] == 0.0:
+        if cones[j][1] == 0.0:
             continue
         # a bound of the expected glints, reach γ² exp(−tan²θh / m²) ≥ MIN_GLINTS, as
         # cos²θh ≥ 1 / (1 + tan²_max): only those samples are drawn (glint_ratio tests
         # each exactly)
-        tan2_max = layer.m ** 2 * np.log(max(reach * gammas[j] ** 2 / MIN_GLINTS, 1.0))
+        tan2_max = layer.m ** 2 * np.log(max(reach * cone_area(cones[j]) / np.pi / MIN_GLINTS,
+                                             1.0))
         h = wi + v                                                 # not normalised
         hn2 = np.square(_dot(n, h))                  # h·n > 0 where lit (ωi·n, ωo·n > 0)
         lit = np.flatnonzero((scale > 0) & (hn2 * (1.0 + tan2_max) >= _dot(h, h)))
@@ -153,7 +158,7 @@ def glint_xyz(surface, where: str, rows: np.ndarray, flat: dict, lights, light_w
         wi = np.broadcast_to(wi, p.shape)
         r, c = glint_ratio(p[lit].astype(np.float64), n[lit].astype(np.float64),
                            v[lit].astype(np.float64), h, spacing[lit].astype(np.float64),
-                           layer, gammas[j], bin_width)
+                           layer, cones[j], bin_width)
         for key, value in c.items():
             counts[f"glint_{key}"] += value
         moved = np.flatnonzero(r != 1.0)
