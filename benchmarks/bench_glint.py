@@ -249,8 +249,9 @@ def main() -> None:
             print(f"{name:10s} process {r['wall_s']:.2f} s, {r['peak_mb']:.0f} MB; frame "
                   f"{1000 * r['frame_s']:.0f} ms, shade.glint {1000 * r['glint_s']:.0f} ms "
                   f"{r['counts'] or ''}")
-        print(f"glints cost: frame +{1000 * (rows['glints']['frame_s'] - rows['no glints']['frame_s']):.0f} ms, "
-              f"process +{1000 * (rows['glints']['wall_s'] - rows['no glints']['wall_s']):.0f} ms")
+        g, s0 = rows["glints"], rows["no glints"]
+        print(f"glints cost: frame {1000 * (g['frame_s'] - s0['frame_s']):+.0f} ms, process "
+              f"{1000 * (g['wall_s'] - s0['wall_s']):+.0f} ms")
         figures(paint, index, sun, work, a.jitters, a.size)
 
 

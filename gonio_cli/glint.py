@@ -31,8 +31,8 @@ foreshortened by cos θo along the view) and slope x̃_k adds
     f(s) = 3/π (1 − |s|²)² for |s| < 1           (the pixel filter, ∫ f d²s = 1),
     K(d) = profile(|d|) / area                    (the flake's mirror cone, ∫ K d²x̃ = 1),
 
-and r = G / (ρ_p Δ² |n_a| / cos θo · p22(x̃_h)); ρ_p Δ² |n_a| / cos θo = ∫ ρ_p f d²q is the
-expected flake count under the filter (n_a: the normal's component along the projection
+and r = G / (ρ_p Δ² |n_a| / cos θo · p22(x̃_h)); ρ_p Δ² |n_a| / cos θo = ∫ ρ_p f d²q is
+the expected flake count under the filter (n_a: the normal's component along the projection
 axis). Then E[G] = ρ_p Δ² |n_a| / cos θo · (p22 ∗ K)(x̃_h): E[r] = 1 up to K's blur of p22
 (relative error ≈ r²/m² ≈ 0.3 % for a cone of r ≈ 1°, m = 0.3). The cone is the light's
 disc in h (radius ρ_s, a quarter of its angular diameter) seen through the flake's
@@ -43,11 +43,12 @@ the disc, and fades at the cone's edge instead of popping when the camera moves.
 
 Only pairs that can matter are drawn: the 2 × 2 cells around the nearest cell corner of
 x (cells are at least twice the filter's reach) and the 2 × 2 slope bins around the
-nearest bin corner of x̃_h (bins are 2 (ρ_s + ρ_f) wide for the largest light). Samples where the footprint is wider than
-the finest cells take coarser cells (level L: 2^L c₀, an independent process of the same
-density); samples where glints are too rare (< :data:`MIN_GLINTS` expected) or too dense
-(a pair's mean above :data:`MAX_PAIR_MEAN`) keep r = 1: the smooth lobe, which is the
-glints' expectation, so the choice adds no bias.
+nearest bin corner of x̃_h (bins are 2 (ρ_s + ρ_f) wide for the largest light). Samples
+where the footprint is wider than the finest cells take coarser cells (level L: 2^L c₀,
+an independent process of the same density); samples where glints are too rare
+(< :data:`MIN_GLINTS` expected) or too dense (a pair's mean above :data:`MAX_PAIR_MEAN`)
+keep r = 1: the smooth lobe, which is the glints' expectation, so the choice adds no
+bias.
 
 The core is pure numpy (STYLE 1); :mod:`gonio_cli.render.glint_term` applies it.
 """
@@ -163,7 +164,9 @@ def check_layer(layer: GlintLayer, where: str = "glints") -> None:
     for name, value, ok, fix in (
             ("density", layer.density, layer.density > 0, "flakes per square scene unit > 0"),
             ("share", layer.share, 0.0 <= layer.share <= 1.0, "a share in [0, 1]"),
-            ("angle", layer.angle_rad, 0.0 <= layer.angle_rad < 0.25, "an angle in [0, 14) deg"),
+            # 0.25 rad (14°): a flake spread near the lobe's own width (m ≈ 0.3) is no mirror
+            ("angle", layer.angle_rad, 0.0 <= layer.angle_rad < 0.25,
+             "an angle in [0, 14) deg"),
             ("m", layer.m, layer.m > 0, "a material with a flake lobe (m > 0)")):
         if not (np.isfinite(value) and ok):
             raise InputError(f"{where}: {name} = {value!r} is impossible", fix=f"give {fix}")

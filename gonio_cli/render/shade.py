@@ -63,6 +63,10 @@ C_s(λ) = Σc rgb_c B_c(λ) is ``sparkle_color`` as a reflectance through the Ma
 basis (docs/conventions.md, without the D65 factor: (1, 1, 1) is 1 at every λ). No environment
 light on sparkles (a glint of the sky would need the texture in the lobe sums).
 
+Glints (an object with ``glint_density``, :mod:`.glint_term`): per light, s (r − 1) times
+the flake lobe of the paint, so a share s of the lobe is drawn as flakes (the sky's sun,
+split off as a light, lights them too) and the mean over flake seeds is the smooth term.
+
 Precision: the direct-light loop computes in the G-buffer's dtype (the pipeline: float32)
 for the goniochromatic table kernel with α ≥ :data:`FLOAT32_MIN_ALPHA`, in float64 for
 every other term (from the same float32 G-buffer rows), through reused scratch buffers
