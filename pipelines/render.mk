@@ -8,7 +8,7 @@ SCENES := sample_data/scenes
 RENDER_VARS := --var out=$(abspath $(OUT))
 RENDER_TARGETS := $(RENDER)/figure5.png $(RENDER)/print-D65.png $(RENDER)/print-A.png \
                   $(RENDER)/print-A-unadapted.png $(RENDER)/paint_env.png \
-                  $(RENDER)/paint_sparkle.png $(RENDER)/paint_sky.png
+                  $(RENDER)/sparkle.png $(RENDER)/paint_sparkle.png $(RENDER)/paint_sky.png
 
 .PHONY: render
 render: $(RENDER_TARGETS)
