@@ -1,5 +1,5 @@
 # render: the soft proofs (seed 000 Figures 5 and 7) and the car paint under the sky
-# (seed 001). Scenes are templates in sample_data/scenes/; ${out} points them at OUT.
+# (seed 001), with glints. Scenes are templates in sample_data/scenes/; ${out} points them at OUT.
 # Included by the top Makefile after the other pipelines (GONIO, OUT, STAMP, INKS,
 # RGBINK, CARPAINT, LOBES, SKY).
 
@@ -8,7 +8,7 @@ SCENES := sample_data/scenes
 RENDER_VARS := --var out=$(abspath $(OUT))
 RENDER_TARGETS := $(RENDER)/figure5.png $(RENDER)/print-D65.png $(RENDER)/print-A.png \
                   $(RENDER)/print-A-unadapted.png $(RENDER)/paint_env.png \
-                  $(RENDER)/paint_sparkle.png $(RENDER)/paint_sky.png
+                  $(RENDER)/sparkle.png $(RENDER)/paint_sparkle.png $(RENDER)/paint_sky.png
 
 .PHONY: render
 render: $(RENDER_TARGETS)
@@ -44,16 +44,16 @@ $(RENDER)/paint_env.png: $(SCENES)/paint_env.toml $(CARPAINT)/paint.material.jso
 
 SPARKLE_PHOTOS := $(sort $(wildcard sample_data/sparkle/photo_ti*.png))
 
-# Sparkles (seed 004 §6): the texture from the sample flake photos (eqs. 15–16), then
-# the car paint under the sky and a sun, with sparkles (eq. 17).
+# Sparkles (seed 004 §6): the texture from the sample flake photos (eqs. 15–16).
 $(RENDER)/sparkle.png: $(SPARKLE_PHOTOS) | $(STAMP)
 	$(GONIO) sparkle $^ -o $@ --theta-i-deg 10,20,30,40,50,60,70
 
+# Glints: the car paint under the sample sky and its sun alone, half its flake lobe drawn
+# as flakes (docs/render.md, "Glints").
 $(RENDER)/paint_sparkle.png: $(SCENES)/paint_sparkle.toml $(CARPAINT)/paint.material.json \
-  $(LOBES)/paint.lobes.json $(SKY)/index.json $(RENDER)/sparkle.png
+  $(SKY)/sun/index.json
 	$(GONIO) render $< -o $@ --exr $(RENDER)/paint_sparkle.exr \
-	  --report $(RENDER)/paint_sparkle.json $(RENDER_VARS) \
-	  --var sparkles=$(abspath $(RENDER)/sparkle.png)
+	  --report $(RENDER)/paint_sparkle.json $(RENDER_VARS)
 
 # The clear-coated paint on Spot (sample_data/meshes/) on a floor under the real sky,
 # every lobe of the paint reading the prefiltered chain at its own sharpness.

@@ -47,7 +47,8 @@ ALL = frozenset(
        "carpaint/coat.material.json", "carpaint/coat.fit.png",
        "lobes/basis.json", "lobes/basis.png", "lobes/paint.lobes.json",
        *(f"lobes/{i}.lobes.json" for i in INKS),
-       "sky/index.json", "sky/quarry/index.json", "render/sparkle.png", *RENDERS, "report/report.md", "demo.txt"])
+       "sky/index.json", "sky/sun/index.json", "sky/quarry/index.json", "render/sparkle.png",
+       *RENDERS, "report/report.md", "demo.txt"])
 # Files written by the run that writes another target (two-target rules) and the list.
 SECONDARY = frozenset({"rgbink/red.fit.png", "rgbink/green.fit.png", "rgbink/blue.fit.png",
                        "rgbink/print.json", "carpaint/paint.fit.png",
@@ -213,17 +214,17 @@ def test_measurement_edit_reruns_everything_downstream(tree):
     """red's CSV → red's ingest and both fits → the lobe basis (chosen over all four
     materials) → every material's lobe weights → the sky, prefiltered per exponent of the
     paint's lobes → every render reading red, its lobes or the sky. Not: the other inks'
-    ingest and fits, the halftone, the car paint's ingest and fit, the sparkle texture.
+    ingest and fits, the halftone, the car paint's ingest and fit, the sparkle texture, the
+    paint with glints (lit through its own model, not the lobes).
     And the report (it reads the inks)."""
     tree.touch("sample_data/ink_red.csv")
     cmds = assert_remakes(tree, {
         "rgbink/red.measurement.json", "rgbink/red.material.json", "rgbink/red.fit.png",
         "rgbink/red.torrance-sparrow.material.json", *ALL_LOBES, "sky/index.json",
-        "render/figure5.png", *PRINTS,
-        "render/paint_env.png", "render/paint_sparkle.png", "report/report.md"})
+        "render/figure5.png", *PRINTS, "render/paint_env.png", "report/report.md"})
     kinds = Counter(" ".join(c[:2]) if c[0] == "lobes" else c[0] for c in cmds)
     assert kinds == {"ingest": 1, "fit": 2, "lobes basis": 1, "lobes fit": 4,
-                     "prefilter": 1, "render": 6, "report": 1}
+                     "prefilter": 1, "render": 5, "report": 1}
     ingest_fit = [c for c in cmds if c[0] in ("ingest", "fit")]
     assert all("red" in Path(_output(c)).name for c in ingest_fit)
 
@@ -237,9 +238,9 @@ def test_paint_measurement_edit(tree):
 
 
 @pytest.mark.parametrize("source, remade", [
-    ("sample_data/sky.exr", {"sky/index.json", "render/paint_env.png",
+    ("sample_data/sky.exr", {"sky/index.json", "sky/sun/index.json", "render/paint_env.png",
                              "render/paint_sparkle.png"}),
-    ("sample_data/sparkle/photo_ti40.png", {"render/sparkle.png", "render/paint_sparkle.png"}),
+    ("sample_data/sparkle/photo_ti40.png", {"render/sparkle.png"}),
     ("sample_data/envmaps/quarry_01_1k.hdr", {"sky/quarry/index.json", "render/paint_sky.png"}),
     ("sample_data/coat_paint.csv", {"carpaint/coat.measurement.json",
                                     "carpaint/coat.material.json", "carpaint/coat.fit.png",
@@ -248,8 +249,7 @@ def test_paint_measurement_edit(tree):
     ("sample_data/ink_blue_b.csv", {
         "rgbink/blue.measurement.json", "rgbink/blue.material.json", "rgbink/blue.fit.png",
         "rgbink/blue.torrance-sparrow.material.json", *ALL_LOBES, "sky/index.json",
-        "render/figure5.png", *PRINTS,
-        "render/paint_env.png", "render/paint_sparkle.png", "report/report.md"}),
+        "render/figure5.png", *PRINTS, "render/paint_env.png", "report/report.md"}),
 ])
 def test_other_sources(tree, source, remade):
     tree.touch(source)
@@ -304,6 +304,8 @@ def test_environment_only_for_scenes_that_need_one(tree):
     assert needs["render/figure5.png"] is False and needs["render/paint_env.png"] is True
     # An edit of the prefiltered sky reaches only the renders under it.
     tree.touch("out/sky/index.json")
+    assert_remakes(tree, {"render/paint_env.png"})
+    tree.touch("out/sky/sun/index.json")          # (paint_env.png is still out of date)
     assert_remakes(tree, {"render/paint_env.png", "render/paint_sparkle.png"})
 
 

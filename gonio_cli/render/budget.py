@@ -138,11 +138,12 @@ def check_memory(scene: Scene, spectra: bool = False) -> int:
 
 
 def needs_positions(scene: Scene, shadows: bool | None = None) -> bool:
-    """World positions are read only by point lights, by shadows and by the occlusion of
-    the environment (``shadows``: whether maps will be made; None: whether any light
+    """World positions are read only by point lights, glints, shadows and the occlusion
+    of the environment (``shadows``: whether maps will be made; None: whether any light
     casts shadows or the environment is occluded)."""
     shadows = shadowing_lights(scene) > 0 or occludes(scene) if shadows is None else shadows
-    return shadows or any(light.kind == "point" for light in scene.lights)
+    return (shadows or any(light.kind == "point" for light in scene.lights)
+            or any(o.glint_density is not None for o in scene.objects))
 
 
 def occludes(scene: Scene) -> bool:

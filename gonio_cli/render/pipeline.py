@@ -183,6 +183,7 @@ def build_surfaces(scene: Scene, stats: Stats) -> list:
     """One :class:`~gonio_cli.render.shade.Surface` per object: materials read once per
     file, mask pyramids for printed objects only, lobes only with an environment."""
     from ..schemas import read_lobes, read_material
+    from .glint_term import glint_surface
     from .shade import Surface
 
     materials: dict[Path, Any] = {}
@@ -203,6 +204,7 @@ def build_surfaces(scene: Scene, stats: Stats) -> list:
             where = f"[[object]] {o.index + 1}"
             if o.material is not None:
                 s.material = material(o.material, f"{where} material")
+                glint_surface(s, o, scene, f"{scene.display}: {where} ({o.name})")
             elif o.measured is not None:
                 with _SceneKey(scene, f"{where} measured", o.measured):
                     s.material = load_measured(o.measured, scene.grid_nm)

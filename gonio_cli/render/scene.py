@@ -69,9 +69,12 @@ MAX_SSAA = 16
 CAMERA_KEYS = ("eye", "target", "up", "fov_deg", "width", "height")
 OBJECT_KEYS = ("name", "mesh", "translate", "rotate_deg", "scale", "material", "inks",
                "mask", "substrate", "lobes", "measured", "sparkle", "sparkle_color",
-               "sparkle_exponent", "sparkle_scale", "wrap")
+               "sparkle_exponent", "sparkle_scale", "wrap", "glint_density", "glint_share",
+               "glint_angle_deg", "glint_seed")
 #: Keys that belong to an object with a ``sparkle`` texture (seed 004 §6).
 SPARKLE_KEYS = ("sparkle_color", "sparkle_exponent", "sparkle_scale")
+#: Keys that belong to an object with ``glint_density`` (docs/render.md, "Glints").
+GLINT_KEYS = ("glint_share", "glint_angle_deg", "glint_seed")
 SUBSTRATE_KEYS = ("kd", "ks", "shininess")
 LIGHT_KEYS = ("type", "name", "direction", "irradiance", "position", "intensity", "spectrum",
               "shadow", "angular_diameter_deg", "radius")
@@ -359,7 +362,34 @@ def _object(chk: Checker, raw, number: int) -> SceneObject:
             if key in o:
                 raise chk.error(f"{where} {key}", "needs a sparkle texture",
                                 fix='add sparkle = "SPARKLE.png" (gonio sparkle)')
+    _glints(chk, o, obj, where)
     return obj
+
+
+def _glints(chk: Checker, o: dict, obj: SceneObject, where: str) -> None:
+    """``glint_density`` and its keys (docs/render.md, "Glints"): a material object only,
+    not beside a sparkle texture (both would draw the same flakes)."""
+    if "glint_density" not in o:
+        for key in GLINT_KEYS:
+            if key in o:
+                raise chk.error(f"{where} {key}", "needs glint_density",
+                                fix="add glint_density = FLAKES_PER_SQUARE_UNIT")
+        return
+    if obj.material is None:
+        raise chk.error(f"{where} glint_density", "belongs to a material object",
+                        fix="glints draw the flake lobe of a fitted cook-torrance paint")
+    if obj.sparkle is not None:
+        raise chk.error(f"{where} glint_density", "and sparkle both draw the flakes",
+                        fix="keep glint_density (glints) or sparkle (seed 004 eq. 17), "
+                            "not both")
+    obj.glint_density = chk.number(o["glint_density"], f"{where} glint_density", lo=0.0,
+                                   lo_open=True, hi=MAX_MAGNITUDE)
+    obj.glint_share = chk.number(o.get("glint_share", obj.glint_share),
+                                 f"{where} glint_share", lo=0.0, hi=1.0)
+    obj.glint_angle_deg = chk.number(o.get("glint_angle_deg", obj.glint_angle_deg),
+                                     f"{where} glint_angle_deg", lo=0.0, hi=10.0)
+    obj.glint_seed = chk.integer(o.get("glint_seed", 0), f"{where} glint_seed", lo=0,
+                                 hi=2 ** 32 - 1)
 
 
 def _light(chk: Checker, raw, number: int, grid: np.ndarray) -> Light:

@@ -45,6 +45,9 @@ class SceneObject:
     ``sparkle``: a packed sparkle texture (``gonio sparkle``, seed 004 §6) or None, with
     ``sparkle_color`` (linear sRGB reflectance colour C_s), ``sparkle_exponent`` (e of
     eq. 17) and ``sparkle_scale`` (texture repeats over uv); material or measured only.
+    ``glint_density`` (flakes per square scene unit) or None: glints (docs/render.md),
+    with ``glint_share`` (s, the flake lobe's share drawn as flakes), ``glint_angle_deg``
+    (a flake's angular spread) and ``glint_seed``; a material object only.
     ``wrap``: the mask's addressing, a key of :data:`gonio_cli.render.texture.WRAP_MODES`
     (``clamp``: a sheet with edges, the default; ``repeat``: the mask tiles); prints only.
     """
@@ -66,6 +69,10 @@ class SceneObject:
     sparkle_exponent: float = 24.0
     sparkle_scale: float = 1.0
     wrap: str = "clamp"
+    glint_density: float | None = None
+    glint_share: float = 0.5
+    glint_angle_deg: float = 1.0
+    glint_seed: int = 0
 
     @property
     def kind(self) -> str:

@@ -65,6 +65,10 @@ C_s(λ) = Σc rgb_c B_c(λ) is ``sparkle_color`` as a reflectance through the Ma
 basis (docs/conventions.md, without the D65 factor: (1, 1, 1) is 1 at every λ). No environment
 light on sparkles (a glint of the sky would need the texture in the lobe sums).
 
+Glints (an object with ``glint_density``, :mod:`.glint_term`): per light, s (r − 1) times
+the flake lobe of the paint, so a share s of the lobe is drawn as flakes (the sky's sun,
+split off as a light, lights them too) and the mean over flake seeds is the smooth term.
+
 Precision: the direct-light loop computes in the G-buffer's dtype (the pipeline: float32)
 for the goniochromatic table kernel with α ≥ :data:`FLOAT32_MIN_ALPHA`, in float64 for
 every other term (from the same float32 G-buffer rows), through reused scratch buffers
@@ -248,6 +252,7 @@ def shade_rows(gbuffer: GBuffer, surfaces: Sequence[Surface], lights: Sequence[L
                               "environment_pixels": 0}
     env_time = 0.0
     sparkle_time = 0.0
+    glint_time = 0.0
     weights_of: dict[bytes, np.ndarray] = {}
 
     def light_weights(light: Light) -> np.ndarray:
@@ -355,6 +360,16 @@ def shade_rows(gbuffer: GBuffer, surfaces: Sequence[Surface], lights: Sequence[L
                                    light_weights, wl, counts, channels)
             sparkle_time += time.perf_counter() - t0
 
+        if surface.glint is not None:
+            from .glint_term import glint_xyz
+
+            t0 = time.perf_counter()
+            if "glint_samples" not in counts:
+                counts.update(glint_samples=0, glint_flakes=0, glint_glints=0)
+            obj_xyz += glint_xyz(surface, f"object {k} ({surface.name})", index, flat,
+                                 lights, light_weights, wl, counts, channels)
+            glint_time += time.perf_counter() - t0
+
         if environment is not None:
             t0 = time.perf_counter()
             obj_xyz += _environment_term(environment, surface, k, px, cov, wl, observer)
@@ -369,6 +384,8 @@ def shade_rows(gbuffer: GBuffer, surfaces: Sequence[Surface], lights: Sequence[L
             stats.time_s["shade.environment"] = env_time
         if "sparkle_pixels" in counts:
             stats.time_s["shade.sparkle"] = sparkle_time
+        if "glint_samples" in counts:
+            stats.time_s["shade.glint"] = glint_time
         stats.counts["shade"] = counts
     return out
 

@@ -4,7 +4,7 @@ the checks a surface passes before it is shaded."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Callable, Sequence
 
 import numpy as np
@@ -40,6 +40,9 @@ class Surface:
     name : for messages.
     sparkle : a :class:`gonio_cli.sparkle.SparkleTexture` or None (seed 004 eq. 17; a
         material or measured object only).
+    glint : a :class:`gonio_cli.glint.GlintLayer` or None (a cook-torrance material
+        only), with ``glint_view`` (:class:`gonio_cli.render.glint_term.GlintView`) and
+        ``glint_cache`` (its lobe tables per light spectrum, filled by the shading).
     """
 
     material: Any = None
@@ -51,6 +54,9 @@ class Surface:
     sparkle: Any = None
     env_method: str = "lobes"
     env_tables: Any = None
+    glint: Any = None
+    glint_view: Any = None
+    glint_cache: dict = field(default_factory=dict)
 
     @property
     def printed(self) -> bool:
@@ -75,6 +81,9 @@ def check_surface(surface: Surface, index: int, wavelength_nm: np.ndarray) -> No
     if surface.sparkle is not None and surface.printed:
         raise InputError(f"{where} is printed: sparkles need a material",
                          fix="give the sparkle texture to a material object")
+    if surface.glint is not None and (surface.printed or surface.glint_view is None):
+        raise InputError(f"{where}: glints need a material and the camera's view",
+                         fix="give glint_density to a material object")
     for m in materials:
         wl = getattr(m, "wavelength_nm", None)
         if wl is not None and not _same_grid(wl, wavelength_nm):
