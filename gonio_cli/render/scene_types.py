@@ -46,6 +46,8 @@ class SceneObject:
     eq. 17) and ``sparkle_scale`` (texture repeats over uv); material or measured only.
     ``wrap``: the mask's addressing, a key of :data:`gonio_cli.render.texture.WRAP_MODES`
     (``clamp``: a sheet with edges, the default; ``repeat``: the mask tiles); prints only.
+    ``interpolation``: how a measured object is interpolated, a key of
+    :data:`gonio_cli.render.measured.INTERPOLATIONS`; measured only.
     """
 
     index: int
@@ -65,6 +67,7 @@ class SceneObject:
     sparkle_exponent: float = 24.0
     sparkle_scale: float = 1.0
     wrap: str = "clamp"
+    interpolation: str = "smooth"
 
     @property
     def kind(self) -> str:
