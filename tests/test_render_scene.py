@@ -167,6 +167,11 @@ BAD = [
      'inks = ["red.json", "red.json", "red.json"]\n', ["[[object]] 1", "missing key 'mask'"]),
     ("mask on a plain object", CAMERA + LIGHT + OBJECT + 'mask = "print.png"\n',
      ["[[object]] 1 mask", "printed object"]),
+    ("interpolation on a plain object", CAMERA + LIGHT + OBJECT + 'interpolation = "smooth"\n',
+     ["[[object]] 1 interpolation", "measured object"]),
+    ("unknown interpolation", CAMERA + LIGHT + '[[object]]\nmesh = "builtin:sphere"\n'
+     'measured = "red.json"\ninterpolation = "rbf"\n',
+     ["[[object]] 1 interpolation", "'rbf'", "smooth, four-nearest"]),
     ("unknown light type", CAMERA + OBJECT + LIGHT.replace('"directional"', '"spot"'),
      ["[[light]] 1 type", "'spot' is unknown", "directional, point"]),
     ("point key on directional", CAMERA + OBJECT + LIGHT + "intensity = 3\n",

@@ -157,8 +157,11 @@ def render(
         frame_ms = 1e3 * frame_time(stats)
         n_out = stats.counts.get("out_of_gamut_pixels", 0)
         n_clip = stats.counts.get("clipped_pixels", 0)
+        n_meas = stats.counts.get("measured_outside_samples", 0)
         shown = "".join([f", {n_out} pixel(s) outside the sRGB gamut" if n_out else "",
-                         f", {n_clip} pixel(s) clipped at white" if n_clip else ""])
+                         f", {n_clip} pixel(s) clipped at white" if n_clip else "",
+                         f", {n_meas} measured-reference sample(s) outside the measured "
+                         "range" if n_meas else ""])
         log.info(f"{names['-o']}: {sc.camera.width}x{sc.camera.height}, ssaa "
                  f"{sc.output.ssaa}, {sc.output.spectral} spectra, frame {frame_ms:.0f} ms, "
                  f"total {total:.2f} s{shown}")

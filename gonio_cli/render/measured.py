@@ -174,6 +174,27 @@ class MeasuredMaterial:
         return f.reshape(shape + (self.wavelength_nm.size,))
 
 
-def measured_material(measurement: Measurement, name: str = "") -> MeasuredMaterial:
-    """The renderable reference of a measurement (seed 000 Figure 5's leftmost column)."""
-    return MeasuredMaterial(measurement, name)
+def _smooth(measurement: Measurement, name: str = ""):
+    from .measured_smooth import SmoothMeasured
+
+    return SmoothMeasured(measurement, name)
+
+
+#: The interpolations of a measured reference, by the name a scene's ``interpolation``
+#: key takes: ``smooth`` (:mod:`.measured_smooth`, thin-plate spline in (θh, σ), the
+#: default) and ``four-nearest`` (this module: seed 000's four nearest neighbours in
+#: projected-deviation-vector coordinates, piecewise linear, with creases at its rows).
+INTERPOLATIONS = {"smooth": _smooth, "four-nearest": MeasuredMaterial}
+
+#: The interpolation of a measured object that names none.
+DEFAULT_INTERPOLATION = "smooth"
+
+
+def measured_material(measurement: Measurement, name: str = "",
+                      interpolation: str = DEFAULT_INTERPOLATION):
+    """The renderable reference of a measurement (seed 000 Figure 5's leftmost column) by
+    one of :data:`INTERPOLATIONS`."""
+    if interpolation not in INTERPOLATIONS:
+        raise InputError(f"measurement {name}: interpolation {interpolation!r} is unknown",
+                         fix="one of " + ", ".join(INTERPOLATIONS))
+    return INTERPOLATIONS[interpolation](measurement, name)

@@ -207,7 +207,7 @@ def build_surfaces(scene: Scene, stats: Stats) -> list:
                 glint_surface(s, o, scene, f"{scene.display}: {where} ({o.name})")
             elif o.measured is not None:
                 with _SceneKey(scene, f"{where} measured", o.measured):
-                    s.material = load_measured(o.measured, scene.grid_nm)
+                    s.material = load_measured(o.measured, scene.grid_nm, o.interpolation)
             else:
                 s.inks = [material(p, f"{where} inks[{k}]") for k, p in enumerate(o.inks)]
                 sub = o.substrate
@@ -262,9 +262,10 @@ def _environment_lobes(scene: Scene, surfaces: list, read_lobes) -> None:
                    if isinstance(o.lobes, list) else read(o.lobes, key))
 
 
-def load_measured(path: Path, grid_nm: np.ndarray):
-    """The measured reference material (seed 000 Figure 5) of :mod:`.measured`, its
-    spectra resampled onto the render's grid (with a warning) when needed."""
+def load_measured(path: Path, grid_nm: np.ndarray, interpolation: str = "smooth"):
+    """The measured reference material (seed 000 Figure 5) of :mod:`.measured` by its
+    ``interpolation``, its spectra resampled onto the render's grid (with a warning)
+    when needed."""
     from dataclasses import replace
 
     from ..schemas import read_measurement
@@ -281,7 +282,7 @@ def load_measured(path: Path, grid_nm: np.ndarray):
                  f"onto the render's grid ({grid_nm.size} samples)")
         m = replace(m, wavelength_nm=np.asarray(grid_nm, float),
                     brdf=resample(m.wavelength_nm, m.brdf, grid_nm), brdf_std=None)
-    return measured_material(m, name=str(path))
+    return measured_material(m, name=str(path), interpolation=interpolation)
 
 
 def load_sparkle(o):
@@ -400,6 +401,9 @@ def _render_steps(scene: Scene, stats: Stats, state: dict, spectra: bool = False
     rows = _shade_without_overflow(scene, gbuffer, surfaces, environment, lights, stats,
                                    visibility, env_visibility)
     stats.time_s.setdefault("shade", time.perf_counter() - t0)
+    outside = [getattr(s.material, "outside_samples", None) for s in surfaces]
+    if any(n is not None for n in outside):     # a smooth measured reference (docs/render.md)
+        stats.counts["measured_outside_samples"] = int(sum(n or 0 for n in outside))
     yield "shade"
     background = background_rgb(scene, environment)
     radiance = None

@@ -70,7 +70,7 @@ CAMERA_KEYS = ("eye", "target", "up", "fov_deg", "width", "height")
 OBJECT_KEYS = ("name", "mesh", "translate", "rotate_deg", "scale", "material", "inks",
                "mask", "substrate", "lobes", "measured", "sparkle", "sparkle_color",
                "sparkle_exponent", "sparkle_scale", "wrap", "glint_density", "glint_share",
-               "glint_angle_deg", "glint_seed")
+               "glint_angle_deg", "glint_seed", "interpolation")
 #: Keys that belong to an object with a ``sparkle`` texture (seed 004 §6).
 SPARKLE_KEYS = ("sparkle_color", "sparkle_exponent", "sparkle_scale")
 #: Keys that belong to an object with ``glint_density`` (docs/render.md, "Glints").
@@ -311,6 +311,10 @@ def _object(chk: Checker, raw, number: int) -> SceneObject:
         obj.material = chk.file(o["material"], f"{where} material")
     elif "measured" in o:
         obj.measured = chk.file(o["measured"], f"{where} measured")
+        from .measured import DEFAULT_INTERPOLATION, INTERPOLATIONS
+
+        obj.interpolation = chk.choice(o.get("interpolation", DEFAULT_INTERPOLATION),
+                                       f"{where} interpolation", tuple(INTERPOLATIONS))
     else:
         inks = o["inks"]
         if not isinstance(inks, list) or len(inks) != 3:
@@ -328,6 +332,8 @@ def _object(chk: Checker, raw, number: int) -> SceneObject:
         from .texture import DEFAULT_WRAP, WRAP_MODES
 
         obj.wrap = chk.choice(o.get("wrap", DEFAULT_WRAP), f"{where} wrap", tuple(WRAP_MODES))
+    if "interpolation" in o and obj.measured is None:
+        raise chk.error(f"{where} interpolation", "belongs to a measured object")
     for key in ("mask", "substrate", "wrap"):
         if key in o and obj.inks is None:
             raise chk.error(f"{where} {key}", "belongs to a printed object (with inks)")

@@ -50,6 +50,8 @@ class SceneObject:
     (a flake's angular spread) and ``glint_seed``; a material object only.
     ``wrap``: the mask's addressing, a key of :data:`gonio_cli.render.texture.WRAP_MODES`
     (``clamp``: a sheet with edges, the default; ``repeat``: the mask tiles); prints only.
+    ``interpolation``: how a measured object is interpolated, a key of
+    :data:`gonio_cli.render.measured.INTERPOLATIONS`; measured only.
     """
 
     index: int
@@ -73,6 +75,7 @@ class SceneObject:
     glint_share: float = 0.5
     glint_angle_deg: float = 1.0
     glint_seed: int = 0
+    interpolation: str = "smooth"
 
     @property
     def kind(self) -> str:

@@ -553,15 +553,15 @@ def table1_discussion(rows: list[dict], sparsity: list[dict], size: int) -> str:
         parts.append(
             f"Where the standard model is closer ({', '.join(losers)}), the eq. 5 hue shift "
             "is likely small in the image (c(λ) is large where the ink reflects little), so "
-            "the highlight's shape, where the reference's four-neighbour interpolation is "
-            "coarsest, decides; the paper reports eq. 5 ahead for every ink.")
+            "the highlight's shape, where the reference's interpolation between sparse "
+            "configurations is coarsest, decides; the paper reports eq. 5 ahead for every ink.")
     n_conf = ", ".join(f"{s['ink']} {s['configurations']}" for s in sparsity)
     parts.append(
         f"The measured reference is sparse ({n_conf} in-plane configurations; θi "
         f"{', '.join(f'{t:g}' for t in sparsity[0]['theta_i_deg'])}°, θo every "
         f"{sparsity[0]['theta_o_step_deg']:g}°): out-of-plane and grazing configurations are "
-        "interpolated from the four nearest measurements in projected-deviation-vector "
-        "coordinates, so neither model can match it exactly and both errors have a floor "
+        "interpolated by a thin-plate spline in the half angle θh and (θi + θo)/2 (the "
+        "two angles of eq. 5; docs/render.md), so neither model can match it exactly and both errors have a floor "
         "set by the reference itself, as the paper's caption says.")
     f_ms = mean(gc, "frame_ms")
     parts.append(
