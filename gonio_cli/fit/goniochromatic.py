@@ -296,9 +296,20 @@ def fit(data: FitData, options: FitOptions) -> ModelFit:
     if options.refine and options.alpha is None:
         reports["refined"] = refine(data, optimizer, sw)
     final = "refined" if "refined" in reports else "paper_two_step"
-    if not reports[final].params:
-        raise FitError(reports[final].message)
+    if "rho" not in reports[final].params:  # a step could not run: no spectra to judge
+        raise FitError(reports[final].message, fix=_two_step_fix(reports[final], options))
     return ModelFit("goniochromatic", data.wavelength_nm, reports, final, data.excluded)
+
+
+def _two_step_fix(report: FitReport, options: FitOptions) -> str:
+    """What a user can do when seed 000's two steps could not both run (and no joint
+    refinement follows): step 1 found no α, or step 2 on mirror rows has one θi."""
+    if "alpha" not in report.params:
+        return "fix alpha with --alpha, or measure more detector angles at one angle of incidence"
+    ways = ["use --step2 all", "add mirror configurations at a second angle of incidence"]
+    if options.alpha is None:
+        ways.insert(0, "drop --no-refine")
+    return ", or ".join(ways)
 
 
 def _refine_joint(data: FitData, step2: Step2, optimizer: str):
