@@ -18,7 +18,7 @@ from typing import Optional, Sequence
 import typer
 
 from . import __version__, log, outputs
-from .commands import STAGES, Group, apply_help_style
+from .commands import STAGES, Group, apply_help_style, remember_argv
 from .errors import EXIT_INTERRUPTED, EXIT_USAGE, GonioError
 
 #: Stage shells in pipeline order; each module has ``register(app)`` and ``EXAMPLE``.
@@ -89,6 +89,7 @@ def run(argv: Sequence[str] | None = None) -> int:
     _forget_written()
     apply_help_style(app)  # commands registered since import (tests) get the same help
     args = list(argv) if argv is not None else sys.argv[1:]
+    remember_argv(args)  # messages name an option as typed (commands.as_typed)
     try:
         # every output is staged and moved into place only when the command succeeds;
         # Python warnings become gonio warning lines naming the input

@@ -56,6 +56,7 @@ from .csvio import (ANGLE_DECIMALS, DELIMITERS, GEOMETRY, HEADER_SEARCH_LINES,
                     is_layout_header, label_kind, read_columns, read_spectra, read_spectrum,
                     read_table, rounded_keys, select_sample, split_labels)
 from .errors import InputError
+from .names import choices_fix
 from .percent import PERCENT_MEDIAN_LIMIT, check_percent, median_of  # noqa: F401 (API)
 from .schemas import MAX_MAGNITUDE, Measurement
 from .spectra import DEFAULT_GRID_NM, WAVELENGTH_TOL_NM, covers, parse_grid, resample, same_grid
@@ -311,7 +312,7 @@ def resolve_parameters(paths: Sequence[str | os.PathLike], *, quantity: str | No
     quantity = DEFAULT_QUANTITY if quantity is None else quantity
     if quantity not in QUANTITIES:
         raise InputError(f"--quantity {quantity!r} is not known", path=where,
-                         fix=f"use one of {', '.join(QUANTITIES)}")
+                         fix=choices_fix(quantity, QUANTITIES))
     needs = QUANTITIES[quantity].options
     given = {"white_reflectance": white_reflectance, "aperture_mm": aperture_mm,
              "distance_mm": distance_mm}

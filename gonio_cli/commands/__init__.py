@@ -75,6 +75,30 @@ def argument_label(param) -> str:
     return label
 
 
+# ------------------------------------------------------------- flags as typed --
+
+#: The command line of the current run (set by :func:`gonio_cli.cli.run`), so that a
+#: message names an option as the user typed it (``--width-px`` or its old ``--width``).
+_ARGV: list[str] = []
+
+
+def remember_argv(args: Iterable[str]) -> None:
+    """Record the current run's arguments (:func:`as_typed` reads them)."""
+    _ARGV[:] = [str(a) for a in args]
+
+
+def as_typed(*spellings: str) -> str:
+    """Of an option's ``spellings`` (canonical first, then its aliases), the one this run's
+    command line used (``--width=5`` counts), else the canonical one."""
+    for arg in _ARGV:
+        if arg == "--":
+            break
+        flag = arg.split("=", 1)[0]
+        if flag in spellings:
+            return flag
+    return spellings[0]
+
+
 #: Old spellings of flags that now carry their unit (``--width`` → ``--width-px``): still
 #: accepted, never shown in ``--help`` (tests/test_cli_help.py checks each has a shown
 #: spelling with a unit).
@@ -311,8 +335,21 @@ def is_pattern(text: str) -> bool:
     return any(ch in GLOB_CHARACTERS for ch in text)
 
 
+def read_as(option: str, read: Callable[[Any], Any], path) -> Any:
+    """``read(path)`` for the file given as ``option`` (``--at``, ``--basis``): an error
+    about that file names the option too (``b.json: schema is … (given as --basis)``)."""
+    from ..errors import GonioError
+
+    try:
+        return read(path)
+    except GonioError as exc:
+        if exc.path == os.fspath(path) and option not in exc.message:
+            exc.message = f"{exc.message} (given as {option})"
+        raise
+
+
 def require_files(paths: Iterable[str | os.PathLike], *, what: str = "file",
-                  missing_fix: str = "check the path") -> None:
+                  missing_fix: str = "check the path", schema: str | None = None) -> None:
     """Refuse a path that is not an existing file, naming the real cause.
 
     A shell passes a pattern that matches nothing on unchanged (bash without
@@ -323,7 +360,9 @@ def require_files(paths: Iterable[str | os.PathLike], *, what: str = "file",
     ------
     InputError
         ``no files match 'photo_ti*.png'``, ``PATH: no such file`` (``no such image
-        file`` with ``what="image file"``) or ``PATH: is a folder, not a file``.
+        file`` with ``what="image file"``) or ``PATH: is a folder, not a file``. With the
+        ``schema`` of the artifact expected, the fix of a missing file is the command that
+        makes it (:func:`gonio_cli.artifact.make_fix`), not ``missing_fix``.
     """
     from ..errors import InputError
 
@@ -338,6 +377,10 @@ def require_files(paths: Iterable[str | os.PathLike], *, what: str = "file",
             raise InputError(f"no files match {text!r}",
                              fix="check the folder and the pattern (a pattern that matches "
                                  "nothing reaches gonio as it is)")
+        if schema is not None:
+            from ..artifact import make_fix
+
+            missing_fix = make_fix(schema, text, missing=True)
         raise InputError(f"no such {what}", path=text, fix=missing_fix)
 
 

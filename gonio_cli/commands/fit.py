@@ -91,9 +91,8 @@ def fit(
     from ..schemas import read_measurement, write_material
     from . import require_files
 
-    require_files([measurement], missing_fix="check the path or make it with gonio ingest")
-    if on_failure not in ("error", "write"):
-        raise InputError(f"--on-failure {on_failure!r} is unknown", fix="use error or write")
+    require_files([measurement], schema="gonio.measurement")
+    pick(("error", "write"), on_failure, "--on-failure")
     check_options(model, optimizer)
     pick(SWEEP_GAIN_NAMES, sweep_gain, "--sweep-gain")
     if jobs is not None and jobs < 1:

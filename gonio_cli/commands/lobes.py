@@ -144,6 +144,7 @@ def fit(
     from .. import log
     from ..errors import InputError
     from ..schemas import Lobes, read_lobe_basis, read_material, write_lobes
+    from . import read_as
 
     core.check_channels(channels)
     core.check_solver(solver)
@@ -160,7 +161,7 @@ def fit(
     declare({"-o": output}, [material, basis_path])
     inputs = [material]
     if basis_path is not None:
-        e = read_lobe_basis(basis_path).exponents(n_lobes, path=basis_path)
+        e = read_as("--basis", read_lobe_basis, basis_path).exponents(n_lobes, path=basis_path)
         inputs.append(basis_path)
     else:
         try:

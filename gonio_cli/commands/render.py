@@ -8,7 +8,7 @@ from typing import List, Optional
 import typer
 
 from ..names import ADAPTATION_NAMES as ADAPT_NAMES
-from ..names import EXR_SPACE_NAMES, TONEMAP_NAMES, metavar
+from ..names import EXR_SPACE_NAMES, TONEMAP_NAMES, metavar, pick
 from ..names import SPECTRAL_PATHS as SPECTRAL
 
 
@@ -88,21 +88,18 @@ def render(
     from ..render import Stats
     from ..render.pipeline import frame_time, render_scene, write_outputs, write_report
     from ..render.scene import load_scene
-    from . import parse_vars
+    from . import as_typed, parse_vars
 
     variables = parse_vars(var)
     for path, flag in ((output, "-o"), (exr, "--exr"), (report, "--report"),
                        (gamut_warning, "--gamut-warning"), (spectral_exr, "--spectral-exr")):
         if path is not None and path.exists() and path.is_dir():
             raise InputError(f"{flag} {path} is a folder", fix="name a file")
-    if spectral is not None and spectral not in SPECTRAL:
-        raise InputError(f"--spectral {spectral!r} is unknown", fix=f"use one of {', '.join(SPECTRAL)}")
-    if tonemap is not None and tonemap not in TONEMAP_NAMES:
-        raise InputError(f"--tonemap {tonemap!r} is unknown",
-                         fix=f"use one of {', '.join(TONEMAP_NAMES)}")
-    if adapt is not None and adapt not in ADAPT_NAMES:
-        raise InputError(f"--adapt {adapt!r} is unknown",
-                         fix=f"use one of {', '.join(ADAPT_NAMES)}")
+    for value, names, flag in ((spectral, SPECTRAL, "--spectral"),
+                               (tonemap, TONEMAP_NAMES, "--tonemap"),
+                               (adapt, ADAPT_NAMES, "--adapt")):
+        if value is not None:
+            pick(names, value, flag)
     if gamut_warning is not None and gamut_warning.suffix.lower() != ".png":
         raise InputError(f"--gamut-warning {gamut_warning}: the image is written as PNG",
                          fix="name it *.png")
@@ -111,9 +108,7 @@ def render(
     for path, flag in ((exr, "--exr"), (spectral_exr, "--spectral-exr")):
         if path is not None and path.suffix.lower() != ".exr":
             raise InputError(f"{flag} {path}: not an .exr name", fix="name it *.exr")
-    if exr_space not in EXR_SPACE_NAMES:
-        raise InputError(f"--exr-space {exr_space!r} is unknown",
-                         fix=f"use one of {', '.join(EXR_SPACE_NAMES)}")
+    pick(EXR_SPACE_NAMES, exr_space, "--exr-space")
     check_turntable(turntable, frame, orbit)
 
     from ..outputs import declare
@@ -135,7 +130,10 @@ def render(
         loaded = load_scene(scene, variables=variables,
                             overrides={"width": width, "height": height, "ssaa": ssaa,
                                        "spectral": spectral, "exposure": exposure,
-                                       "tonemap": tonemap, "adapt": adapt, "grid_nm": grid_nm})
+                                       "tonemap": tonemap, "adapt": adapt, "grid_nm": grid_nm},
+                            flags={"width": as_typed("--width-px", "--width"),
+                                   "height": as_typed("--height-px", "--height"),
+                                   "exposure": as_typed("--exposure-stops", "--exposure")})
     stats.time_s["scene"] = t["time_s"]
     declare(outs, loaded.inputs)  # the files the scene reads
     for k, names in zip(frames, named):
@@ -178,8 +176,7 @@ def check_turntable(turntable: int | None, frame: int | None, orbit: str) -> Non
     from ..errors import InputError
     from ..render.turntable import ORBITS
 
-    if orbit not in ORBITS:
-        raise InputError(f"--orbit {orbit!r} is unknown", fix=f"use one of {', '.join(ORBITS)}")
+    pick(ORBITS, orbit, "--orbit")
     if turntable is None:
         if frame is not None:
             raise InputError("--frame needs --turntable N", fix="add --turntable N")

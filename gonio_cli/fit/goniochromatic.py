@@ -33,7 +33,7 @@ import numpy as np
 from ..brdf import (LOG_MAX, dlog_ggx_d_dlog_alpha, goniochromatic,
                     goniochromatic_exponent_arg, log_ggx_d, log_goniochromatic_d4)
 from ..errors import FitError, InputError
-from ..names import STEP2_NAMES
+from ..names import STEP2_NAMES, pick
 from .common import (ALPHA_MAX, ALPHA_MIN, C_LIMIT, FitData, FitOptions, FitReport,
                      LinearProfile, ModelFit, Stopwatch, WARM_ALPHA_FACTOR,
                      WARM_ALPHA_POINTS, choose_optimizer, error_figures, minimize_log_alpha,
@@ -250,7 +250,7 @@ def fit(data: FitData, options: FitOptions) -> ModelFit:
     that runs but cannot be trusted comes back with ``status`` "failed" and a message.
     """
     if options.step2 not in STEP2_MODES:
-        raise InputError(f"--step2 {options.step2!r} is unknown", fix="use mirror or all")
+        pick(STEP2_MODES, options.step2, "--step2")
     optimizer, _ = choose_optimizer("goniochromatic", OPTIMIZERS, options.optimizer)
     if options.alpha is not None and not (ALPHA_MIN <= options.alpha <= ALPHA_MAX):
         raise InputError(f"--alpha {options.alpha:g} is outside [{ALPHA_MIN:g}, {ALPHA_MAX:g}]",

@@ -115,8 +115,10 @@ class _SceneKey:
             return False
         where = self.path.name + (f":{exc.row}" if exc.row is not None else "")
         column = f"{exc.column}: " if exc.column else ""
-        fix = (f"point {self.key.split()[-1]} at the right file" if isinstance(exc, ArtifactError)
-               else exc.fix)
+        fix = exc.fix
+        if isinstance(exc, ArtifactError):  # and the command that makes the right one
+            fix = f"point {self.key.split()[-1]} at the right file" + (
+                f", or {exc.fix}" if (exc.fix or "").startswith("make ") else "")
         raise InputError(f"{self.key} = {where}: {column}{exc.message}",
                          path=self.scene.display, fix=fix) from None
 

@@ -95,7 +95,8 @@ def read_scene_toml(path: str | os.PathLike, display: str | None = None) -> dict
 
 def load_scene(path: str | os.PathLike, *, variables: Mapping[str, str] | None = None,
                overrides: Mapping[str, Any] | None = None,
-               doc: Mapping[str, Any] | None = None) -> Scene:
+               doc: Mapping[str, Any] | None = None,
+               flags: Mapping[str, str] | None = None) -> Scene:
     """Read and validate a scene file.
 
     Parameters
@@ -105,6 +106,8 @@ def load_scene(path: str | os.PathLike, *, variables: Mapping[str, str] | None =
     overrides : command-line settings that replace the file's: ``width``, ``height``
         (camera), ``ssaa``, ``spectral``, ``exposure``, ``tonemap``, ``adapt``, ``grid_nm`` (output;
         a ``grid_nm`` given here is used as it is, :func:`choose_grid`); None = keep.
+    flags : the option each override came from, as the user typed it (``{"width":
+        "--width-px"}``), for messages; an override not named here is ``--<key>``.
     doc : the scene as data (what ``tomllib`` gives for the file, e.g. a template edited
         by a program); None reads ``path``, which in both cases names the scene in errors
         and anchors its relative paths.
@@ -133,6 +136,7 @@ def load_scene(path: str | os.PathLike, *, variables: Mapping[str, str] | None =
     merged.update(variables or {})
     doc = substitute({k: v for k, v in doc.items() if k != "vars"}, merged, chk, "")
     overrides = {k: v for k, v in (overrides or {}).items() if v is not None}
+    overrides = _Overrides(overrides, flags or {})
 
     camera = _camera(chk, doc, overrides)
     output = _output(chk, doc, overrides)
@@ -201,6 +205,18 @@ def load_scene(path: str | os.PathLike, *, variables: Mapping[str, str] | None =
                  dict(merged), list(dict.fromkeys(inputs)), display)
 
 
+class _Overrides(dict):
+    """Command-line overrides by key, and the option each came from (:meth:`flag`)."""
+
+    def __init__(self, values: Mapping[str, Any], flags: Mapping[str, str]):
+        super().__init__(values)
+        self.flags = dict(flags)
+
+    def flag(self, key: str) -> str:
+        """The option as typed (``--width-px``), else ``--<key>`` with dashes."""
+        return self.flags.get(key, f"--{key.replace('_', '-')}")
+
+
 def _camera(chk: Checker, doc, overrides) -> Camera:
     where = "[camera]"
     cam = chk.table(chk.required(doc, "camera", ""), where)
@@ -213,7 +229,7 @@ def _camera(chk: Checker, doc, overrides) -> Camera:
     size = {}
     for key in ("width", "height"):
         if key in overrides:
-            size[key] = chk.integer(overrides[key], f"--{key}", lo=1, hi=16384)
+            size[key] = chk.integer(overrides[key], overrides.flag(key), lo=1, hi=16384)
         else:
             size[key] = chk.integer(chk.required(cam, key, where), f"{where} {key}",
                                     lo=1, hi=16384)
@@ -234,7 +250,7 @@ def _output(chk: Checker, doc, overrides) -> Output:
     chk.keys(out, OUTPUT_KEYS, where)
     d = Output()
     src = {**out, **{k: v for k, v in overrides.items() if k in OUTPUT_KEYS}}
-    label = (lambda k: f"--{k.replace('_', '-')}" if k in overrides  # noqa: E731
+    label = (lambda k: overrides.flag(k) if k in overrides  # noqa: E731
              else f"{where} {k}")
     return Output(
         exposure=chk.number(src.get("exposure", d.exposure), label("exposure"),
