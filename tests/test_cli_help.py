@@ -193,6 +193,7 @@ def _registries():
         ("render", "--tonemap", names.TONEMAP_NAMES, tuple(tonemap.TONEMAPS)),
         ("render", "--adapt", names.ADAPTATION_NAMES, tuple(tonemap.ADAPTATIONS)),
         ("render", "--exr-space", names.EXR_SPACE_NAMES, tuple(tonemap.EXR_SPACES)),
+        ("render", "--exr-adapt", names.ADAPTATION_NAMES, tuple(tonemap.ADAPTATIONS)),
         ("halftone", "--method", names.HALFTONE_METHOD_NAMES, tuple(METHODS)),
         ("halftone", "--gamut", names.GAMUT_NAMES, tuple(coverage.GAMUT_MAPPERS)),
         ("halftone", "--input-encoding", names.INPUT_ENCODING_NAMES, coverage.INPUT_ENCODINGS),

@@ -43,6 +43,11 @@ def render(
         None, "--adapt", metavar=metavar(ADAPT_NAMES),
         help=f"Chromatic adaptation of the lights' white to D65, one of: "
              f"{', '.join(ADAPT_NAMES)} (overrides [output]; default bradford)."),
+    exr_adapt: Optional[str] = typer.Option(
+        None, "--exr-adapt", metavar=metavar(ADAPT_NAMES),
+        help="Chromatic adaptation of the --exr image (and the --spectral-exr preview): "
+             "none keeps it scene-referred, the lights' colour in it [default: none]; "
+             "bradford or cat16 adapt it as the PNG is (--adapt)."),
     gamut_warning: Optional[Path] = typer.Option(
         None, "--gamut-warning", metavar="FILE.png",
         help="Also write the PNG with pixels outside sRGB painted grey."),
@@ -97,7 +102,8 @@ def render(
             raise InputError(f"{flag} {path} is a folder", fix="name a file")
     for value, names, flag in ((spectral, SPECTRAL, "--spectral"),
                                (tonemap, TONEMAP_NAMES, "--tonemap"),
-                               (adapt, ADAPT_NAMES, "--adapt")):
+                               (adapt, ADAPT_NAMES, "--adapt"),
+                               (exr_adapt, ADAPT_NAMES, "--exr-adapt")):
         if value is not None:
             pick(names, value, flag)
     if gamut_warning is not None and gamut_warning.suffix.lower() != ".png":
@@ -109,6 +115,10 @@ def render(
         if path is not None and path.suffix.lower() != ".exr":
             raise InputError(f"{flag} {path}: not an .exr name", fix="name it *.exr")
     pick(EXR_SPACE_NAMES, exr_space, "--exr-space")
+    if exr_adapt is not None and exr is None and spectral_exr is None:
+        raise InputError("--exr-adapt is for the --exr image (or the --spectral-exr "
+                         "preview), and neither is written", fix="add --exr OUT.exr, or "
+                         "drop --exr-adapt (the PNG's adaptation is --adapt)")
     check_turntable(turntable, frame, orbit)
 
     from ..outputs import declare
@@ -146,7 +156,7 @@ def render(
         image = render_scene(sc, stats, spectra=names["--spectral-exr"] is not None)
         write_outputs(image, sc, stats, png=names["-o"], exr=names["--exr"], start=start,
                       gamut_warning=names["--gamut-warning"], exr_space=exr_space,
-                      spectral_exr=names["--spectral-exr"])
+                      spectral_exr=names["--spectral-exr"], exr_adapt=exr_adapt)
         total = time.perf_counter() - start
         if names["--report"] is not None:
             write_report(names["--report"], sc, stats, total_s=total, png=names["-o"],

@@ -57,7 +57,9 @@ FRAME_STAGES = ("rasterize", "shadows", "shade", "downsample", "tonemap")
 
 @dataclass
 class Frame:
-    """A rendered frame: ``linear`` (H, W, 3) float32 scene-linear sRGB (the EXR),
+    """A rendered frame: ``linear`` (H, W, 3) float32 linear sRGB after the display's
+    chromatic adaptation (``[output] adapt``: what the PNG shows; the colour EXR is
+    :func:`.output.exr_pixels`, by default without adaptation),
     ``display`` (H, W, 3) uint8 sRGB-encoded after exposure and tone map (the PNG),
     ``xyz`` (H, W, 3) float64 CIE XYZ (box-filtered), ``coverage`` (H, W) the fraction of
     each pixel's samples that hit an object, ``out_of_gamut`` (H, W) bool the pixels whose
