@@ -181,3 +181,53 @@ def test_a_measurement_as_a_scene_material_names_the_key_and_the_command(good, t
                                      "point material at the right file, or make a material "
                                      f"from it with `gonio fit {good['measurement']}"),
                    outputs=[out])
+
+
+# ------------------------------------------------- figures a user can read (item 6) --
+
+def test_the_fit_verdict_says_what_decides_it_and_the_thresholds(good, tmp_path):
+    """The verdict line names the colour error's scale, the thresholds of a good fit and
+    which figures decide; the relative RMSE is shown as not judged. One line."""
+    out = tmp_path / "red.material.json"
+    code, err = run("fit", good["measurement"], "-o", out, "--exclude-theta-i-deg", "70")
+    assert code == 0, err
+    line = next(x for x in err.splitlines() if "verdict by" in x)
+    assert line.startswith(f"{out}: goniochromatic, CIEDE2000 mean ")
+    assert "(colour error; 1 ~ just noticeable)" in line
+    assert "; verdict by colour (good if mean <= 0.7, worst <= 1.5, peaks x0.75-1.33): " \
+        in line
+    assert line.endswith(": good") or ": poor (" in line
+    assert "rel-RMSE" in line and "not judged" in line
+
+
+def test_the_verdict_line_carries_the_user_s_limit():
+    """--max-error replaces the mean threshold; the worst one is at least as large."""
+    from types import SimpleNamespace
+
+    from gonio_cli.commands.fit import verdict_line
+
+    result = SimpleNamespace(model="goniochromatic", result=SimpleNamespace(
+        errors={"relative_rmse_percent": 588.9}))
+    judgement = {"verdict": "poor", "reasons": ["mean CIEDE2000 3.86 > 2"],
+                 "thresholds": {"mean_delta_e": 2.0, "worst_delta_e": 1.5,
+                                "peak_ratio_min": 0.75, "peak_ratio_max": 4 / 3},
+                 "delta_e2000_mean": 3.86, "delta_e2000_worst": 9.1,
+                 "worst_colour_configuration": {"theta_i_deg": 50.0, "theta_o_deg": 80.0}}
+    line = verdict_line("m.json", result, judgement)
+    assert "\n" not in line
+    assert "rel-RMSE 588.9% (relative error of each reading of f, largest where f is " \
+           "small: not judged)" in line
+    assert line.endswith("; verdict by colour (good if mean <= 2, worst <= 2): poor (mean "
+                         "CIEDE2000 3.86 > 2)")
+
+
+def test_the_lobes_fit_line_gives_the_scale_of_its_figure(good, tmp_path):
+    out = tmp_path / "red.lobes.json"
+    code, err = run("lobes", "fit", good["material"], "--basis", good["basis"], "--lobes",
+                    "2", "-o", out, "--compare")
+    assert code == 0, err
+    line = next(x for x in err.splitlines() if x.startswith(f"{out}: 2 lobes"))
+    assert ("how far the lobes miss f cos theta_i at the worst view, rel-RMS (0 exact, 1 no "
+            "better than no lobes; over the seed001 samples: compare solvers and lobe "
+            "counts on them, not sample sets): lp (written) ") in line
+    assert "; nnls " in line and "ms/view, median" in line
