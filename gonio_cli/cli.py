@@ -21,7 +21,7 @@ from typing import Optional, Sequence
 import typer
 
 from . import __version__, log, outputs
-from .commands import STAGES, Group, apply_help_style, remember_argv
+from .commands import STAGES, Group, apply_help_style, as_typed_in, remember_argv
 from .errors import EXIT_INTERRUPTED, EXIT_TERMINATED, EXIT_USAGE, GonioError, Terminated
 
 #: Stage shells in pipeline order; each module has ``register(app)`` and ``EXAMPLE``.
@@ -92,7 +92,7 @@ def run(argv: Sequence[str] | None = None) -> int:
     _forget_written()
     apply_help_style(app)  # commands registered since import (tests) get the same help
     args = list(argv) if argv is not None else sys.argv[1:]
-    remember_argv(args)  # messages name an option as typed (commands.as_typed)
+    remember_argv(args)  # messages name an option as typed (commands.as_typed_in)
     try:
         # every output is staged and moved into place only when the command succeeds;
         # Python warnings become gonio warning lines naming the input
@@ -104,8 +104,8 @@ def run(argv: Sequence[str] | None = None) -> int:
                 tx.commit()
         # typer turns Ctrl-C inside a command into exit status 130 without a word
         return _interrupted() if code == EXIT_INTERRUPTED else code
-    except GonioError as exc:
-        print(f"gonio: error: {exc.format()}", file=sys.stderr)
+    except GonioError as exc:  # options named as the user typed them
+        print(f"gonio: error: {as_typed_in(exc.format())}", file=sys.stderr)
         return exc.exit_code
     except SystemExit as exc:
         code = exc.code

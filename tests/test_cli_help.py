@@ -293,6 +293,9 @@ def test_a_flag_with_a_unit_says_it_in_its_name():
     ("lobes fit", "--view-angles-deg", "--view-angles"),
     ("halftone", "--size-px", "--size")])
 def test_old_spellings_are_hidden_aliases(run_gonio, path, new, old):
+    from gonio_cli.commands import ALIASES
+
+    assert ALIASES[old] == new
     param = _option(path, new)
     assert old in param.opts                     # still parsed, to the same parameter
     text = run_gonio(*path.split(), "--help").stdout

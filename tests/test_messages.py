@@ -231,3 +231,15 @@ def test_the_lobes_fit_line_gives_the_scale_of_its_figure(good, tmp_path):
             "better than no lobes; over the seed001 samples: compare solvers and lobe "
             "counts on them, not sample sets): lp (written) ") in line
     assert "; nnls " in line and "ms/view, median" in line
+
+
+@pytest.mark.parametrize("typed, shown", [("--exclude-theta-i", "--exclude-theta-i 95:"),
+                                          ("--exclude-theta-i-deg", "--exclude-theta-i-deg 95:")])
+def test_a_core_s_message_names_the_old_spelling_the_user_typed(good, tmp_path, typed, shown):
+    """The fit's core names --exclude-theta-i-deg; a user who typed the old --exclude-theta-i
+    reads that (gonio_cli.commands.as_typed_in, applied once where errors are printed)."""
+    out = tmp_path / "m.json"
+    code, err = run("fit", good["measurement"], "-o", out, typed, "95")
+    assert_refused(code, err, names=(str(good["measurement"]), shown), outputs=[out])
+    if typed == "--exclude-theta-i":
+        assert "--exclude-theta-i-deg" not in err

@@ -277,7 +277,8 @@ def test_buffers_beyond_the_machine_are_refused_before_allocating(run_gonio, sce
                   "--height", "16384", "--ssaa", "16")
     assert r.exit_code == 2 and r.stderr.count("\n") == 1
     assert "a 16384x16384 render at ssaa 16 needs about" in r.stderr
-    assert "lower --ssaa or --width-px/--height-px" in r.stderr
+    # the options named as typed (the old spellings here: gonio_cli.commands.as_typed_in)
+    assert "lower --ssaa or --width/--height" in r.stderr
 
 
 def test_memory_estimate_bounds_the_measured_buffers(scene):

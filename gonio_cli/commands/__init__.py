@@ -78,33 +78,37 @@ def argument_label(param) -> str:
 # ------------------------------------------------------------- flags as typed --
 
 #: The command line of the current run (set by :func:`gonio_cli.cli.run`), so that a
-#: message names an option as the user typed it (``--width-px`` or its old ``--width``).
+#: message names an option as the user typed it (``--width-px`` or its old ``--width``,
+#: :func:`as_typed_in`).
 _ARGV: list[str] = []
 
 
 def remember_argv(args: Iterable[str]) -> None:
-    """Record the current run's arguments (:func:`as_typed` reads them)."""
+    """Record the current run's arguments (:func:`as_typed_in` reads them)."""
     _ARGV[:] = [str(a) for a in args]
 
 
-def as_typed(*spellings: str) -> str:
-    """Of an option's ``spellings`` (canonical first, then its aliases), the one this run's
-    command line used (``--width=5`` counts), else the canonical one."""
-    for arg in _ARGV:
-        if arg == "--":
-            break
-        flag = arg.split("=", 1)[0]
-        if flag in spellings:
-            return flag
-    return spellings[0]
+#: Old spellings of flags that now carry their unit → the spelling shown (``--width`` →
+#: ``--width-px``): still accepted, never shown in ``--help`` (tests/test_cli_help.py
+#: checks each has a shown spelling with a unit, and that it is this one).
+ALIASES = {"--width": "--width-px", "--height": "--height-px",
+           "--exclude-theta-i": "--exclude-theta-i-deg",
+           "--exclude-theta-o": "--exclude-theta-o-deg", "--theta-i": "--theta-i-deg",
+           "--resolution": "--height-px", "--view-angles": "--view-angles-deg",
+           "--exposure": "--exposure-stops", "--size": "--size-px"}
+HIDDEN_ALIASES = frozenset(ALIASES)
 
 
-#: Old spellings of flags that now carry their unit (``--width`` → ``--width-px``): still
-#: accepted, never shown in ``--help`` (tests/test_cli_help.py checks each has a shown
-#: spelling with a unit).
-HIDDEN_ALIASES = frozenset({"--width", "--height", "--exclude-theta-i", "--exclude-theta-o",
-                            "--theta-i", "--resolution", "--view-angles", "--exposure",
-                            "--size"})
+def as_typed_in(text: str) -> str:
+    """``text`` (a message of a core, which names options by their shown spelling) with
+    each option the user typed by an old spelling (:data:`ALIASES`, and not by its
+    shown one) named as typed: ``--width-px: 100000 …`` for ``--width 100000`` becomes
+    ``--width: 100000 …``."""
+    typed = {a.split("=", 1)[0] for a in _ARGV}
+    for alias, shown in ALIASES.items():
+        if alias in typed and shown not in typed:
+            text = re.sub(rf"(?<![\w-]){re.escape(shown)}(?![\w-])", alias, text)
+    return text
 
 
 def _help_record(param, ctx):

@@ -93,7 +93,7 @@ def render(
     from ..render import Stats
     from ..render.pipeline import frame_time, render_scene, write_outputs, write_report
     from ..render.scene import load_scene
-    from . import as_typed, parse_vars
+    from . import parse_vars
 
     variables = parse_vars(var)
     for path, flag in ((output, "-o"), (exr, "--exr"), (report, "--report"),
@@ -141,9 +141,8 @@ def render(
                             overrides={"width": width, "height": height, "ssaa": ssaa,
                                        "spectral": spectral, "exposure": exposure,
                                        "tonemap": tonemap, "adapt": adapt, "grid_nm": grid_nm},
-                            flags={"width": as_typed("--width-px", "--width"),
-                                   "height": as_typed("--height-px", "--height"),
-                                   "exposure": as_typed("--exposure-stops", "--exposure")})
+                            flags={"width": "--width-px", "height": "--height-px",
+                                   "exposure": "--exposure-stops"})
     stats.time_s["scene"] = t["time_s"]
     declare(outs, loaded.inputs)  # the files the scene reads
     for k, names in zip(frames, named):

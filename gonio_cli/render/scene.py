@@ -106,8 +106,9 @@ def load_scene(path: str | os.PathLike, *, variables: Mapping[str, str] | None =
     overrides : command-line settings that replace the file's: ``width``, ``height``
         (camera), ``ssaa``, ``spectral``, ``exposure``, ``tonemap``, ``adapt``, ``grid_nm`` (output;
         a ``grid_nm`` given here is used as it is, :func:`choose_grid`); None = keep.
-    flags : the option each override came from, as the user typed it (``{"width":
-        "--width-px"}``), for messages; an override not named here is ``--<key>``.
+    flags : the option each override came from (``{"width": "--width-px"}``), for
+        messages (the CLI names it as the user typed it,
+        :func:`gonio_cli.commands.as_typed_in`); an override not named here is ``--<key>``.
     doc : the scene as data (what ``tomllib`` gives for the file, e.g. a template edited
         by a program); None reads ``path``, which in both cases names the scene in errors
         and anchors its relative paths.
@@ -213,7 +214,7 @@ class _Overrides(dict):
         self.flags = dict(flags)
 
     def flag(self, key: str) -> str:
-        """The option as typed (``--width-px``), else ``--<key>`` with dashes."""
+        """The option's name (``--width-px``), else ``--<key>`` with dashes."""
         return self.flags.get(key, f"--{key.replace('_', '-')}")
 
 
