@@ -4,7 +4,7 @@ Every path in a scene file is relative to the scene file. Unknown keys, wrong ty
 non-finite numbers and missing files are :class:`~gonio_cli.errors.InputError` s of one
 line that name the file and the key (STYLE 7), e.g.::
 
-    scene.toml: [[object]] 2: unknown key 'materal'; allowed: inks, lobes, mask, ...
+    scene.toml: [[object]] 2: unknown key 'materal'; did you mean 'material'? allowed: ...
 
 A scene may be a template: ``${name}`` in any string is replaced by the variable
 ``name``, defined in the scene's ``[vars]`` table (defaults) or on the command line
