@@ -284,11 +284,52 @@ def write_artifact(path: str | os.PathLike, schema: str, schema_version: int,
     return doc
 
 
-#: What makes each artifact, for the fix of a wrong or broken input file.
-_MAKERS = {"gonio.measurement": "pass a measurement made by gonio ingest (which reads the CSVs)",
-           "gonio.material": "pass a material made by gonio fit",
-           "gonio.lobe_basis": "pass a basis made by gonio lobes basis",
-           "gonio.lobes": "pass lobe weights made by gonio lobes fit"}
+#: What each artifact is called in a message, the command that makes it (``{src}`` its
+#: input, ``{out}`` its output) and that input's and output's names when not known.
+_MAKERS = {
+    "gonio.measurement": ("a measurement", "gonio ingest {src} -o {out}", "INPUT.csv",
+                          "measurement.json"),
+    "gonio.material": ("a material", "gonio fit {src} -o {out}", "MEASUREMENT.json",
+                       "material.json"),
+    "gonio.lobe_basis": ("a lobe basis", "gonio lobes basis {src} -o {out}", "MATERIAL.json",
+                         "basis.json"),
+    "gonio.lobes": ("lobe weights", "gonio lobes fit {src} --basis BASIS.json -o {out}",
+                    "MATERIAL.json", "lobes.json"),
+    "gonio.prefilter": ("a prefiltered environment", "gonio prefilter ENV.exr --lobes {src} "
+                        "-o {out}", "LOBES.json", "FOLDER"),
+}
+
+#: The schema each maker reads (``gonio fit`` reads a measurement …): a file of that
+#: schema given where the made one is expected is the input of the command to run.
+_MADE_FROM = {"gonio.material": "gonio.measurement", "gonio.lobe_basis": "gonio.material",
+              "gonio.lobes": "gonio.material", "gonio.prefilter": "gonio.lobes"}
+
+
+def make_fix(schema: str, path=None, found: str | None = None, *,
+             missing: bool = False) -> str:
+    """The fix of a file that is not the ``schema`` artifact a command reads: the command
+    that makes one. The user's ``path`` is that command's input where it is what the
+    command reads (``found``: its schema; a ``.csv`` or ``.bsdf`` for ``gonio ingest``),
+    e.g. ``make a material from it with `gonio fit red.measurement.json -o
+    red.material.json```; a ``missing`` file is the command's output."""
+    if schema not in _MAKERS:
+        return "pass the file this command reads"
+    what, command, src, out = _MAKERS[schema]
+    name = os.fspath(path) if path is not None else ""
+    stem = Path(name).name.split(".")[0]
+    if stem and out != "FOLDER":
+        out = f"{stem}.{out}"
+    if missing:
+        return f"check the path, or make it with `{command.format(src=src, out=name)}`"
+    if (found is not None and found == _MADE_FROM.get(schema)) or \
+            (schema == "gonio.measurement" and name.lower().endswith((".csv", ".bsdf"))):
+        return f"make {what} from it with `{command.format(src=name, out=out)}`"
+    return f"make {what} with `{command.format(src=src, out=out)}`"
+
+
+def _found(schema: str) -> str:
+    """``schema`` as a message names it (``a material``), else the schema itself."""
+    return _MAKERS[schema][0] if schema in _MAKERS else f"a {schema} file"
 
 
 def read_artifact(path: str | os.PathLike, schema: str,
@@ -300,34 +341,35 @@ def read_artifact(path: str | os.PathLike, schema: str,
         data = path.read_bytes()
     except FileNotFoundError:
         raise ArtifactError("no such file", path=path,
-                            fix="check the path or run the stage that makes it") from None
+                            fix=make_fix(schema, path, missing=True)) from None
     except IsADirectoryError:
         raise ArtifactError(f"is a folder, not a {schema} file", path=path,
-                            fix=_MAKERS.get(schema, "pass the file the command reads")) from None
+                            fix=make_fix(schema, path)) from None
     except OSError as exc:
         raise ArtifactError(f"cannot read it ({exc.strerror or exc.__class__.__name__})",
                             path=path) from None
     kind = binary_kind(data[:16])
     if kind is not None:
         raise ArtifactError(f"not a {schema} file (it is a {kind})", path=path,
-                            fix=_MAKERS.get(schema, "pass the file the command reads"))
+                            fix=make_fix(schema, path))
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise ArtifactError(f"not a {schema} file (not UTF-8 text: byte "
                             f"0x{data[exc.start]:02x} at offset {exc.start})", path=path,
-                            fix=_MAKERS.get(schema, "pass the file the command reads")) from None
+                            fix=make_fix(schema, path)) from None
     try:
         doc = json.loads(text)
     except json.JSONDecodeError as exc:
         raise ArtifactError(f"not valid JSON ({exc.msg} at line {exc.lineno}), so not a "
                             f"{schema} artifact", path=path,
-                            fix=_MAKERS.get(schema, "pass the file the command reads")) from None
+                            fix=make_fix(schema, path)) from None
     if not isinstance(doc, dict) or "schema" not in doc:
         raise ArtifactError("not a gonio artifact (no 'schema' field)", path=path)
     if doc["schema"] != schema:
-        raise ArtifactError(f"schema is {doc['schema']!r}, expected {schema!r}", path=path,
-                            fix="pass the file this command reads")
+        raise ArtifactError(f"schema is {doc['schema']!r}, expected {schema!r}: it is "
+                            f"{_found(str(doc['schema']))}, not {_found(schema)}",
+                            path=path, fix=make_fix(schema, path, str(doc["schema"])))
     if doc.get("schema_version") not in versions:
         raise ArtifactError(
             f"{schema} schema_version {doc.get('schema_version')!r} is not supported "
@@ -358,6 +400,14 @@ def check_keys(doc: Mapping[str, Any], allowed: Iterable[str], *, path=None,
     """Refuse unknown keys (STYLE 7): a typo is an error, never silently ignored."""
     unknown = sorted(set(doc) - set(allowed))
     if unknown:
+        from .names import choices_fix, closest
+
+        allowed = sorted(allowed)
+        fix = choices_fix(unknown[0], allowed, "allowed:")
+        if len(unknown) > 1:  # one question for every misspelt field that has a match
+            meant = [f"{where}{near} for {where}{k}" for k in unknown
+                     if (near := closest(k, allowed)) is not None]
+            fix = (f"did you mean {', '.join(meant)}? " if meant else "") + \
+                f"allowed: {', '.join(allowed)}"
         raise ArtifactError(f"unknown field{'s' if len(unknown) > 1 else ''} "
-                            f"{', '.join(where + k for k in unknown)}", path=path,
-                            fix=f"allowed: {', '.join(sorted(allowed))}")
+                            f"{', '.join(where + k for k in unknown)}", path=path, fix=fix)

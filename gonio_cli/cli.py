@@ -10,16 +10,19 @@ the help and exits 0.
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import os
+import signal
 import sys
+import threading
 from typing import Optional, Sequence
 
 import typer
 
 from . import __version__, log, outputs
-from .commands import STAGES, Group, apply_help_style
-from .errors import EXIT_INTERRUPTED, EXIT_USAGE, GonioError
+from .commands import STAGES, Group, apply_help_style, as_typed_in, remember_argv
+from .errors import EXIT_INTERRUPTED, EXIT_TERMINATED, EXIT_USAGE, GonioError, Terminated
 
 #: Stage shells in pipeline order; each module has ``register(app)`` and ``EXAMPLE``.
 #: ``eval`` (the model at a measurement's configurations) follows ``fit``.
@@ -89,24 +92,28 @@ def run(argv: Sequence[str] | None = None) -> int:
     _forget_written()
     apply_help_style(app)  # commands registered since import (tests) get the same help
     args = list(argv) if argv is not None else sys.argv[1:]
+    remember_argv(args)  # messages name an option as typed (commands.as_typed_in)
     try:
         # every output is staged and moved into place only when the command succeeds;
         # Python warnings become gonio warning lines naming the input
-        with outputs.transaction() as tx, log.python_warnings(_subject(args)):
+        with _sigterm_unwinds(), outputs.transaction() as tx, \
+                log.python_warnings(_subject(args)):
             code = _app_for(args)(args=args, prog_name="gonio", standalone_mode=False)
             code = code if isinstance(code, int) else 0
             if code == 0:
                 tx.commit()
         # typer turns Ctrl-C inside a command into exit status 130 without a word
         return _interrupted() if code == EXIT_INTERRUPTED else code
-    except GonioError as exc:
-        print(f"gonio: error: {exc.format()}", file=sys.stderr)
+    except GonioError as exc:  # options named as the user typed them
+        print(f"gonio: error: {as_typed_in(exc.format())}", file=sys.stderr)
         return exc.exit_code
     except SystemExit as exc:
         code = exc.code
         return code if isinstance(code, int) else (0 if code is None else 1)
     except KeyboardInterrupt:
         return _interrupted()
+    except Terminated:
+        return _interrupted("terminated", EXIT_TERMINATED)
     except OSError as exc:
         where = f"{exc.filename}: " if exc.filename else ""
         print(f"gonio: error: {where}{exc.strerror or exc}", file=sys.stderr)
@@ -185,15 +192,43 @@ def _outputs_written() -> list[str]:
     return out
 
 
-def _interrupted() -> int:
-    """Ctrl-C: one line saying what was written (atomic writes leave nothing partial)."""
+def _interrupted(how: str = "interrupted", code: int = EXIT_INTERRUPTED) -> int:
+    """Ctrl-C (or SIGTERM, ``how="terminated"``): one line saying what was written
+    (atomic writes leave nothing partial, temporary folders are gone)."""
     done = _outputs_written()
     if done:
-        print(f"gonio: interrupted after writing {', '.join(done)}; nothing else was "
+        print(f"gonio: {how} after writing {', '.join(done)}; nothing else was "
               "written", file=sys.stderr)
     else:
-        print("gonio: interrupted; nothing was written", file=sys.stderr)
-    return EXIT_INTERRUPTED
+        print(f"gonio: {how}; nothing was written", file=sys.stderr)
+    return code
+
+
+@contextlib.contextmanager
+def _sigterm_unwinds():
+    """While a command runs, SIGTERM raises :class:`~gonio_cli.errors.Terminated` in the
+    main thread instead of ending the process at once, so that temporary folders (``gonio
+    report``'s ``gonio-report-*``) and staged outputs are removed as for Ctrl-C. A second
+    SIGTERM ends the process at once (the default); a forked child (``--model auto -j``)
+    that inherits the handler dies as the default would. Off the main thread (where
+    Python cannot set handlers) nothing changes; the previous handler is restored."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    pid = os.getpid()
+
+    def handler(signum, frame):
+        signal.signal(signum, signal.SIG_DFL)
+        if os.getpid() != pid:
+            os.kill(os.getpid(), signum)
+            return
+        raise Terminated()
+
+    previous = signal.signal(signal.SIGTERM, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def _is_no_args_help(exc: Exception) -> bool:

@@ -24,6 +24,16 @@ EXIT_POOR_FIT = 3
 #: process the signal ended, so ``make`` and shell loops stop too.
 EXIT_INTERRUPTED = 130
 
+#: Exit status of a run stopped by SIGTERM (``kill``, a CI timeout): 128 + SIGTERM (15).
+EXIT_TERMINATED = 143
+
+
+class Terminated(BaseException):
+    """SIGTERM, raised in the main thread by :func:`gonio_cli.cli.run`'s handler so that
+    every ``with`` block unwinds as for Ctrl-C: temporary folders are removed and staged
+    outputs dropped. A ``BaseException``, like ``KeyboardInterrupt``, so that no
+    ``except Exception`` swallows it."""
+
 
 class GonioError(Exception):
     """Base class of all errors gonio reports to a user.

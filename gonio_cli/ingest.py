@@ -23,7 +23,7 @@ Pipeline of :func:`ingest`, per input file and then for all of them:
    after averaging (step 6).
 4. Files merge (they must share their grid) and the values are converted to BRDF in sr⁻¹
    by the quantity's rule (:data:`QUANTITIES`, seed 004 eqs. 5, 7, 8). A file whose values
-   look like percent (:func:`check_percent`) is refused.
+   look like percent (:func:`~gonio_cli.percent.check_percent`) is refused.
 5. Repeated rows of one configuration are averaged, their sample standard deviation kept
    (seed 000 averages ten spectra per configuration).
 6. Small negative means are clipped to 0 (counted), and everything is resampled onto
@@ -56,6 +56,8 @@ from .csvio import (ANGLE_DECIMALS, DELIMITERS, GEOMETRY, HEADER_SEARCH_LINES,
                     is_layout_header, label_kind, read_columns, read_spectra, read_spectrum,
                     read_table, rounded_keys, select_sample, split_labels)
 from .errors import InputError
+from .names import choices_fix
+from .percent import PERCENT_MEDIAN_LIMIT, check_percent, median_of  # noqa: F401 (API)
 from .schemas import MAX_MAGNITUDE, Measurement
 from .spectra import DEFAULT_GRID_NM, WAVELENGTH_TOL_NM, covers, parse_grid, resample, same_grid
 
@@ -75,16 +77,6 @@ NEGATIVE_NOISE_FRACTION = 0.01
 #: Spectralon of seed 000 ("Preparation and measurement"), docs/conventions.md.
 DEFAULT_WHITE_REFLECTANCE = 0.99
 
-#: A file whose median value is above this, in the quantity's :attr:`Quantity.level`, is
-#: in percent (``--scale 0.01``), not fractions. A perfect white diffuser has reflectance
-#: factor 1 at every geometry and matte samples stay below it (the MA-T12 green earth of
-#: tests/fixtures/real: median 0.50); a glossy sample exceeds 1 only near the specular
-#: direction, a few configurations of a goniometric sweep, so its median stays far lower
-#: (the sample red ink: median BRDF 0.040 sr^-1, peak 7.2; an RGL colour-shifting wrap in
-#: plane: median 0.018 sr^-1, peak 22). Percent data lands above 1.5 unless the sample
-#: reflects under 1.5 % at most geometries (then it cannot be told from fractions). For
-#: ``brdf`` the limit is 1.5 sr^-1, a reflectance factor of 4.7 at most configurations.
-PERCENT_MEDIAN_LIMIT = 1.5
 
 
 # ------------------------------------------------------------------------ data types --
@@ -320,7 +312,7 @@ def resolve_parameters(paths: Sequence[str | os.PathLike], *, quantity: str | No
     quantity = DEFAULT_QUANTITY if quantity is None else quantity
     if quantity not in QUANTITIES:
         raise InputError(f"--quantity {quantity!r} is not known", path=where,
-                         fix=f"use one of {', '.join(QUANTITIES)}")
+                         fix=choices_fix(quantity, QUANTITIES))
     needs = QUANTITIES[quantity].options
     given = {"white_reflectance": white_reflectance, "aperture_mm": aperture_mm,
              "distance_mm": distance_mm}
@@ -540,7 +532,8 @@ def ingest(paths: Sequence[str | os.PathLike], *, quantity: str | None = None,
     grid_nm : working grid ``"START:STOP:STEP"`` in nm (default ``"380:780:10"``).
     scale : positive factor the values are multiplied by after the dark subtraction and
         before the conversion (``0.01`` for percent; default 1). Values that still look
-        like percent are refused (:func:`check_percent`).
+        like percent are refused (:func:`~gonio_cli.percent.check_percent`), unless
+        ``scale`` is given as 1: the user confirms the values are in the quantity's units.
     sample : of files holding several samples (a ``Name``, ``Sample`` or ``ID`` column
         with several values), the one to read (:func:`select_sample`).
     theta_i_deg, theta_o_deg : for an input of another format (:data:`FORMATS`, e.g. an
@@ -581,11 +574,14 @@ def ingest(paths: Sequence[str | os.PathLike], *, quantity: str | None = None,
         parts.append(spectra)
     merged = merge(parts, grids)
     brdf = _convert(merged, params)
-    check_percent(parts, brdf, params)
+    # an explicit --scale 1 states that the values are in the quantity's units
+    confirmed = scale is not None and float(scale) == 1.0
+    percent_notes = check_percent(parts, brdf, params, QUANTITIES[params["quantity"]],
+                                  units_confirmed=confirmed)
     ti, to, mean, std, counts = average_repeats(merged.theta_i_deg, merged.theta_o_deg, brdf)
     clipped = int(np.count_nonzero(mean < 0))
     mean = np.maximum(mean, 0.0)
-    notes = _quantity_notes(parts, quantity is not None)
+    notes = _quantity_notes(parts, quantity is not None) + percent_notes
     notes += _grid_notes(parts, grids, grid, params["grid_nm"])
     if clipped:
         notes.append(f"clipped {clipped} small negative value{'s' if clipped > 1 else ''} "
@@ -614,57 +610,11 @@ def _refuse_repeated_inputs(paths: Sequence[str | os.PathLike]) -> None:
         seen[key] = os.fspath(p)
 
 
-def median_of(values: np.ndarray) -> float:
-    """``float(np.median(values))`` over every value (NaN if any is NaN), without the
-    ``numpy.ma`` import that ``np.median`` makes on its first call (~10 ms of a run)."""
-    a = np.asarray(values).ravel()
-    if a.size == 0 or np.isnan(a).any():
-        return math.nan
-    k = a.size // 2
-    if a.size % 2:
-        return float(np.partition(a, k)[k])
-    part = np.partition(a, (k - 1, k))
-    return float(np.mean(part[k - 1:k + 1]))
-
-
 def distinct(values: np.ndarray) -> np.ndarray:
     """``np.unique(values)`` (the sorted distinct values) without the ``numpy.ma`` import
     that ``np.unique`` makes when asked for the values alone (see :func:`median_of`)."""
     a = np.sort(np.asarray(values).ravel())
     return a[np.r_[True, a[1:] != a[:-1]]] if a.size else a
-
-
-def check_percent(parts: Sequence[Spectra], brdf: np.ndarray,
-                  params: dict[str, Any]) -> None:
-    """Refuse a file whose values look like percent, not fractions.
-
-    Per file (``parts``, whose rows are ``brdf``'s (n, n_λ) rows in order), the median
-    of the quantity's :attr:`Quantity.level` over every value must not exceed
-    :data:`PERCENT_MEDIAN_LIMIT`: a glossy peak is far above it at a few configurations,
-    but the median of any real sample is not. The error names the value nearest the
-    median and the options that read percent.
-    """
-    q = QUANTITIES[params["quantity"]]
-    start = 0
-    for part in parts:
-        rows = slice(start, start + part.values.shape[0])
-        start = rows.stop
-        level = q.level(part.values, brdf[rows])
-        median = median_of(level)
-        if not median > PERCENT_MEDIAN_LIMIT:
-            continue
-        r, c = np.unravel_index(np.argmin(np.abs(level - median)), level.shape)
-        after = f" after --scale {params['scale']:g}" if params["scale"] != 1.0 else ""
-        # percent of anything real stays below 100 x the limit; beyond, another unit
-        percent = median <= 100 * PERCENT_MEDIAN_LIMIT
-        raise InputError(f"the values {'look like percent' if percent else 'are far too large'}"
-                         f": their median {q.level_name}{after} is {median:.4g}, above "
-                         f"{PERCENT_MEDIAN_LIMIT:g}, which a real sample exceeds at a few "
-                         "near-specular geometries at most", path=part.path,
-                         row=int(part.lines[r, c]), column=part.columns[c],
-                         fix=q.percent_fix if percent else
-                         "check --quantity and its options, or give the factor to "
-                         "fractions with --scale")
 
 
 def _quantity_notes(parts: Sequence[Spectra], quantity_given: bool) -> list[str]:

@@ -95,13 +95,43 @@ def metavar(names) -> str:
 
 # ------------------------------------------------------------------------- the lookup --
 
-def pick(registry, name: str, what: str):
+#: How alike a misspelt name and a valid one must be to be offered as "did you mean"
+#: (difflib's ratio 2M/T; its own default 0.6 pairs 'materal' with 'material' and
+#: 'fov' with 'fov_deg', not 'phong' with any model).
+CLOSE_MATCH_CUTOFF = 0.6
+
+
+def closest(name, choices) -> str | None:
+    """The valid name ``name`` was probably meant to be (:func:`difflib.get_close_matches`),
+    or None when none is close enough."""
+    import difflib
+
+    near = difflib.get_close_matches(str(name), [str(c) for c in choices], n=1,
+                                     cutoff=CLOSE_MATCH_CUTOFF)
+    return near[0] if near else None
+
+
+def choices_fix(name, choices, lead: str = "use one of") -> str:
+    """The fix of an unknown-name message: ``did you mean 'x'? use one of a, b, c``
+    (the question only when a choice is close to ``name``). Every check that lists the
+    allowed names (:func:`pick`, the scene, plan and artifact key checks) says it so."""
+    listed = f"{lead} {', '.join(str(c) for c in choices)}"
+    near = closest(name, choices)
+    return f"did you mean {near!r}? {listed}" if near is not None else listed
+
+
+def pick(registry, name: str, what: str, *, path=None, extra=()):
     """``registry[name]`` (``name`` itself where ``registry`` is a tuple of names); a name
-    it lacks is one line that lists the ones it has (``{what} 'name' is unknown; use one
-    of …``), the same wording for every registry and option."""
+    it lacks is one line that lists the ones it has and, if one is close, says which was
+    probably meant (``{what} 'nme' is unknown; did you mean 'name'? use one of …``), the
+    same wording for every registry and option. ``path`` is the file the name was read
+    from (or the command's input); ``extra`` are further valid spellings listed after the
+    registry's (``auto``)."""
+    if name in extra:
+        return name
     if name not in registry:
         from .errors import InputError
 
-        raise InputError(f"{what} {name!r} is unknown",
-                         fix=f"use one of {', '.join(registry)}")
+        raise InputError(f"{what} {name!r} is unknown", path=path,
+                         fix=choices_fix(name, tuple(extra) + tuple(registry)))
     return registry[name] if isinstance(registry, dict) else name

@@ -61,6 +61,7 @@ import numpy as np
 
 from . import envmap, log
 from .errors import InputError, num
+from .names import pick
 
 #: Kernel values below this fraction of a texel's peak weight are left out (input rows
 #: outside the band). Even a sun 10⁵ × the sky then changes a texel by < 1e-5 of the sky.
@@ -831,9 +832,7 @@ METHODS: dict[str, Method] = {
 
 def check_method(name: str) -> str:
     """Refuse an unknown method name, listing the valid ones (STYLE 3)."""
-    if name != "auto" and name not in METHODS:
-        raise InputError(f"method {name!r} is unknown",
-                         fix=f"use one of: auto, {', '.join(METHODS)}")
+    pick(METHODS, name, "method", extra=("auto",))
     return name
 
 

@@ -91,3 +91,50 @@ def test_weight_beyond_the_range_is_refused_naming_the_row(good, tmp_path, weigh
     out = tmp_path / "out.material.json"
     code, err = run("fit", good["measurement"], "-o", out, "--weights", csv)
     assert_refused(code, err, names=(f"{csv}:2", "weight"), outputs=[out])
+
+
+# ------------------------------------------- one configuration (issue 32, item 1) --
+
+def _one_configuration(tmp_path, rows=1):
+    """A measurement of the first ``rows`` rows of the green sample ink (ingested by gonio)."""
+    from bad_inputs import SAMPLE
+
+    lines = (SAMPLE / "ink_green.csv").read_text(encoding="utf-8-sig").splitlines()
+    first = next(i for i, line in enumerate(lines) if line.startswith("theta_i_deg"))
+    csv = tmp_path / "one.csv"
+    csv.write_text("\n".join(lines[:first + 1 + rows]) + "\n")
+    m = tmp_path / "one.measurement.json"
+    code, err = run("ingest", csv, "--quantity", "ratio-to-white", "-o", m)
+    assert code == 0, err
+    return m
+
+
+@pytest.mark.parametrize("options", [(), ("--alpha", "0.1"), ("--no-refine",)])
+@pytest.mark.parametrize("model", sorted(MODELS))
+def test_one_configuration_is_a_fit_or_one_line_never_an_internal_error(tmp_path, model,
+                                                                        options):
+    """A single configuration, every model, with α fixed or without the refinement: a
+    material that reads back, or one line naming the measurement (or the option) and a fix,
+    exit 2, nothing written; never "internal error … KeyError"."""
+    m = _one_configuration(tmp_path)
+    out = tmp_path / "one.material.json"
+    code, err = run("fit", m, "--model", model, "-o", out, *options)
+    assert "internal error" not in err and "Traceback" not in err, err
+    if code == 0:
+        assert read_material(out).model == model
+        return
+    named = str(m) if str(m) in err else options[0]
+    assert_refused(code, err, names=(named, "; "), outputs=[out])
+
+
+@pytest.mark.parametrize("options", [("--alpha", "0.1"), ("--no-refine",)])
+def test_one_angle_of_incidence_two_steps_say_what_to_do(tmp_path, options):
+    """One θi: seed 000's step 2 on mirror rows cannot separate ρ and c. Was "internal
+    error: KeyError: 'rho'"; now the reason and the options that get a fit."""
+    m = _one_configuration(tmp_path, rows=13)
+    out = tmp_path / "one.material.json"
+    code, err = run("fit", m, "-o", out, *options)
+    assert_refused(code, err, names=(str(m), "2 or more angles of incidence",
+                                     "--step2 all"), outputs=[out])
+    code, err = run("fit", m, "-o", out, "--step2", "all", *options)
+    assert "internal error" not in err, err

@@ -481,8 +481,8 @@ def test_an_image_given_to_fit_is_not_a_measurement(run_gonio, tmp_path):
     r = run_gonio("fit", SAMPLE / "print_image.png", "-o", tmp_path / "m.json")
     assert r.exit_code == 2
     assert r.stderr == (f"gonio: error: {SAMPLE / 'print_image.png'}: not a gonio.measurement "
-                        "file (it is a PNG image); pass a measurement made by gonio ingest "
-                        "(which reads the CSVs)\n")
+                        "file (it is a PNG image); make a measurement with `gonio ingest "
+                        "INPUT.csv -o print_image.measurement.json`\n")
 
 
 def _refuse_mkstemp(monkeypatch, exc):

@@ -193,6 +193,7 @@ def _registries():
         ("render", "--tonemap", names.TONEMAP_NAMES, tuple(tonemap.TONEMAPS)),
         ("render", "--adapt", names.ADAPTATION_NAMES, tuple(tonemap.ADAPTATIONS)),
         ("render", "--exr-space", names.EXR_SPACE_NAMES, tuple(tonemap.EXR_SPACES)),
+        ("render", "--exr-adapt", names.ADAPTATION_NAMES, tuple(tonemap.ADAPTATIONS)),
         ("halftone", "--method", names.HALFTONE_METHOD_NAMES, tuple(METHODS)),
         ("halftone", "--gamut", names.GAMUT_NAMES, tuple(coverage.GAMUT_MAPPERS)),
         ("halftone", "--input-encoding", names.INPUT_ENCODING_NAMES, coverage.INPUT_ENCODINGS),
@@ -292,6 +293,9 @@ def test_a_flag_with_a_unit_says_it_in_its_name():
     ("lobes fit", "--view-angles-deg", "--view-angles"),
     ("halftone", "--size-px", "--size")])
 def test_old_spellings_are_hidden_aliases(run_gonio, path, new, old):
+    from gonio_cli.commands import ALIASES
+
+    assert ALIASES[old] == new
     param = _option(path, new)
     assert old in param.opts                     # still parsed, to the same parameter
     text = run_gonio(*path.split(), "--help").stdout

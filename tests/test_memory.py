@@ -130,8 +130,8 @@ def test_check_refuses_beyond_the_margin(monkeypatch):
 
 def test_render_at_a_high_ssaa_is_refused(run_gonio, scene, monkeypatch):
     """The issue's case: a 2048² frame at ssaa 16 (tens of GiB) on any machine."""
-    r = run_gonio("render", scene, "-o", scene.parent / "o.png", "--width", "2048",
-                  "--height", "2048", "--ssaa", "16")
+    r = run_gonio("render", scene, "-o", scene.parent / "o.png", "--width-px", "2048",
+                  "--height-px", "2048", "--ssaa", "16")
     refused(r, "scene.toml: a 2048x2048 render at ssaa 16 needs about",
             "lower --ssaa or --width-px/--height-px")
     only_inputs(scene.parent, "scene.toml", "red.json")

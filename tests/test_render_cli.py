@@ -86,10 +86,14 @@ def test_png_exr_and_report(run_gonio, scene, tmp_path):
     assert settings["ssaa"] == 2 and settings["spectral"] == "table"
     assert settings["exposure"] == 1.0 and settings["tonemap"] == "reinhard"
     assert settings["camera"]["width"] == 48 and settings["camera"]["fov_deg"] == 35.0
-    # the PNG is the EXR after +1 stop, Reinhard and sRGB encoding (same pixels)
-    from gonio_cli.render.tonemap import display
+    # the PNG is the EXR after the display's adaptation (the EXR is scene-referred:
+    # docs/conventions.md), +1 stop, Reinhard and sRGB encoding (same pixels)
+    from gonio_cli.render.tonemap import display, xyz_to_exr_matrix, xyz_to_linear_matrix
 
-    expected = display(lin.pixels, 1.0, "reinhard")
+    assert meta["exr_adapt"] == "none" and settings["adapt"] == "bradford"
+    white = np.array(settings["scene_white_xyz"])
+    adapt = xyz_to_linear_matrix("bradford", white) @ np.linalg.inv(xyz_to_exr_matrix())
+    expected = display((lin.pixels @ adapt.T).astype(np.float32), 1.0, "reinhard")
     assert np.abs(np.round(img.pixels * 255).astype(int) - expected).max() <= 1
     # report: each stage that ran, with time_s; the total covers them
     doc = json.loads(rep.read_text())
@@ -273,7 +277,8 @@ def test_buffers_beyond_the_machine_are_refused_before_allocating(run_gonio, sce
                   "--height", "16384", "--ssaa", "16")
     assert r.exit_code == 2 and r.stderr.count("\n") == 1
     assert "a 16384x16384 render at ssaa 16 needs about" in r.stderr
-    assert "lower --ssaa or --width-px/--height-px" in r.stderr
+    # the options named as typed (the old spellings here: gonio_cli.commands.as_typed_in)
+    assert "lower --ssaa or --width/--height" in r.stderr
 
 
 def test_memory_estimate_bounds_the_measured_buffers(scene):

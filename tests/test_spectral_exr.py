@@ -202,10 +202,11 @@ def test_exact_path_gives_the_same_spectra_as_the_per_band_tables(run_gonio, sce
 
 
 def test_srgb_exr_is_the_adapted_xyz_of_the_spectra(run_gonio, scene, tmp_path):
-    """The default colour EXR (linear sRGB after Bradford adaptation of the lights' white
-    to D65) equals colour-science's Bradford transform and sRGB matrix applied to the
-    spectra's XYZ (< 1e-3 relative: float32 and the table's 1e-5)."""
-    out = render(run_gonio, scene, tmp_path)
+    """The colour EXR with ``--exr-adapt bradford`` (linear sRGB after Bradford adaptation
+    of the lights' white to D65, as the PNG) equals colour-science's Bradford transform
+    and sRGB matrix applied to the spectra's XYZ (< 1e-3 relative: float32 and the table's
+    1e-5). The default EXR, scene-referred, is the sRGB matrix alone."""
+    out = render(run_gonio, scene, tmp_path, "--exr-adapt", "bradford")
     wl, values, _ = read_spectra(out["spectra"])
     xyz = integrate(values, wl)
     # the scene white: the lights' spectra weighted by E at normal incidence (point: I/d²
@@ -221,11 +222,20 @@ def test_srgb_exr_is_the_adapted_xyz_of_the_spectra(run_gonio, scene, tmp_path):
     cat = colour.adaptation.matrix_chromatic_adaptation_VonKries(white, d65, "Bradford")
     expected = xyz @ (srgb.matrix_XYZ_to_RGB @ cat).T
     exr = read_image(out["exr"])
-    assert exr.metadata["exr_space"] == "srgb"
+    assert exr.metadata["exr_space"] == "srgb" and exr.metadata["exr_adapt"] == "bradford"
     assert relative(exr.pixels, expected).max() < 1e-3
     # the preview R, G, B of the spectral file are the same linear sRGB
     preview = read_image(out["spectra"])
     rgb = [preview.channel_names.index(c) for c in "RGB"]
+    np.testing.assert_array_equal(preview.pixels[..., rgb], exr.pixels)
+    # the default: no adaptation (docs/conventions.md), the spectra's XYZ through the
+    # IEC matrix; its preview too
+    plain = render(run_gonio, scene, tmp_path, name="plain")
+    exr = read_image(plain["exr"])
+    assert exr.metadata["exr_adapt"] == "none"
+    assert relative(exr.pixels, xyz @ srgb.matrix_XYZ_to_RGB.T).max() < 1e-3
+    assert relative(exr.pixels, expected).max() > 1e-2        # the adaptation matters here
+    preview = read_image(plain["spectra"])
     np.testing.assert_array_equal(preview.pixels[..., rgb], exr.pixels)
 
 

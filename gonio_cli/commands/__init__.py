@@ -75,12 +75,40 @@ def argument_label(param) -> str:
     return label
 
 
-#: Old spellings of flags that now carry their unit (``--width`` → ``--width-px``): still
-#: accepted, never shown in ``--help`` (tests/test_cli_help.py checks each has a shown
-#: spelling with a unit).
-HIDDEN_ALIASES = frozenset({"--width", "--height", "--exclude-theta-i", "--exclude-theta-o",
-                            "--theta-i", "--resolution", "--view-angles", "--exposure",
-                            "--size"})
+# ------------------------------------------------------------- flags as typed --
+
+#: The command line of the current run (set by :func:`gonio_cli.cli.run`), so that a
+#: message names an option as the user typed it (``--width-px`` or its old ``--width``,
+#: :func:`as_typed_in`).
+_ARGV: list[str] = []
+
+
+def remember_argv(args: Iterable[str]) -> None:
+    """Record the current run's arguments (:func:`as_typed_in` reads them)."""
+    _ARGV[:] = [str(a) for a in args]
+
+
+#: Old spellings of flags that now carry their unit → the spelling shown (``--width`` →
+#: ``--width-px``): still accepted, never shown in ``--help`` (tests/test_cli_help.py
+#: checks each has a shown spelling with a unit, and that it is this one).
+ALIASES = {"--width": "--width-px", "--height": "--height-px",
+           "--exclude-theta-i": "--exclude-theta-i-deg",
+           "--exclude-theta-o": "--exclude-theta-o-deg", "--theta-i": "--theta-i-deg",
+           "--resolution": "--height-px", "--view-angles": "--view-angles-deg",
+           "--exposure": "--exposure-stops", "--size": "--size-px"}
+HIDDEN_ALIASES = frozenset(ALIASES)
+
+
+def as_typed_in(text: str) -> str:
+    """``text`` (a message of a core, which names options by their shown spelling) with
+    each option the user typed by an old spelling (:data:`ALIASES`, and not by its
+    shown one) named as typed: ``--width-px: 100000 …`` for ``--width 100000`` becomes
+    ``--width: 100000 …``."""
+    typed = {a.split("=", 1)[0] for a in _ARGV}
+    for alias, shown in ALIASES.items():
+        if alias in typed and shown not in typed:
+            text = re.sub(rf"(?<![\w-]){re.escape(shown)}(?![\w-])", alias, text)
+    return text
 
 
 def _help_record(param, ctx):
@@ -311,8 +339,21 @@ def is_pattern(text: str) -> bool:
     return any(ch in GLOB_CHARACTERS for ch in text)
 
 
+def read_as(option: str, read: Callable[[Any], Any], path) -> Any:
+    """``read(path)`` for the file given as ``option`` (``--at``, ``--basis``): an error
+    about that file names the option too (``b.json: schema is … (given as --basis)``)."""
+    from ..errors import GonioError
+
+    try:
+        return read(path)
+    except GonioError as exc:
+        if exc.path == os.fspath(path) and option not in exc.message:
+            exc.message = f"{exc.message} (given as {option})"
+        raise
+
+
 def require_files(paths: Iterable[str | os.PathLike], *, what: str = "file",
-                  missing_fix: str = "check the path") -> None:
+                  missing_fix: str = "check the path", schema: str | None = None) -> None:
     """Refuse a path that is not an existing file, naming the real cause.
 
     A shell passes a pattern that matches nothing on unchanged (bash without
@@ -323,7 +364,9 @@ def require_files(paths: Iterable[str | os.PathLike], *, what: str = "file",
     ------
     InputError
         ``no files match 'photo_ti*.png'``, ``PATH: no such file`` (``no such image
-        file`` with ``what="image file"``) or ``PATH: is a folder, not a file``.
+        file`` with ``what="image file"``) or ``PATH: is a folder, not a file``. With the
+        ``schema`` of the artifact expected, the fix of a missing file is the command that
+        makes it (:func:`gonio_cli.artifact.make_fix`), not ``missing_fix``.
     """
     from ..errors import InputError
 
@@ -338,6 +381,10 @@ def require_files(paths: Iterable[str | os.PathLike], *, what: str = "file",
             raise InputError(f"no files match {text!r}",
                              fix="check the folder and the pattern (a pattern that matches "
                                  "nothing reaches gonio as it is)")
+        if schema is not None:
+            from ..artifact import make_fix
+
+            missing_fix = make_fix(schema, text, missing=True)
         raise InputError(f"no such {what}", path=text, fix=missing_fix)
 
 

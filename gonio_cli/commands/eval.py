@@ -41,11 +41,11 @@ def evaluate(
     from ..evaluate import evaluate_at, gains_for, model_parameters
     from ..names import pick
     from ..schemas import read_material, read_measurement, write_measurement
-    from . import require_files
+    from . import read_as, require_files
 
     pick(SWEEP_GAIN_NAMES, sweep_gain, "--sweep-gain")
-    require_files([material], missing_fix="check the path or make it with gonio fit")
-    require_files([at], missing_fix="check the path or make it with gonio ingest")
+    require_files([material], schema="gonio.material")
+    require_files([at], schema="gonio.measurement")
     for flag, path in (("-o", output), ("--plot", plot)):
         if path is None:
             continue
@@ -60,7 +60,7 @@ def evaluate(
     from ..outputs import declare
     declare({"-o": output, "--plot": plot}, [material, at])
     mat = read_material(material)
-    data = read_measurement(at)
+    data = read_as("--at", read_measurement, at)
     if mat.status == "failed":  # a poor fit is what eval is for: comparing it with data
         log.warn(f"{material}: a fit with status {mat.status!r} is evaluated")
     with log.timer() as t:

@@ -43,7 +43,7 @@ def export(
     from . import parse_vars, require_files
 
     target = get_target(to)
-    require_files([material], missing_fix="check the path or make it with gonio fit")
+    require_files([material], schema="gonio.material")
     if scene is not None:
         require_files([scene], missing_fix="check the path of the scene file")
     variables = parse_vars(var)

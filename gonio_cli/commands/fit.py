@@ -91,9 +91,8 @@ def fit(
     from ..schemas import read_measurement, write_material
     from . import require_files
 
-    require_files([measurement], missing_fix="check the path or make it with gonio ingest")
-    if on_failure not in ("error", "write"):
-        raise InputError(f"--on-failure {on_failure!r} is unknown", fix="use error or write")
+    require_files([measurement], schema="gonio.measurement")
+    pick(("error", "write"), on_failure, "--on-failure")
     check_options(model, optimizer)
     pick(SWEEP_GAIN_NAMES, sweep_gain, "--sweep-gain")
     if jobs is not None and jobs < 1:
@@ -250,23 +249,36 @@ def summary_line(output: Path, result) -> str:
 
 
 def verdict_line(output: Path, result, judgement: dict) -> str:
-    """The verdict: model, relative RMSE, colour error, worst configuration, verdict."""
+    """The verdict, one line that says what each figure is and which decides: the colour
+    error (CIEDE2000 of R = π f; 1 is about a just-noticeable difference) against its
+    thresholds, the mirror peaks against theirs, then the relative RMSE, which is shown
+    but not judged (the dark readings dominate it), the verdict and its reasons."""
     r = result.result
+    t = judgement.get("thresholds", {})
+    mean_max = t.get("mean_delta_e", 0.7)
+    worst_max = max(t.get("worst_delta_e", 1.5), mean_max)
     text = [f"{output}: {result.model}"]
-    if r.errors:
-        text.append(f"rel-RMSE {r.errors['relative_rmse_percent']:.1f}%")
+    decided = []
     if "delta_e2000_mean" in judgement:
         wc = judgement["worst_colour_configuration"]
         text.append(f"CIEDE2000 mean {judgement['delta_e2000_mean']:.2f}, worst "
                     f"{judgement['delta_e2000_worst']:.2f} at theta_i {wc['theta_i_deg']:g}, "
-                    f"theta_o {wc['theta_o_deg']:g}")
+                    f"theta_o {wc['theta_o_deg']:g} (colour error; 1 ~ just noticeable)")
+        decided.append(f"mean <= {mean_max:g}, worst <= {worst_max:g}")
     ratios = judgement.get("mirror_peak_y_ratio")
     if ratios:
         v = list(ratios.values())
-        text.append(f"mirror peak x{min(v):.2f}-{max(v):.2f}")
+        text.append(f"mirror peak x{min(v):.2f}-{max(v):.2f} of the data's")
+        decided.append(f"peaks x{t.get('peak_ratio_min', 0.75):.2f}-"
+                       f"{t.get('peak_ratio_max', 4 / 3):.2f}")
+    if r.errors:
+        text.append(f"rel-RMSE {r.errors['relative_rmse_percent']:.1f}% (relative error "
+                    "of each reading of f, largest where f is small: not judged)")
+    rule = (f"; verdict by colour (good if {', '.join(decided)})" if decided else
+            "; verdict")
     why = f" ({'; '.join(judgement['reasons'])})" if judgement["reasons"] else ""
     notes = "".join(f"; {n}" for n in judgement.get("notes", ()))
-    return ", ".join(text) + f": {judgement['verdict']}{why}{notes}"
+    return ", ".join(text) + f"{rule}: {judgement['verdict']}{why}{notes}"
 
 
 def auto_line(auto: dict) -> str:

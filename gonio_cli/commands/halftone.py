@@ -9,7 +9,7 @@ import typer
 
 from ..names import COMPRESSION_NAMES, GAMUT_NAMES, INPUT_ENCODING_NAMES, MASK_FORMAT_NAMES
 from ..names import HALFTONE_METHOD_NAMES as METHOD_NAMES
-from ..names import metavar
+from ..names import metavar, pick
 
 
 def _write_palette(path: Path, labels, metadata: dict, compression: str) -> None:
@@ -107,9 +107,7 @@ def halftone(
     params = core.resolve_parameters(m, {"bayer_size": bayer_size, "cell_size": cell_size,
                                          "mask_size": mask_size})
     get_compression(compress)
-    if mask_format not in MASK_WRITERS:
-        raise InputError(f"--mask-format {mask_format!r} is unknown",
-                         fix=f"use one of {', '.join(MASK_WRITERS)}")
+    pick(MASK_WRITERS, mask_format, "--mask-format")
     if output.suffix.lower() != ".png":
         raise InputError("the mask must be a PNG", path=output, fix="name it *.png")
     if size is not None and (dpi is not None or print_width_mm is not None):

@@ -23,8 +23,9 @@ of a configuration are averaged and their standard deviation kept. Values are co
 BRDF (sr^-1) and resampled onto the working grid (with a warning if it differs).
 Instrument exports saved from a spreadsheet are read as they are: preamble lines before
 the header are skipped, label columns (Name, Date/Time, Sample, ID ...) set aside, and of
-a file holding several samples --sample picks one. Values that look like percent are
-refused (--scale 0.01 reads them).
+a file holding several samples --sample picks one. Values that look like percent (their
+median at least 15 deg off the mirror above 1.5) are refused: --scale 0.01 reads them, an
+explicit --scale 1 confirms values that are right as they are.
 
 An RGL measured BSDF (a .bsdf file of the RGL material database, RGB or spectral) is read
 through Mitsuba 3's measured plugin (the optional extra gonio[mitsuba]) and evaluated in
@@ -78,7 +79,8 @@ def ingest(
     scale: Optional[float] = _optional(
         "--scale", "FACTOR",
         "Multiply the values by FACTOR (after --dark, before the conversion): 0.01 reads "
-        "percent [default: 1]."),
+        "percent; 1 given explicitly confirms the values' units (no percent check) "
+        "[default: 1]."),
     sample: Optional[str] = _optional(
         "--sample", "NAME",
         "Of a file holding several samples (a Name, Sample or ID column), the one to read, "

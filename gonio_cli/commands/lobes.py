@@ -144,6 +144,7 @@ def fit(
     from .. import log
     from ..errors import InputError
     from ..schemas import Lobes, read_lobe_basis, read_material, write_lobes
+    from . import read_as
 
     core.check_channels(channels)
     core.check_solver(solver)
@@ -160,7 +161,7 @@ def fit(
     declare({"-o": output}, [material, basis_path])
     inputs = [material]
     if basis_path is not None:
-        e = read_lobe_basis(basis_path).exponents(n_lobes, path=basis_path)
+        e = read_as("--basis", read_lobe_basis, basis_path).exponents(n_lobes, path=basis_path)
         inputs.append(basis_path)
     else:
         try:
@@ -210,11 +211,23 @@ def fit(
             log.warn(f"{output}: {name} did not finish at view angle(s) {views} deg "
                      f"({r['message'][stopped[0]]}); {what}; the status per view is in "
                      "the file")
-    parts = [f"{name}: rel-RMS {max(r['rms_relative']):.3g} (worst view), "
-             f"{1e3 * sorted(r['time_s'])[len(r['time_s']) // 2]:.2f} ms/view (median)"
-             for name, r in table.errors.items()]
     log.info(f"{output}: {e.size} lobes, {len(table.view_angle_deg)} view angles, "
-             f"{len(table.channels)} channels; " + "; ".join(parts))
+             f"{len(table.channels)} channels; " + error_text(table.errors, s.name))
+
+
+def error_text(errors: dict, sample_set: str) -> str:
+    """Each solver's worst-view error, said with its scale: rel-RMS sqrt(Σ r² / Σ b²) of
+    the lobes against f cos θi over a view's samples is 0 when exact and 1 when no better
+    than no lobes at all; a figure of the sample set, so comparable between solvers and
+    lobe counts, not between sample sets (hemisphere samples score higher than in-plane
+    ones, yet render better off the plane: docs/lobes.md)."""
+    parts = [f"{name}{' (written)' if k == 0 and len(errors) > 1 else ''} "
+             f"{max(r['rms_relative']):.3g} "
+             f"({1e3 * sorted(r['time_s'])[len(r['time_s']) // 2]:.2f} ms/view, median)"
+             for k, (name, r) in enumerate(errors.items())]
+    return (f"how far the lobes miss f cos theta_i at the worst view, rel-RMS (0 exact, 1 no "
+            f"better than no lobes; over the {sample_set} samples: compare solvers and lobe "
+            f"counts on them, not sample sets): " + "; ".join(parts))
 
 
 EXAMPLE = "gonio lobes basis red.material.json blue.material.json -o basis.json --plot basis.png"

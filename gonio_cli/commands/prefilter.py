@@ -84,10 +84,10 @@ def prefilter(
     from ..errors import InputError
     from ..prefilter_files import read_envmap, write_maps
     from ..schemas import read_lobe_exponents
-    from . import require_files
+    from . import read_as, require_files
 
     require_files([envmap_path], what="image file")
-    require_files([lobes] if lobes is not None else [])
+    require_files([lobes] if lobes is not None else [], schema="gonio.lobes")
     if (exponents is not None) + (lobes is not None) + chain != 1:
         raise InputError("give one of --chain, --exponents or --lobes",
                          fix="e.g. --chain (for any material) or --exponents 1,8,64")
@@ -107,7 +107,7 @@ def prefilter(
         exps = chain_exponents(pixels.shape[0])
     else:
         exps = (parse_exponents(exponents) if exponents is not None
-                else read_lobe_exponents(lobes))
+                else read_as("--lobes", read_lobe_exponents, lobes))
     exps = core.validate_exponents(exps, path=lobes)
     if replaced:
         log.warn(f"{envmap_path}: replaced {replaced} NaN, inf or negative texels "

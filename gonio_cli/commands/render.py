@@ -8,7 +8,7 @@ from typing import List, Optional
 import typer
 
 from ..names import ADAPTATION_NAMES as ADAPT_NAMES
-from ..names import EXR_SPACE_NAMES, TONEMAP_NAMES, metavar
+from ..names import EXR_SPACE_NAMES, TONEMAP_NAMES, metavar, pick
 from ..names import SPECTRAL_PATHS as SPECTRAL
 
 
@@ -43,6 +43,11 @@ def render(
         None, "--adapt", metavar=metavar(ADAPT_NAMES),
         help=f"Chromatic adaptation of the lights' white to D65, one of: "
              f"{', '.join(ADAPT_NAMES)} (overrides [output]; default bradford)."),
+    exr_adapt: Optional[str] = typer.Option(
+        None, "--exr-adapt", metavar=metavar(ADAPT_NAMES),
+        help="Chromatic adaptation of the --exr image (and the --spectral-exr preview): "
+             "none keeps it scene-referred, the lights' colour in it [default: none]; "
+             "bradford or cat16 adapt it as the PNG is (--adapt)."),
     gamut_warning: Optional[Path] = typer.Option(
         None, "--gamut-warning", metavar="FILE.png",
         help="Also write the PNG with pixels outside sRGB painted grey."),
@@ -95,14 +100,12 @@ def render(
                        (gamut_warning, "--gamut-warning"), (spectral_exr, "--spectral-exr")):
         if path is not None and path.exists() and path.is_dir():
             raise InputError(f"{flag} {path} is a folder", fix="name a file")
-    if spectral is not None and spectral not in SPECTRAL:
-        raise InputError(f"--spectral {spectral!r} is unknown", fix=f"use one of {', '.join(SPECTRAL)}")
-    if tonemap is not None and tonemap not in TONEMAP_NAMES:
-        raise InputError(f"--tonemap {tonemap!r} is unknown",
-                         fix=f"use one of {', '.join(TONEMAP_NAMES)}")
-    if adapt is not None and adapt not in ADAPT_NAMES:
-        raise InputError(f"--adapt {adapt!r} is unknown",
-                         fix=f"use one of {', '.join(ADAPT_NAMES)}")
+    for value, names, flag in ((spectral, SPECTRAL, "--spectral"),
+                               (tonemap, TONEMAP_NAMES, "--tonemap"),
+                               (adapt, ADAPT_NAMES, "--adapt"),
+                               (exr_adapt, ADAPT_NAMES, "--exr-adapt")):
+        if value is not None:
+            pick(names, value, flag)
     if gamut_warning is not None and gamut_warning.suffix.lower() != ".png":
         raise InputError(f"--gamut-warning {gamut_warning}: the image is written as PNG",
                          fix="name it *.png")
@@ -111,9 +114,11 @@ def render(
     for path, flag in ((exr, "--exr"), (spectral_exr, "--spectral-exr")):
         if path is not None and path.suffix.lower() != ".exr":
             raise InputError(f"{flag} {path}: not an .exr name", fix="name it *.exr")
-    if exr_space not in EXR_SPACE_NAMES:
-        raise InputError(f"--exr-space {exr_space!r} is unknown",
-                         fix=f"use one of {', '.join(EXR_SPACE_NAMES)}")
+    pick(EXR_SPACE_NAMES, exr_space, "--exr-space")
+    if exr_adapt is not None and exr is None and spectral_exr is None:
+        raise InputError("--exr-adapt is for the --exr image (or the --spectral-exr "
+                         "preview), and neither is written", fix="add --exr OUT.exr, or "
+                         "drop --exr-adapt (the PNG's adaptation is --adapt)")
     check_turntable(turntable, frame, orbit)
 
     from ..outputs import declare
@@ -135,7 +140,9 @@ def render(
         loaded = load_scene(scene, variables=variables,
                             overrides={"width": width, "height": height, "ssaa": ssaa,
                                        "spectral": spectral, "exposure": exposure,
-                                       "tonemap": tonemap, "adapt": adapt, "grid_nm": grid_nm})
+                                       "tonemap": tonemap, "adapt": adapt, "grid_nm": grid_nm},
+                            flags={"width": "--width-px", "height": "--height-px",
+                                   "exposure": "--exposure-stops"})
     stats.time_s["scene"] = t["time_s"]
     declare(outs, loaded.inputs)  # the files the scene reads
     for k, names in zip(frames, named):
@@ -148,7 +155,7 @@ def render(
         image = render_scene(sc, stats, spectra=names["--spectral-exr"] is not None)
         write_outputs(image, sc, stats, png=names["-o"], exr=names["--exr"], start=start,
                       gamut_warning=names["--gamut-warning"], exr_space=exr_space,
-                      spectral_exr=names["--spectral-exr"])
+                      spectral_exr=names["--spectral-exr"], exr_adapt=exr_adapt)
         total = time.perf_counter() - start
         if names["--report"] is not None:
             write_report(names["--report"], sc, stats, total_s=total, png=names["-o"],
@@ -181,8 +188,7 @@ def check_turntable(turntable: int | None, frame: int | None, orbit: str) -> Non
     from ..errors import InputError
     from ..render.turntable import ORBITS
 
-    if orbit not in ORBITS:
-        raise InputError(f"--orbit {orbit!r} is unknown", fix=f"use one of {', '.join(ORBITS)}")
+    pick(ORBITS, orbit, "--orbit")
     if turntable is None:
         if frame is not None:
             raise InputError("--frame needs --turntable N", fix="add --turntable N")

@@ -32,6 +32,7 @@ import numpy as np
 from ..names import AUTO_MODEL, FIT_MODEL_CHOICES, OPTIMIZER_NAMES, pick
 from ..schemas import Material
 from . import cook_torrance, cook_torrance_lobes, goniochromatic, layered, torrance_sparrow
+from ..errors import FitError
 from .common import FitData, FitOptions, ModelFit, choose_optimizer
 from .gains import NOTE_RATIO
 
@@ -88,7 +89,26 @@ def fit(data: FitData, model: str = "goniochromatic",
     """Fit ``model`` (a key of :data:`FITTERS`) to prepared data."""
     if model not in FITTERS:
         pick(MODEL_CHOICES, model, "--model")
-    return FITTERS[model](data, options or FitOptions())
+    result = FITTERS[model](data, options or FitOptions())
+    _require_params(result)
+    return result
+
+
+def _require_params(result: ModelFit) -> None:
+    """A fit whose final report lacks some of its model's parameters (a step that could not
+    run) is refused here, with its own message, before anything evaluates it."""
+    from ..brdf import MODELS
+
+    spec = MODELS.get(result.model)
+    if spec is None:
+        return
+    missing = [k for k in spec.scalar_params + spec.spectral_params
+               if k not in result.params]
+    if missing:
+        raise FitError(f"the {result.model} fit has no {', '.join(missing)}: "
+                       f"{result.result.message or 'a step could not run'}",
+                       fix="add configurations (more detector angles and angles of "
+                           "incidence) or choose another --model")
 
 
 def fit_auto(data: FitData, options: FitOptions | None = None, jobs: int = 1):

@@ -614,14 +614,14 @@ def choose_optimizer(model: str, optimizers: dict[str, Any], name: str | None):
     """``(name, optimizers[name])`` for ``--optimizer name`` of ``--model model``; ``None``
     is the fitter's default (its first key). A name the fitter lacks is an
     :class:`~gonio_cli.errors.InputError` listing the ones it has."""
-    from ..names import OPTIMIZER_NAMES
+    from ..names import OPTIMIZER_NAMES, choices_fix
 
     if name is None:
         name = next(iter(optimizers))
     if name not in optimizers:
         if name not in OPTIMIZER_NAMES:
             raise InputError(f"--optimizer {name!r} is unknown",
-                             fix=f"--model {model} takes {', '.join(optimizers)}")
+                             fix=choices_fix(name, optimizers, f"--model {model} takes"))
         raise InputError(f"--optimizer {name} does not apply to --model {model}",
                          fix=f"use one of {', '.join(optimizers)}")
     return name, optimizers[name]

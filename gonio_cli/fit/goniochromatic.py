@@ -33,7 +33,7 @@ import numpy as np
 from ..brdf import (LOG_MAX, dlog_ggx_d_dlog_alpha, goniochromatic,
                     goniochromatic_exponent_arg, log_ggx_d, log_goniochromatic_d4)
 from ..errors import FitError, InputError
-from ..names import STEP2_NAMES
+from ..names import STEP2_NAMES, pick
 from .common import (ALPHA_MAX, ALPHA_MIN, C_LIMIT, FitData, FitOptions, FitReport,
                      LinearProfile, ModelFit, Stopwatch, WARM_ALPHA_FACTOR,
                      WARM_ALPHA_POINTS, choose_optimizer, error_figures, minimize_log_alpha,
@@ -250,7 +250,7 @@ def fit(data: FitData, options: FitOptions) -> ModelFit:
     that runs but cannot be trusted comes back with ``status`` "failed" and a message.
     """
     if options.step2 not in STEP2_MODES:
-        raise InputError(f"--step2 {options.step2!r} is unknown", fix="use mirror or all")
+        pick(STEP2_MODES, options.step2, "--step2")
     optimizer, _ = choose_optimizer("goniochromatic", OPTIMIZERS, options.optimizer)
     if options.alpha is not None and not (ALPHA_MIN <= options.alpha <= ALPHA_MAX):
         raise InputError(f"--alpha {options.alpha:g} is outside [{ALPHA_MIN:g}, {ALPHA_MAX:g}]",
@@ -296,9 +296,20 @@ def fit(data: FitData, options: FitOptions) -> ModelFit:
     if options.refine and options.alpha is None:
         reports["refined"] = refine(data, optimizer, sw)
     final = "refined" if "refined" in reports else "paper_two_step"
-    if not reports[final].params:
-        raise FitError(reports[final].message)
+    if "rho" not in reports[final].params:  # a step could not run: no spectra to judge
+        raise FitError(reports[final].message, fix=_two_step_fix(reports[final], options))
     return ModelFit("goniochromatic", data.wavelength_nm, reports, final, data.excluded)
+
+
+def _two_step_fix(report: FitReport, options: FitOptions) -> str:
+    """What a user can do when seed 000's two steps could not both run (and no joint
+    refinement follows): step 1 found no α, or step 2 on mirror rows has one θi."""
+    if "alpha" not in report.params:
+        return "fix alpha with --alpha, or measure more detector angles at one angle of incidence"
+    ways = ["use --step2 all", "add mirror configurations at a second angle of incidence"]
+    if options.alpha is None:
+        ways.insert(0, "drop --no-refine")
+    return ", or ".join(ways)
 
 
 def _refine_joint(data: FitData, step2: Step2, optimizer: str):

@@ -26,6 +26,7 @@ from typing import Any, Callable, Mapping
 import numpy as np
 
 from ..errors import InputError
+from ..names import pick
 from . import coverage as _coverage
 from . import diffusion, screens
 
@@ -170,9 +171,7 @@ METHODS: dict[str, Method] = {m.name: m for m in (
 
 def get_method(name: str) -> Method:
     """The method called ``name``; an unknown name gets the list of valid ones."""
-    if name not in METHODS:
-        raise InputError(f"--method {name!r} is unknown", fix=f"use one of {', '.join(METHODS)}")
-    return METHODS[name]
+    return pick(METHODS, name, "--method")
 
 
 def resolve_parameters(method: Method, given: Mapping[str, Any]) -> dict[str, int]:

@@ -110,9 +110,7 @@ def to_coverage(pixels: np.ndarray, encoding: str, is_float: bool, gamut: str, p
         Mean coverage per ink (R, G, B) of the result.
     """
     used = check_encoding(encoding, is_float)
-    if gamut not in GAMUT_MAPPERS:
-        raise InputError(f"--gamut {gamut!r} is unknown",
-                         fix=f"use one of {', '.join(GAMUT_MAPPERS)}")
+    pick(GAMUT_MAPPERS, gamut, "--gamut")
     px = np.asarray(pixels)
     _check_channels(px, path)
     integer = px.dtype.kind in "ui"
@@ -236,9 +234,7 @@ GAMUT_MAPPERS = {"scale": gamut_scale, "clip": gamut_clip}
 
 def map_gamut(rgb: np.ndarray, mode: str) -> tuple[np.ndarray, float]:
     """Coverage in the simplex and the fraction of pixels that were out of gamut."""
-    if mode not in GAMUT_MAPPERS:
-        raise InputError(f"--gamut {mode!r} is unknown",
-                         fix=f"use one of {', '.join(GAMUT_MAPPERS)}")
+    pick(GAMUT_MAPPERS, mode, "--gamut")
     fraction = float(out_of_gamut(rgb).mean())
     return GAMUT_MAPPERS[mode](rgb), fraction
 

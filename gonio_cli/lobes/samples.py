@@ -14,7 +14,7 @@ from typing import Sequence
 import numpy as np
 
 from ..errors import InputError
-from ..names import pick
+from ..names import choices_fix, pick
 from ..geometry import cosines, in_plane_directions, reflect
 from . import (GLOBAL_VIEW_ANGLES_DEG, HEMISPHERE_POINTS, HORIZON_DEG, MIRROR_BLEND_DEG,
                MIRROR_RING_AZIMUTHS, MIRROR_RING_GAUSS, MIRROR_RING_INNER_DEG,
@@ -309,8 +309,8 @@ def sample_set(name: str, view_angle_deg: Sequence[float] | None = None,
                           np.array(["custom"] * light.size, dtype=object), str(name))
     else:
         raise InputError(f"sample set {name!r} is unknown",
-                         fix=f"use one of {', '.join(SAMPLE_SETS)} or a CSV file "
-                             "with columns theta_i_deg,theta_o_deg")
+                         fix=choices_fix(name, SAMPLE_SETS) + " or a CSV file with columns "
+                             "theta_i_deg,theta_o_deg")
     if samples.n_samples == 0:
         raise InputError(f"sample set {name}: no sample within {HORIZON_DEG:g} deg of the "
                          "normal, so there is nothing to fit",

@@ -95,38 +95,59 @@ SPECTRAL_UNITS = ("spectral radiance L(λ) in the scene's irradiance units (the 
                   "has L(λ) = S(λ) (docs/conventions.md)")
 
 
-def exr_pixels(frame: Frame, scene: Scene, space: str = "srgb") -> np.ndarray:
-    """The colour EXR's (H, W, 3) float32 in ``space`` (:data:`.tonemap.EXR_SPACES`):
-    the frame's linear sRGB for ``srgb``, else its XYZ through
-    :func:`.tonemap.xyz_to_exr_matrix` (same adaptation) plus the background."""
+def exr_pixels(frame: Frame, scene: Scene, space: str = "srgb",
+               adapt: str | None = None) -> np.ndarray:
+    """The colour EXR's (H, W, 3) float32 in ``space`` (:data:`.tonemap.EXR_SPACES`)
+    after the chromatic adaptation ``adapt`` (:data:`.tonemap.ADAPTATIONS`; default
+    :data:`.tonemap.DEFAULT_EXR_ADAPTATION`, none: scene-referred) of the scene white to
+    D65: the frame's XYZ through :func:`.tonemap.xyz_to_exr_matrix`, plus the background.
+    Linear sRGB with the display's own adaptation is the frame's ``linear`` itself."""
     from .pipeline import scene_white
-    from .tonemap import get_exr_space, xyz_to_exr_matrix, xyz_to_linear
+    from .tonemap import (DEFAULT_EXR_ADAPTATION, get_adaptation, get_exr_space,
+                          xyz_to_exr_matrix, xyz_to_linear)
 
+    adapt = DEFAULT_EXR_ADAPTATION if adapt is None else adapt
     get_exr_space(space)
-    if space == "srgb":
+    get_adaptation(adapt)
+    if space == "srgb" and adapt == scene.output.adapt:
         return frame.linear
-    m = xyz_to_exr_matrix(space, scene.output.adapt, scene_white(scene))
+    m = xyz_to_exr_matrix(space, adapt, scene_white(scene))
     out = xyz_to_linear(frame.xyz, m)
     if frame.background is not None:         # given in linear sRGB, the display's space
-        to_space = get_exr_space(space).matrix() @ np.linalg.inv(
-            get_exr_space("srgb").matrix())
-        out += ((1.0 - frame.coverage)[..., None]
-                * (frame.background @ to_space.T)).astype(np.float32)
+        background = frame.background
+        if space != "srgb":
+            to_space = get_exr_space(space).matrix() @ np.linalg.inv(
+                get_exr_space("srgb").matrix())
+            background = background @ to_space.T
+        out += ((1.0 - frame.coverage)[..., None] * background).astype(np.float32)
     return out
+
+
+def exr_colour(space_help: str, adapt: str) -> str:
+    """What the colour EXR's values are (its ``gonio:colour``): scene-referred, adapted or
+    not (``adapt``, also in ``gonio:exr_adapt``), before exposure and tone mapping."""
+    how = ("without chromatic adaptation: the lights' colour is kept (settings."
+           "scene_white_xyz), as the PNG's settings.adapt does not" if adapt == "none" else
+           f"after chromatic adaptation ({adapt}: settings.scene_white_xyz → D65)")
+    return f"scene-referred {space_help}, {how}, before exposure and tone mapping"
 
 
 def write_outputs(frame: Frame, scene: Scene, stats: Stats, *, png, exr=None,
                   start: float | None = None, gamut_warning=None, exr_space: str = "srgb",
-                  spectral_exr=None) -> None:
+                  spectral_exr=None, exr_adapt: str | None = None) -> None:
     """Write the EXR (scene-linear float32 in ``exr_space``, default linear sRGB; the
-    space in its ``chromaticities`` and ``gonio:exr_space``; settings and time in its
-    metadata), the PNG (8-bit sRGB), if asked the gamut-warning PNG and the spectral EXR
-    (:func:`gonio_cli.imageio.write_spectral_exr`, the frame's ``spectra``), atomically."""
+    space in its ``chromaticities`` and ``gonio:exr_space``; its adaptation ``exr_adapt``,
+    default none, in ``gonio:exr_adapt`` and ``gonio:colour``; settings and time in its
+    metadata), the PNG (8-bit sRGB, adapted by the scene's ``adapt``), if asked the
+    gamut-warning PNG and the spectral EXR (:func:`gonio_cli.imageio.write_spectral_exr`,
+    the frame's ``spectra``; its R, G, B preview is the colour EXR's linear sRGB),
+    atomically."""
     from ..artifact import image_metadata
     from ..imageio import write_exr, write_png
     from .pipeline import Stage
-    from .tonemap import get_exr_space
+    from .tonemap import DEFAULT_EXR_ADAPTATION, get_exr_space
 
+    exr_adapt = DEFAULT_EXR_ADAPTATION if exr_adapt is None else exr_adapt
     elapsed = time.perf_counter() - start if start is not None else None
     space = get_exr_space(exr_space)
     # the envelope of the EXRs (inputs hashed once); the PNG's leaves the inputs out: a
@@ -138,12 +159,10 @@ def write_outputs(frame: Frame, scene: Scene, stats: Stats, *, png, exr=None,
             "render_time_s": elapsed if elapsed is not None else
             sum(v for k, v in stats.time_s.items() if "." not in k),
             "frame_time_s": frame_time(stats), "exr_space": exr_space,
-            "colour": f"scene-referred {space.help}, after chromatic adaptation "
-                      "(settings.adapt: scene_white_xyz → D65), before exposure and tone "
-                      "mapping"}
+            "exr_adapt": exr_adapt, "colour": exr_colour(space.help, exr_adapt)}
     if exr is not None:
         with Stage(stats, "write_exr"):
-            write_exr(exr, exr_pixels(frame, scene, exr_space), meta,
+            write_exr(exr, exr_pixels(frame, scene, exr_space, exr_adapt), meta,
                       chromaticities=space.chromaticities(), channel_names=space.channels)
     if spectral_exr is not None:
         if frame.spectra is None:
@@ -154,11 +173,13 @@ def write_outputs(frame: Frame, scene: Scene, stats: Stats, *, png, exr=None,
             from ..imageio import write_spectral_exr
 
             write_spectral_exr(
-                spectral_exr, frame.spectra, scene.grid_nm, frame.linear,
+                spectral_exr, frame.spectra, scene.grid_nm,
+                exr_pixels(frame, scene, "srgb", exr_adapt),
                 {**base, "schema": "gonio.render-spectra", "settings": settings(scene),
                  "grid_nm": grid_spec(scene.grid_nm) or [float(v) for v in scene.grid_nm],
                  "radiance_units": SPECTRAL_UNITS,
-                 "preview": "R, G, B: the colour EXR's linear sRGB (after adaptation)",
+                 "preview": "R, G, B: the colour EXR's linear sRGB "
+                            f"({exr_colour('linear sRGB', exr_adapt)})", "exr_adapt": exr_adapt,
                  "render_time_s": meta["render_time_s"]})
     with Stage(stats, "write_png"):
         write_png(png, frame.display, {**png_base, "settings": settings(scene)})

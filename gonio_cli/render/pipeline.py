@@ -61,7 +61,9 @@ FRAME_STAGES = ("rasterize", "shadows", "occlusion", "shade", "downsample", "ton
 
 @dataclass
 class Frame:
-    """A rendered frame: ``linear`` (H, W, 3) float32 scene-linear sRGB (the EXR),
+    """A rendered frame: ``linear`` (H, W, 3) float32 linear sRGB after the display's
+    chromatic adaptation (``[output] adapt``: what the PNG shows; the colour EXR is
+    :func:`.output.exr_pixels`, by default without adaptation),
     ``display`` (H, W, 3) uint8 sRGB-encoded after exposure and tone map (the PNG),
     ``xyz`` (H, W, 3) float64 CIE XYZ (box-filtered), ``coverage`` (H, W) the fraction of
     each pixel's samples that hit an object, ``out_of_gamut`` (H, W) bool the pixels whose
@@ -119,8 +121,10 @@ class _SceneKey:
             return False
         where = self.path.name + (f":{exc.row}" if exc.row is not None else "")
         column = f"{exc.column}: " if exc.column else ""
-        fix = (f"point {self.key.split()[-1]} at the right file" if isinstance(exc, ArtifactError)
-               else exc.fix)
+        fix = exc.fix
+        if isinstance(exc, ArtifactError):  # and the command that makes the right one
+            fix = f"point {self.key.split()[-1]} at the right file" + (
+                f", or {exc.fix}" if (exc.fix or "").startswith("make ") else "")
         raise InputError(f"{self.key} = {where}: {column}{exc.message}",
                          path=self.scene.display, fix=fix) from None
 

@@ -4,7 +4,7 @@ Every path in a scene file is relative to the scene file. Unknown keys, wrong ty
 non-finite numbers and missing files are :class:`~gonio_cli.errors.InputError` s of one
 line that name the file and the key (STYLE 7), e.g.::
 
-    scene.toml: [[object]] 2: unknown key 'materal'; allowed: inks, lobes, mask, ...
+    scene.toml: [[object]] 2: unknown key 'materal'; did you mean 'material'? allowed: ...
 
 A scene may be a template: ``${name}`` in any string is replaced by the variable
 ``name``, defined in the scene's ``[vars]`` table (defaults) or on the command line
@@ -98,7 +98,8 @@ def read_scene_toml(path: str | os.PathLike, display: str | None = None) -> dict
 
 def load_scene(path: str | os.PathLike, *, variables: Mapping[str, str] | None = None,
                overrides: Mapping[str, Any] | None = None,
-               doc: Mapping[str, Any] | None = None) -> Scene:
+               doc: Mapping[str, Any] | None = None,
+               flags: Mapping[str, str] | None = None) -> Scene:
     """Read and validate a scene file.
 
     Parameters
@@ -108,6 +109,9 @@ def load_scene(path: str | os.PathLike, *, variables: Mapping[str, str] | None =
     overrides : command-line settings that replace the file's: ``width``, ``height``
         (camera), ``ssaa``, ``spectral``, ``exposure``, ``tonemap``, ``adapt``, ``grid_nm`` (output;
         a ``grid_nm`` given here is used as it is, :func:`choose_grid`); None = keep.
+    flags : the option each override came from (``{"width": "--width-px"}``), for
+        messages (the CLI names it as the user typed it,
+        :func:`gonio_cli.commands.as_typed_in`); an override not named here is ``--<key>``.
     doc : the scene as data (what ``tomllib`` gives for the file, e.g. a template edited
         by a program); None reads ``path``, which in both cases names the scene in errors
         and anchors its relative paths.
@@ -136,6 +140,7 @@ def load_scene(path: str | os.PathLike, *, variables: Mapping[str, str] | None =
     merged.update(variables or {})
     doc = substitute({k: v for k, v in doc.items() if k != "vars"}, merged, chk, "")
     overrides = {k: v for k, v in (overrides or {}).items() if v is not None}
+    overrides = _Overrides(overrides, flags or {})
 
     camera = _camera(chk, doc, overrides)
     output = _output(chk, doc, overrides)
@@ -205,6 +210,18 @@ def load_scene(path: str | os.PathLike, *, variables: Mapping[str, str] | None =
                  dict(merged), list(dict.fromkeys(inputs)), display)
 
 
+class _Overrides(dict):
+    """Command-line overrides by key, and the option each came from (:meth:`flag`)."""
+
+    def __init__(self, values: Mapping[str, Any], flags: Mapping[str, str]):
+        super().__init__(values)
+        self.flags = dict(flags)
+
+    def flag(self, key: str) -> str:
+        """The option's name (``--width-px``), else ``--<key>`` with dashes."""
+        return self.flags.get(key, f"--{key.replace('_', '-')}")
+
+
 def _camera(chk: Checker, doc, overrides) -> Camera:
     where = "[camera]"
     cam = chk.table(chk.required(doc, "camera", ""), where)
@@ -217,7 +234,7 @@ def _camera(chk: Checker, doc, overrides) -> Camera:
     size = {}
     for key in ("width", "height"):
         if key in overrides:
-            size[key] = chk.integer(overrides[key], f"--{key}", lo=1, hi=16384)
+            size[key] = chk.integer(overrides[key], overrides.flag(key), lo=1, hi=16384)
         else:
             size[key] = chk.integer(chk.required(cam, key, where), f"{where} {key}",
                                     lo=1, hi=16384)
@@ -238,7 +255,7 @@ def _output(chk: Checker, doc, overrides) -> Output:
     chk.keys(out, OUTPUT_KEYS, where)
     d = Output()
     src = {**out, **{k: v for k, v in overrides.items() if k in OUTPUT_KEYS}}
-    label = (lambda k: f"--{k.replace('_', '-')}" if k in overrides  # noqa: E731
+    label = (lambda k: overrides.flag(k) if k in overrides  # noqa: E731
              else f"{where} {k}")
     return Output(
         exposure=chk.number(src.get("exposure", d.exposure), label("exposure"),

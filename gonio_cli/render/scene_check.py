@@ -12,6 +12,7 @@ from typing import Mapping
 import numpy as np
 
 from ..errors import InputError
+from ..names import choices_fix
 from ..schemas import MAX_MAGNITUDE
 
 #: A vector shorter than this has no direction (light direction, camera up).
@@ -41,7 +42,7 @@ class Checker:
         unknown = [k for k in table if k not in allowed]
         if unknown:
             raise self.error(where, f"unknown key {unknown[0]!r}",
-                             fix=f"allowed: {', '.join(allowed)}")
+                             fix=choices_fix(unknown[0], allowed, "allowed:"))
 
     def required(self, table: Mapping, key: str, where: str):
         if key not in table:
@@ -90,7 +91,7 @@ class Checker:
     def choice(self, value, where: str, choices) -> str:
         s = self.string(value, where)
         if s not in choices:
-            raise self.error(where, f"{s!r} is unknown", fix=f"use one of {', '.join(choices)}")
+            raise self.error(where, f"{s!r} is unknown", fix=choices_fix(s, choices))
         return s
 
     def file(self, value, where: str) -> Path:

@@ -142,6 +142,11 @@ ADAPTATIONS: dict[str, Callable[[np.ndarray, np.ndarray], np.ndarray]] = {
 #: the sample print under A the two differ by mean CIEDE2000 0.9 (99th percentile 2.8),
 #: against 14 (28) between adapted and unadapted.
 DEFAULT_ADAPTATION = "bradford"
+#: The colour EXR's adaptation unless asked (``gonio render --exr-adapt``): none. The EXR
+#: is scene-referred (docs/conventions.md, "Light and colour": linear sRGB with no
+#: chromatic adaptation unless asked for): the light's colour stays in it, as in a
+#: colorimeter's reading; the display's adaptation is the PNG's (``--adapt``).
+DEFAULT_EXR_ADAPTATION = "none"
 
 
 def get_adaptation(name: str) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
