@@ -20,6 +20,7 @@ process per core, on 127.0.0.1 only, without a dashboard unless asked.
 
 from __future__ import annotations
 
+import contextlib
 import os
 from collections import deque
 from typing import Any, Callable, Mapping
@@ -265,10 +266,11 @@ def _submit(plan, stale, records, previous, settings, cluster_args, on_start,
 
     def finish(rec: dict) -> None:
         key = rec["key"]
-        records[key] = rec
-        journal.append(rec)
-        if on_record is not None:
-            on_record(rec)
+        with signals_held():  # a record is in the journal and counted, or neither
+            records[key] = rec
+            journal.append(rec)
+            if on_record is not None:
+                on_record(rec)
         ready = []
         for u in users.get(key, ()):
             waiting[u] -= 1
@@ -296,6 +298,23 @@ def _submit(plan, stale, records, previous, settings, cluster_args, on_start,
         client.close()
         if cluster is not None:
             cluster.close()
+
+
+@contextlib.contextmanager
+def signals_held():
+    """Hold Ctrl-C and SIGTERM back (main thread, POSIX) while the block runs."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread() or not hasattr(
+            signal, "pthread_sigmask"):
+        yield
+        return
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
 
 def lost(job, exc: BaseException, outdir: str, settings: Mapping[str, Any],
