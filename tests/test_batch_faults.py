@@ -15,7 +15,6 @@ tests/test_batch.py):
 
 from __future__ import annotations
 
-import errno
 import json
 import os
 import signal
@@ -26,6 +25,10 @@ from pathlib import Path
 
 import pytest
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from batch_gate import DEADLINE_S, attempts as _attempts, fifo_as_file as _fifo_as_file, \
+    open_gate as _open_gate, wait as _wait  # noqa: E402
+
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLE = ROOT / "sample_data"
 GONIO = str(Path(sys.executable).with_name("gonio"))
@@ -35,9 +38,6 @@ SCENE = SAMPLE / "batch" / "scenes" / "sphere.toml"
 FRAMES = [f"render/floor/sphere/frame{k:03d}" for k in range(4)]
 BEFORE_GATE = set(FRAMES) | {"preview/floor/sphere"}
 ALL = BEFORE_GATE | {"gate", "after"}
-#: Seconds a wait may take before the test gives up (a hang is a failure, not a timing
-#: measurement: every wait ends on an event long before this on any machine).
-DEADLINE_S = 180
 
 pytest.importorskip("distributed", reason="gonio[batch] (Dask distributed) is not installed")
 if not hasattr(os, "mkfifo"):
@@ -80,57 +80,10 @@ options = {{ var = {{ material = "{MATERIAL}" }}, width = 16, height = 16 }}
     return plan
 
 
-def _wait(what: str, test, proc: subprocess.Popen | None = None):
-    """Poll ``test()`` until it is truthy (an event, not a time): its value."""
-    deadline = time.monotonic() + DEADLINE_S
-    while True:
-        value = test()
-        if value:
-            return value
-        assert proc is None or proc.poll() is None, f"gonio batch ended before {what}: " \
-            + proc.communicate()[1][-2000:]
-        assert time.monotonic() < deadline, f"never: {what}"
-        time.sleep(0.05)
-
-
-def _attempts(out: Path, key: str) -> list[str]:
-    log = out / ".gonio-batch" / "attempts" / (key.replace("/", "_") + ".log")
-    return log.read_text().split() if log.is_file() else []
-
-
 def _journal(out: Path) -> dict[str, dict]:
     from gonio_cli.batch.journal import read_journal
 
     return read_journal(out)
-
-
-def _open_gate(out: Path, fifo: Path, starts: int) -> None:
-    """Let the gate's job go once its ``starts``-th start is waiting on the FIFO: write to
-    it when a reader has it open (open for writing without blocking fails until then)."""
-    _wait(f"gate start {starts}", lambda: len(_attempts(out, "gate")) >= starts)
-
-    def opened():
-        try:
-            return os.open(fifo, os.O_WRONLY | os.O_NONBLOCK)
-        except OSError as exc:
-            if exc.errno != errno.ENXIO:  # ENXIO: no reader yet
-                raise
-            return None
-
-    fd = _wait("a reader of the gate", opened)
-    try:
-        os.write(fd, b"go\n")
-    finally:
-        os.close(fd)
-
-
-def _fifo_as_file(fifo: Path, rec: dict) -> None:
-    """Replace the FIFO by a regular file with the bytes and modification time the gate's
-    record holds, so a rerun reads (and trusts) it instead of blocking on it."""
-    mtime = next(i["mtime_ns"] for i in rec["inputs"] if i["path"] == str(fifo))
-    fifo.unlink()
-    fifo.write_bytes(b"go\n")
-    os.utime(fifo, ns=(mtime, mtime))
 
 
 def _mismatches(records: dict[str, dict]) -> list[str]:

@@ -96,7 +96,7 @@ def dry_run(plan: Plan) -> tuple[list[tuple[str, str]], int]:
     return [(k, why[k]) for k in stale], len(done)
 
 
-def connect(workers: int | None, scheduler: str | None, dashboard: bool, retries: int):
+def connect(workers: int | None, scheduler: str | None, dashboard: bool):
     """A Dask client (and the local cluster it owns, or None)."""
     import importlib.util
 
@@ -119,9 +119,9 @@ def connect(workers: int | None, scheduler: str | None, dashboard: bool, retries
             if os.path.isfile(scheduler) else Client(scheduler, timeout=CONNECT_TIMEOUT_S)
         check_versions(client, scheduler)
         return client, None
-    # a job whose worker dies is tried again on another, retries + 1 times in all (the
-    # driver submits it again where a scheduler gives up sooner: :func:`lost`)
-    config: dict[str, Any] = {"distributed.scheduler.allowed-failures": retries}
+    # a job whose worker dies is submitted again by the driver (:func:`lost`), as on any
+    # scheduler: Dask itself gives up at once, so the attempts are counted in one place
+    config: dict[str, Any] = {"distributed.scheduler.allowed-failures": 0}
     if method:
         config["distributed.worker.multiprocessing-method"] = method
     dask.config.set(config)
@@ -237,7 +237,7 @@ def _submit(plan, stale, records, previous, settings, cluster_args, on_start,
         for d in deps[k]:
             if d in todo:
                 users.setdefault(d, []).append(k)
-    client, cluster = connect(*cluster_args, settings["retries"])
+    client, cluster = connect(*cluster_args)
     journal = Journal(outdir)
     pending = as_completed()
     running: dict[str, tuple[str, int]] = {}  # task key -> (job key, submissions)
@@ -321,8 +321,9 @@ def lost(job, exc: BaseException, outdir: str, settings: Mapping[str, Any],
          submissions: int) -> dict | None:
     """The record of a job whose task ended in an exception (its worker died and the
     scheduler gave up, the cluster went), or None to submit it again: fewer than
-    ``retries`` + 1 starts (or submissions, for a task that never started) so far, and
-    not stopped by the time limit."""
+    ``retries`` + 1 starts so far and not stopped by the time limit. A task can be lost
+    before it starts (queued on a worker that died): it is submitted again too, up to
+    twice the starts allowed in all, so a task that can never start ends."""
     starts = len(attempt_log(outdir, job))
     limit = timed_out(outdir, job)
     common = {"attempts": starts, "run": settings["run"]}
@@ -330,7 +331,8 @@ def lost(job, exc: BaseException, outdir: str, settings: Mapping[str, Any],
         return record(job, "failed", **common,
                       error=f"stopped after {limit:g} s (--job-timeout {limit:g}); it may "
                             "be stuck, or give it a longer limit")
-    if max(starts, submissions) < settings["retries"] + 1:
+    allowed = settings["retries"] + 1
+    if starts < allowed and submissions < 2 * allowed:
         return None
     return record(job, "failed", **common,
                   error=" ".join(f"lost its worker in each of {starts} attempts (--retries "
