@@ -38,10 +38,13 @@ def _journal(out: Path) -> dict[str, dict]:
     return read_journal(out)
 
 
-def _started_twice(out: Path) -> int:
+def _started_twice(out: Path) -> set[str]:
+    """File names (:func:`gonio_cli.batch.plan.file_name_of`) of the jobs started more
+    than once in the run (a start after the first that finds the job's receipt returns
+    it without running the job)."""
     folder = out / ".gonio-batch" / "attempts"
-    return sum(len(p.read_text().split()) > 1 for p in folder.glob("*.log")) \
-        if folder.is_dir() else 0
+    return {p.stem for p in folder.glob("*.log") if len(p.read_text().split()) > 1} \
+        if folder.is_dir() else set()
 
 
 def _mismatches(out: Path) -> int:
@@ -135,11 +138,15 @@ def run_faults(gonio: str, tmp: Path, plan: Path, frames: int) -> None:
         for name, fault in faults.items():
             out = tmp / name.replace(" ", "-")
             code, wall, cpu, at_fault = _run(gonio, plan, out, sched, fault)
+            from gonio_cli.batch.plan import file_name_of
+
             twice, bad = _started_twice(out), _mismatches(out)
+            again = len(twice & {file_name_of(k) for k in at_fault})
             time.sleep(2)  # let the scheduler drop a dead driver's tasks (not measured)
             rerun = _rerun(gonio, plan, out, sched)
             print(f"  {name:15s}: exit {code}, {len(at_fault)} of {n} recorded at the fault; "
-                  f"{twice} job(s) started twice in the run, {bad} output(s) not as "
+                  f"{len(twice)} job(s) started twice in the run ({again} recorded before "
+                  f"the fault), {bad} output(s) not as "
                   f"journalled; the rerun ran {rerun} of the {n - len(at_fault)} not "
                   f"finished at the fault")
     finally:
