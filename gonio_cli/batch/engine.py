@@ -230,13 +230,7 @@ def _submit(plan, stale, records, previous, settings, cluster_args, on_start,
     jobs = {j.key: j for j in plan.jobs}
     deps = dependencies(plan)
     outdir = os.fspath(plan.outdir)
-    todo = set(stale)
-    waiting = {k: sum(d in todo for d in deps[k]) for k in stale}
-    users: dict[str, list[str]] = {}
-    for k in stale:
-        for d in deps[k]:
-            if d in todo:
-                users.setdefault(d, []).append(k)
+    waiting, users = _waits(stale, deps)
     client, cluster = connect(*cluster_args)
     journal = Journal(outdir)
     pending = as_completed()
@@ -315,6 +309,18 @@ def signals_held():
         yield
     finally:
         signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+def _waits(stale: list[str], deps: Mapping[str, list[str]]):
+    """({key: how many jobs of ``stale`` it waits for}, {key: the stale jobs that need it})."""
+    todo = set(stale)
+    waiting = {k: sum(d in todo for d in deps[k]) for k in stale}
+    users: dict[str, list[str]] = {}
+    for k in stale:
+        for d in deps[k]:
+            if d in todo:
+                users.setdefault(d, []).append(k)
+    return waiting, users
 
 
 def lost(job, exc: BaseException, outdir: str, settings: Mapping[str, Any],

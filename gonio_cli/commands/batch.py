@@ -125,6 +125,7 @@ def _run(p, output: Path, options: dict) -> list[dict]:
     kept, exit 130 or 143 (128 + the signal)."""
     import signal
     import sys
+    import threading
 
     from .. import log
     from ..batch.engine import run_plan
@@ -139,7 +140,8 @@ def _run(p, output: Path, options: dict) -> list[dict]:
     def term(signum, frame):  # noqa: ARG001
         raise _Stopped()
 
-    old = signal.signal(signal.SIGTERM, term)
+    main = threading.current_thread() is threading.main_thread()
+    old = signal.signal(signal.SIGTERM, term) if main else None
     try:
         return run_plan(p, **options, on_start=started, on_record=bar.update)
     except KeyboardInterrupt as exc:
@@ -150,7 +152,8 @@ def _run(p, output: Path, options: dict) -> list[dict]:
               file=sys.stderr)
         raise typer.Exit(code) from None
     finally:
-        signal.signal(signal.SIGTERM, old)
+        if main:
+            signal.signal(signal.SIGTERM, old)
         bar.stop()
 
 
