@@ -125,6 +125,12 @@ def connect(workers: int | None, scheduler: str | None, dashboard: bool):
     if method:
         config["distributed.worker.multiprocessing-method"] = method
     dask.config.set(config)
+    import logging
+
+    # a worker lost (killed, stopped by --job-timeout) is reported in its job's record
+    # and on one line at the end; Dask's own log lines about it would come first
+    for name in ("distributed.scheduler", "distributed.nanny"):
+        logging.getLogger(name).setLevel(logging.CRITICAL)
     cluster = LocalCluster(n_workers=workers or cpu_count(), threads_per_worker=1,
                            processes=True, host="127.0.0.1",
                            dashboard_address="127.0.0.1:0" if dashboard else None)
