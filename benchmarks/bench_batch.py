@@ -2,6 +2,7 @@
 separate ``gonio`` processes.
 
     .venv/bin/python benchmarks/bench_batch.py [--sizes 384,1024] [--repeats 2]
+    .venv/bin/python benchmarks/bench_batch.py --faults [--fault-frames 16 --fault-size 64]
 
 The plan is ``sample_data/batch/turntable.toml`` (3 inks ingested and fitted, 2 scenes ×
 4 frames each: 24 renders, 6 previews) with its renders at each of ``--sizes`` pixels
@@ -20,6 +21,14 @@ at once; the speed-up follows their ratio), and the per-job overhead of a separa
 process: (3 − the jobs' own time in 2) / 30. At 384² the jobs take ~3 s in all and a
 run's fixed cost (~1.3 s: Dask's import and local cluster, each worker's first gonio
 import) caps the speed-up; at 1024² the work dominates.
+
+``--faults``: the sample plan with ``--fault-frames`` frames per turntable (16: 96
+renders at ``--fault-size`` px, 6 previews, 3 ingests and 3 fits: 108 jobs) on an external
+scheduler with two workers (``dask scheduler`` / ``dask worker --nworkers 2``), once
+cleanly (the driver's CPU and wall time per job), then with a fault mid-run (a third of
+the jobs recorded): a worker SIGKILLed, the driver SIGKILLed, the driver sent SIGTERM.
+After each it prints the jobs started again within the run, the outputs whose sha256 is
+not the journal's, and the jobs the rerun runs against those not finished at the fault.
 """
 
 from __future__ import annotations
@@ -143,8 +152,19 @@ def main() -> None:
     parser.add_argument("--sizes", default="384,1024",
                         help="render widths and heights (px), comma-separated")
     parser.add_argument("--repeats", type=int, default=2, help="timed runs per worker count")
+    parser.add_argument("--faults", action="store_true",
+                        help="the fault benchmark (workers and the driver killed mid-run)")
+    parser.add_argument("--fault-frames", type=int, default=16, help="frames per turntable")
+    parser.add_argument("--fault-size", type=int, default=64, help="render size (px)")
     args = parser.parse_args()
     gonio = process.gonio_command()
+    if args.faults:
+        from batch_faults import run_faults
+
+        with tempfile.TemporaryDirectory(prefix="gonio-bench-faults-") as tmp:
+            run_faults(gonio, Path(tmp), copy_plan(Path(tmp) / "data", args.fault_size),
+                       args.fault_frames)
+        return
     print("gonio batch, the sample turntable plan (sample_data/batch/turntable.toml), whole "
           "processes; the fixed cost of a run (Dask's local cluster ~0.6 s to start and "
           "0.2 s to stop, its import 0.4 s, each worker's first gonio import) weighs on "

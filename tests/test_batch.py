@@ -30,6 +30,7 @@ SCENES = ("sphere", "panel")
 N_FRAMES = 4
 
 pytest.importorskip("distributed", reason="gonio[batch] (Dask distributed) is not installed")
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # batch_gate
 
 
 def _copy_plan(folder: Path, extra: str = "") -> Path:
@@ -201,11 +202,16 @@ def test_one_worker_gives_identical_images(runs, tmp_path):
 
 
 def test_killed_worker_loses_nothing(runs, tmp_path):
-    """A worker killed (SIGKILL) mid-render: its job runs again elsewhere, the manifest
-    counts two attempts, every output is written."""
+    """A local cluster's worker killed (SIGKILL) mid-job: the driver submits the job
+    again, it runs on a new worker, the manifest counts two attempts, every output is
+    written. The job is held mid-run by a gate (tests/batch_gate.py: it needs a FIFO),
+    so the kill lands while it runs on any machine."""
+    from batch_gate import attempts, open_gate, wait
+
     material = runs["out"] / "blue" / "blue.material.json"
+    fifo = tmp_path / "gate.fifo"
+    os.mkfifo(fifo)
     plan = tmp_path / "slow.toml"
-    # one slow render (~3 s, so that the kill lands while it runs) and quick ones
     plan.write_text(f"""
 [[material]]
 name = "blue"
@@ -220,9 +226,9 @@ render = {{ width = 48, height = 48 }}
 key = "slow"
 command = "render"
 inputs = ["{SAMPLE / 'batch' / 'scenes' / 'sphere.toml'}"]
-needs = ["{material}"]
+needs = ["{material}", "{fifo}"]
 output = "${{out}}/slow.png"
-options = {{ var = {{ material = "{material}" }}, width = 640, height = 640, ssaa = 4, spectral = "exact" }}
+options = {{ var = {{ material = "{material}" }}, width = 48, height = 48 }}
 
 [[job]]
 key = "coarse"
@@ -233,16 +239,12 @@ output = "${{out}}/coarse.png"
 options = {{ var = {{ material = "{material}" }}, width = 16, height = 16, grid-nm = "400:700:20" }}
 """)
     out = tmp_path / "out"
-    log = out / ".gonio-batch" / "attempts" / "slow.log"
     proc = subprocess.Popen([GONIO, "batch", str(plan), "-o", str(out), "--workers", "2"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        deadline = time.monotonic() + 120
-        while not (log.is_file() and log.read_text().strip()):
-            assert proc.poll() is None and time.monotonic() < deadline, "the job never started"
-            time.sleep(0.02)
-        pid = int(log.read_text().split()[0].rsplit(":", 1)[1])
+        pid = int(wait("the job", lambda: attempts(out, "slow"), proc)[0].rsplit(":", 1)[1])
         os.kill(pid, signal.SIGKILL)
+        open_gate(out, fifo, starts=2, key="slow")
         _, err = proc.communicate(timeout=240)
     finally:
         if proc.poll() is None:
@@ -252,6 +254,7 @@ options = {{ var = {{ material = "{material}" }}, width = 16, height = 16, grid-
     assert records["slow"]["status"] == "ok" and records["slow"]["attempts"] == 2
     assert records["slow"]["worker"].rsplit(":", 1)[1] != str(pid)
     assert all(r["status"] == "ok" for r in records.values())
+    assert all(r["attempts"] == 1 for k, r in records.items() if k != "slow")
     assert (out / "slow.png").is_file() and (out / "blue" / "sphere.png").is_file()
     # a command's warnings are kept in its record (a coarser grid resamples the material)
     assert records["coarse"]["warnings"] == [

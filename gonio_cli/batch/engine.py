@@ -1,82 +1,102 @@
 """Run a plan's jobs on Dask distributed: a local cluster, or one already running.
 
 Jobs whose earlier records still stand are settled here, before any cluster starts (a
-rerun with nothing to do starts none); the others are submitted in graph order as futures
-that take their upstream futures as arguments, so Dask runs each job when its inputs are
-made, on whichever worker is free. A record comes back per job; images stay on disk.
+rerun with nothing to do starts none). The driver then submits, in bulk, every job whose
+inputs are made, and as each result arrives it appends the record to the journal
+(:mod:`.journal`, fsync'ed), releases the result and submits the jobs it made ready. A
+job's upstream records go to it as plain values, never as Dask futures: a worker that
+dies holds nothing another job needs, so Dask never runs a finished job again, and a kill
+of anything loses at most the jobs running then. Images stay on disk.
+
+Retries and the time limit hold on any scheduler: a job whose worker died is submitted
+again by the driver (a new task) until it has started ``retries`` + 1 times, and the worker
+refuses a start beyond that whatever the scheduler's own ``allowed-failures`` did
+(:func:`.jobs.refused`); a job running longer than ``timeout_s`` is stopped in its worker
+(:func:`.jobs.time_limit`) and reported.
 
 The default cluster is :class:`distributed.LocalCluster` with one single-threaded worker
-process per core, on 127.0.0.1 only, without a dashboard unless asked. A worker that dies
-mid-job (killed, out of memory) is replaced by its nanny and the scheduler runs its jobs
-again, ``retries`` + 1 times at most (the attempt logs of :mod:`.jobs` count them).
+process per core, on 127.0.0.1 only, without a dashboard unless asked.
 """
 
 from __future__ import annotations
 
-import json
+import contextlib
 import os
-import shutil
+from collections import deque
 from typing import Any, Callable, Mapping
 
+from .. import __version__
 from ..machine import cpu_count
-from . import MANIFEST_NAME
-from .jobs import ATTEMPTS_DIR, execute, failed_roots, record, up_to_date
-from .plan import Plan, check_graph, dependencies
+from .jobs import attempt_log, execute, failed_roots, record, timed_out, why_stale
+from .journal import Journal, clear_run_state, compact, lock_folder, read_journal, \
+    recover_receipts
+from .plan import Plan, dependencies
 
 #: Seconds to wait for a scheduler given with ``--scheduler`` (and for its workers).
 CONNECT_TIMEOUT_S = 30
 
 
-def read_manifest(outdir: str | os.PathLike) -> dict[str, dict[str, Any]]:
-    """The records of an earlier run in ``outdir`` by key ({} if none or unreadable lines)."""
-    path = os.path.join(outdir, MANIFEST_NAME)
-    out: dict[str, dict[str, Any]] = {}
-    try:
-        with open(path, encoding="utf-8") as fh:
-            for line in fh:
-                try:
-                    rec = json.loads(line)
-                except json.JSONDecodeError:
-                    continue  # a damaged line: that job simply runs again
-                if isinstance(rec, dict) and isinstance(rec.get("key"), str):
-                    out[rec["key"]] = rec
-    except OSError:
-        pass
-    return out
-
-
-def write_manifest(outdir: str | os.PathLike, records: list[Mapping[str, Any]]) -> str:
-    """``OUTDIR/manifest.jsonl``, one record per line, written atomically."""
-    from ..artifact import atomic_path
-    from . import MANIFEST_SCHEMA, MANIFEST_SCHEMA_VERSION
-
-    path = os.path.join(outdir, MANIFEST_NAME)
-    with atomic_path(path) as tmp, open(tmp, "w", encoding="utf-8") as fh:
-        for r in records:
-            fh.write(json.dumps({"schema": MANIFEST_SCHEMA,
-                                 "schema_version": MANIFEST_SCHEMA_VERSION, **r},
-                                sort_keys=False) + "\n")
-    return path
-
-
-def settle(plan: Plan, previous: Mapping[str, Mapping[str, Any]]) -> tuple[dict, list[str]]:
-    """({key: record} of the jobs still up to date, keys of the jobs to run), in graph
-    order: a job runs if its earlier record does not stand or a job it needs runs."""
+def settle(plan: Plan, previous: Mapping[str, Mapping[str, Any]]
+           ) -> tuple[dict, list[str], dict[str, str]]:
+    """({key: record} of the jobs still up to date, keys of the jobs to run in graph
+    order, {key: why it runs}): a job runs if its earlier record does not stand
+    (:func:`.jobs.why_stale`) or a job it needs runs. Linear in the number of jobs."""
     jobs = {j.key: j for j in plan.jobs}
     deps = dependencies(plan)
     done: dict[str, dict] = {}
     stale: list[str] = []
-    for key in check_graph(plan):
+    why: dict[str, str] = {}
+    for key in graph_order(deps):
         job = jobs[key]
-        if not any(d in stale for d in deps[key]) and up_to_date(job, previous.get(key)):
+        upstream = next((d for d in deps[key] if d in why), None)
+        reason = f"it needs {upstream}, which runs" if upstream else \
+            why_stale(job, previous.get(key))
+        if reason is None:
             done[key] = {**previous[key], "status": "skipped", "attempts": 0,
                          "labels": dict(job.labels)}
         else:
             stale.append(key)
-    return done, stale
+            why[key] = reason
+    return done, stale, why
 
 
-def connect(workers: int | None, scheduler: str | None, dashboard: bool, retries: int):
+def graph_order(deps: Mapping[str, list[str]]) -> list[str]:
+    """The keys of an acyclic ``deps`` ({key: keys it needs}) in a runnable order, plan
+    order among the ready ones (Kahn's algorithm)."""
+    waiting = {k: len(d) for k, d in deps.items()}
+    users: dict[str, list[str]] = {}
+    for k, d in deps.items():
+        for x in d:
+            users.setdefault(x, []).append(k)
+    ready = deque(k for k, n in waiting.items() if n == 0)
+    order: list[str] = []
+    while ready:
+        k = ready.popleft()
+        order.append(k)
+        for u in users.get(k, ()):
+            waiting[u] -= 1
+            if waiting[u] == 0:
+                ready.append(u)
+    return order
+
+
+def dry_run(plan: Plan) -> tuple[list[tuple[str, str]], int]:
+    """([(key, why it would run)], number of jobs up to date), touching nothing."""
+    outdir = os.fspath(plan.outdir)
+    previous = read_journal(outdir)
+    from .journal import DONE_DIR, read_receipt
+
+    if os.path.isdir(os.path.join(outdir, DONE_DIR)):  # what a rerun would recover
+        for j in plan.jobs:
+            rec = read_receipt(outdir, j.file_name)
+            if rec and rec.get("status") == "ok" and rec.get("run") != \
+                    previous.get(j.key, {}).get("run"):
+                previous[j.key] = rec
+    done, stale, why = settle(plan, previous)
+    return [(k, why[k]) for k in stale], len(done)
+
+
+def connect(workers: int | None, scheduler: str | None, dashboard: bool):
     """A Dask client (and the local cluster it owns, or None)."""
     import importlib.util
 
@@ -95,14 +115,22 @@ def connect(workers: int | None, scheduler: str | None, dashboard: bool, retries
         raise missing from None
 
     if scheduler:
-        if os.path.isfile(scheduler):
-            return Client(scheduler_file=scheduler, timeout=CONNECT_TIMEOUT_S), None
-        return Client(scheduler, timeout=CONNECT_TIMEOUT_S), None
-    # a job whose worker dies is tried again on another, retries + 1 times in all
-    config: dict[str, Any] = {"distributed.scheduler.allowed-failures": retries}
+        client = Client(scheduler_file=scheduler, timeout=CONNECT_TIMEOUT_S) \
+            if os.path.isfile(scheduler) else Client(scheduler, timeout=CONNECT_TIMEOUT_S)
+        check_versions(client, scheduler)
+        return client, None
+    # a job whose worker dies is submitted again by the driver (:func:`lost`), as on any
+    # scheduler: Dask itself gives up at once, so the attempts are counted in one place
+    config: dict[str, Any] = {"distributed.scheduler.allowed-failures": 0}
     if method:
         config["distributed.worker.multiprocessing-method"] = method
     dask.config.set(config)
+    import logging
+
+    # a worker lost (killed, stopped by --job-timeout) is reported in its job's record
+    # and on one line at the end; Dask's own log lines about it would come first
+    for name in ("distributed.scheduler", "distributed.nanny"):
+        logging.getLogger(name).setLevel(logging.CRITICAL)
     cluster = LocalCluster(n_workers=workers or cpu_count(), threads_per_worker=1,
                            processes=True, host="127.0.0.1",
                            dashboard_address="127.0.0.1:0" if dashboard else None)
@@ -132,93 +160,203 @@ def worker_start_method() -> str | None:
     return "forkserver"
 
 
+def check_versions(client, scheduler: str) -> None:
+    """Refuse workers whose gonio is not the driver's version (their outputs would not
+    be what the records say); a worker that joins later is checked by each job
+    (:func:`.jobs.execute`)."""
+    from ..errors import InputError
+    from .jobs import worker_version
+
+    try:
+        versions = client.run(worker_version)
+    except Exception as exc:  # a worker without gonio: it cannot unpickle the function
+        client.close()
+        raise InputError(f"the workers of {scheduler} cannot run gonio ({type(exc).__name__}: "
+                         f"{exc})", fix="install this gonio on every worker (pip install "
+                                        "'gonio[batch]')") from None
+    other = {a: v for a, v in versions.items() if v != __version__}
+    if other:
+        client.close()
+        address, version = next(iter(sorted(other.items())))
+        raise InputError(f"worker {address} of {scheduler} runs gonio {version}, this driver "
+                         f"{__version__} ({len(other)} of {len(versions)} workers differ)",
+                         fix="install the same gonio on the driver and every worker")
+
+
 def run_plan(plan: Plan, *, workers: int | None = None, scheduler: str | None = None,
-             retries: int = 2, dashboard: bool = False,
+             retries: int = 2, timeout_s: float | None = None, dashboard: bool = False,
              on_start: Callable[[int, str | None], None] | None = None,
              on_record: Callable[[dict], None] | None = None) -> list[dict]:
     """Run the jobs of ``plan`` that are not up to date; return every job's record in
-    plan order (also written to ``OUTDIR/manifest.jsonl``).
+    plan order. Each record is appended to ``OUTDIR/manifest.jsonl`` as its job ends;
+    the journal is compacted when the run ends here (normally, by an error or by an
+    interrupt: what ran is kept, a job without a record runs next time).
 
-    ``on_start(n_to_run, dashboard_link)`` is called once the cluster is up (or with 0
-    when nothing is to run), ``on_record(record)`` as each job ends.
+    ``retries``: starts of a job after its worker died; ``timeout_s``: seconds a job may
+    run (None: no limit). ``on_start(n_to_run, dashboard_link)`` is called once the
+    cluster is up (or with 0 when nothing is to run), ``on_record(record)`` as each job
+    ends.
+
+    Raises
+    ------
+    InputError : another batch holds the output folder's lock; a worker's gonio version
+        is not the driver's.
     """
     from ..artifact import make_folder
 
     outdir = os.fspath(plan.outdir)
     make_folder(outdir)
-    previous = read_manifest(outdir)
-    for folder in sorted({os.path.dirname(o) for j in plan.jobs for o in j.outputs}):
-        make_folder(folder)
-    shutil.rmtree(os.path.join(outdir, ATTEMPTS_DIR), ignore_errors=True)
-    records, stale = settle(plan, previous)
-    try:
-        if stale:
-            _submit(plan, stale, records, previous, workers, scheduler, retries, dashboard,
-                    on_start, on_record)
-        elif on_start is not None:
-            on_start(0, None)
-    finally:  # also after Ctrl-C: what ran is kept (a job without a record runs next time)
-        write_manifest(outdir, [records.get(j.key) or previous[j.key] for j in plan.jobs
-                                if j.key in records or j.key in previous])
+    with lock_folder(outdir):
+        previous = read_journal(outdir)
+        recover_receipts(outdir, previous, [j.key for j in plan.jobs])
+        for folder in sorted({os.path.dirname(o) for j in plan.jobs for o in j.outputs}):
+            make_folder(folder)
+        clear_run_state(outdir)
+        records, stale, _ = settle(plan, previous)
+        try:
+            if stale:
+                settings = {"run": os.urandom(6).hex(), "retries": retries,
+                            "timeout_s": timeout_s, "gonio_version": __version__}
+                _submit(plan, stale, records, previous, settings,
+                        (workers, scheduler, dashboard), on_start, on_record)
+            elif on_start is not None:
+                on_start(0, None)
+        finally:
+            compact(outdir, [records.get(j.key) or previous[j.key] for j in plan.jobs
+                             if j.key in records or j.key in previous])
     return [records[j.key] for j in plan.jobs]
 
 
-def _submit(plan, stale, records, previous, workers, scheduler, retries, dashboard,
-            on_start, on_record) -> None:
+def _submit(plan, stale, records, previous, settings, cluster_args, on_start,
+            on_record) -> None:
     """Run the ``stale`` jobs on Dask, adding each one's record to ``records`` (which
-    holds the settled ones) as it ends."""
+    holds the settled ones) and to the journal as it ends."""
+    from distributed import as_completed
+
     jobs = {j.key: j for j in plan.jobs}
     deps = dependencies(plan)
     outdir = os.fspath(plan.outdir)
-    client, cluster = connect(workers, scheduler, dashboard, retries)
-    from distributed import as_completed
+    waiting, users = _waits(stale, deps)
+    client, cluster = connect(*cluster_args)
+    journal = Journal(outdir)
+    pending = as_completed()
+    running: dict[str, tuple[str, int]] = {}  # task key -> (job key, submissions)
+
+    def submit(keys: list[str], n: int = 1) -> None:
+        """Submit ``keys`` (their upstream records done) in one call; block the jobs a
+        failed one needs without a worker."""
+        go = []
+        for key in keys:
+            bad = failed_roots([records[d] for d in deps[key]])
+            if bad:
+                finish(record(jobs[key], "blocked", run=settings["run"], failed_roots=bad,
+                              error=f"not run: {', '.join(bad)} failed"))
+            else:
+                go.append(key)
+        if not go:
+            return
+        futures = client.map(
+            execute, [jobs[k] for k in go], [outdir] * len(go),
+            [previous.get(k) for k in go], [tuple(records[d] for d in deps[k]) for k in go],
+            [settings] * len(go), key=[task_key(jobs[k], f"{settings['run']}{n}") for k in go],
+            pure=False, retries=0)
+        for k, f in zip(go, futures):
+            running[f.key] = (k, n)
+        pending.update(futures)
+
+    def finish(rec: dict) -> None:
+        key = rec["key"]
+        with signals_held():  # a record is in the journal and counted, or neither
+            records[key] = rec
+            journal.append(rec)
+            if on_record is not None:
+                on_record(rec)
+        ready = []
+        for u in users.get(key, ()):
+            waiting[u] -= 1
+            if waiting[u] == 0:
+                ready.append(u)
+        submit(ready)
 
     try:
         if on_start is not None:
-            on_start(len(stale), client.dashboard_link if dashboard else None)
-        futures: dict[str, Any] = {}
-        token = os.urandom(4).hex()
-        for key in stale:
-            upstream = [futures[d] if d in futures else records[d] for d in deps[key]]
-            futures[key] = client.submit(execute, jobs[key], outdir, previous.get(key),
-                                         *upstream, key=task_key(jobs[key], token),
-                                         pure=False, retries=retries)
-        keys = {f.key: k for k, f in futures.items()}
-        for future in as_completed(list(futures.values())):
-            key = keys[future.key]
+            on_start(len(stale), client.dashboard_link if cluster_args[2] else None)
+        submit([k for k in stale if waiting[k] == 0])
+        for future in pending:
+            key, n = running.pop(future.key)
             try:
                 rec = future.result()
-            except Exception as exc:  # the job's worker kept dying, or a lost cluster
-                bad = failed_roots([records[d] for d in deps[key] if d in records])
-                rec = record(jobs[key], "blocked" if bad else "failed",
-                             attempts=_attempts(outdir, jobs[key]),
-                             error=(f"not run: {', '.join(bad)} failed" if bad else
-                                    " ".join(f"lost its worker: {type(exc).__name__}: "
-                                             f"{exc}".split())),
-                             **({"failed_roots": bad} if bad else {}))
-            records[key] = rec
-            if on_record is not None:
-                on_record(rec)
+            except Exception as exc:  # its worker died (or the cluster went)
+                rec = lost(jobs[key], exc, outdir, settings, n)
+            future.release()  # the result is recorded: Dask may forget it
+            if rec is None:
+                submit([key], n + 1)
+            else:
+                finish(rec)
     finally:
+        journal.close()
         client.close()
         if cluster is not None:
             cluster.close()
+
+
+@contextlib.contextmanager
+def signals_held():
+    """Hold Ctrl-C and SIGTERM back (main thread, POSIX) while the block runs."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread() or not hasattr(
+            signal, "pthread_sigmask"):
+        yield
+        return
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+def _waits(stale: list[str], deps: Mapping[str, list[str]]):
+    """({key: how many jobs of ``stale`` it waits for}, {key: the stale jobs that need it})."""
+    todo = set(stale)
+    waiting = {k: sum(d in todo for d in deps[k]) for k in stale}
+    users: dict[str, list[str]] = {}
+    for k in stale:
+        for d in deps[k]:
+            if d in todo:
+                users.setdefault(d, []).append(k)
+    return waiting, users
+
+
+def lost(job, exc: BaseException, outdir: str, settings: Mapping[str, Any],
+         submissions: int) -> dict | None:
+    """The record of a job whose task ended in an exception (its worker died and the
+    scheduler gave up, the cluster went), or None to submit it again: fewer than
+    ``retries`` + 1 starts so far and not stopped by the time limit. A task can be lost
+    before it starts (queued on a worker that died): it is submitted again too, up to
+    twice the starts allowed in all, so a task that can never start ends."""
+    starts = len(attempt_log(outdir, job))
+    limit = timed_out(outdir, job)
+    common = {"attempts": starts, "run": settings["run"]}
+    if limit is not None:
+        return record(job, "failed", **common,
+                      error=f"stopped after {limit:g} s (--job-timeout {limit:g}); it may "
+                            "be stuck, or give it a longer limit")
+    allowed = settings["retries"] + 1
+    if starts < allowed and submissions < 2 * allowed:
+        return None
+    return record(job, "failed", **common,
+                  error=" ".join(f"lost its worker in each of {starts} attempts (--retries "
+                                 f"{settings['retries']}); last: {type(exc).__name__}: "
+                                 f"{exc}".split()))
 
 
 def task_key(job, token: str) -> str:
     """The Dask key of ``job``'s task: ``COMMAND-TOKEN-JOBKEY``. Dask groups tasks by the
     key's first word (``dask.utils.key_split``), so every render shares one duration
     estimate, every fit another …; with those, work stealing moves queued renders to an
-    idle worker (a job runs where its upstream's small record is, so without them one
-    worker was left the last material's renders while the other idled: ~2 s of 13 at
-    1024², 2 workers)."""
+    idle worker (without them one worker was left the last material's renders while the
+    other idled: ~2 s of 13 at 1024², 2 workers). ``token``: the batch's id and the
+    submission's number (a job submitted again is a new task)."""
     return f"{job.command.split()[0]}-{token}-{job.key}"
-
-
-def _attempts(outdir: str, job) -> int:
-    try:
-        with open(os.path.join(outdir, ATTEMPTS_DIR, job.file_name + ".log"),
-                  encoding="utf-8") as fh:
-            return sum(1 for _ in fh)
-    except OSError:
-        return 0

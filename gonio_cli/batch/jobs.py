@@ -21,6 +21,7 @@ import time
 from typing import Any, Callable, Mapping
 
 from .. import __version__
+from .journal import ATTEMPTS_DIR, TIMEOUT_DIR, read_receipt, write_receipt
 from .plan import Job
 
 #: Statuses of a record: ran now; up to date (earlier outputs kept); its command failed;
@@ -28,8 +29,6 @@ from .plan import Job
 STATUSES = ("ok", "skipped", "failed", "blocked")
 #: Statuses whose outputs are valid (a later job may use them; a rerun may keep them).
 GOOD = ("ok", "skipped")
-#: Folder of the output folder holding each job's attempt log (one line per start).
-ATTEMPTS_DIR = ".gonio-batch/attempts"
 
 
 def sha256(path: str) -> str | None:
@@ -76,33 +75,62 @@ def files(paths, sources=()) -> list[dict[str, Any]]:
                                                 else {})} for p in paths]
 
 
-def up_to_date(job: Job, previous: Mapping[str, Any] | None,
-               inputs: list[dict[str, Any]] | None = None) -> list[dict] | None:
-    """The job's input records if ``previous`` (its record of an earlier run) still
-    stands: same stamp, same input hashes and, for the user's own files
-    (``job.sources``), the same modification times (``touch`` reruns, as with make; a
-    file another job rewrites with the same bytes does not), every output there with its
-    recorded hash; else None. ``inputs``: the input records if already made (:func:`files`)."""
-    if not previous or previous.get("status") not in GOOD or previous.get("stamp") != stamp(job):
-        return None
+def why_stale(job: Job, previous: Mapping[str, Any] | None,
+              inputs: list[dict[str, Any]] | None = None) -> str | None:
+    """Why ``previous`` (the job's record of an earlier run) does not stand, in words
+    (``gonio batch --dry-run`` prints it), or None if it does: same stamp (command and
+    gonio version), same input hashes and, for the user's own files (``job.sources``),
+    the same modification times (``touch`` reruns, as with make; a file another job
+    rewrites with the same bytes does not), every output there with its recorded hash.
+    ``inputs``: the input records if already made (:func:`files`)."""
+    if not previous:
+        return "no record of an earlier run"
+    if previous.get("status") not in GOOD:
+        return f"its last run {previous.get('status')}"
+    if previous.get("stamp") != stamp(job):
+        if previous.get("gonio_version") != __version__:
+            return f"gonio version changed ({previous.get('gonio_version')} -> {__version__})"
+        return "its command changed"
+    old = {i["path"]: i for i in previous.get("inputs", [])}
+    if list(old) != list(job.inputs):
+        return "its inputs changed (other files)"
     if inputs is None:
         inputs = files(job.inputs, job.sources)
-    if [(i["path"], i["sha256"], i.get("mtime_ns")) for i in inputs] != \
-            [(i["path"], i["sha256"], i.get("mtime_ns")) for i in previous.get("inputs", [])]:
-        return None
+    for i in inputs:
+        was = old[i["path"]]
+        if i["sha256"] is None:
+            return f"input {i['path']} is missing"
+        if i["sha256"] != was["sha256"]:
+            return f"input {i['path']} changed (sha256)"
+        if i.get("mtime_ns") != was.get("mtime_ns"):
+            return f"input {i['path']} was touched (modification time)"
     outputs = previous.get("outputs", [])
-    if [o["path"] for o in outputs] != list(job.outputs) or any(
-            o["sha256"] is None or sha256(o["path"]) != o["sha256"] for o in outputs):
-        return None
-    return inputs
+    if [o["path"] for o in outputs] != list(job.outputs):
+        return "its outputs changed (other files)"
+    for o in outputs:
+        now = sha256(o["path"])
+        if now is None:
+            return f"output {o['path']} is missing"
+        if now != o["sha256"]:
+            return f"output {o['path']} changed since it was recorded"
+    return None
+
+
+def up_to_date(job: Job, previous: Mapping[str, Any] | None,
+               inputs: list[dict[str, Any]] | None = None) -> list[dict] | None:
+    """The job's input records if ``previous`` still stands (:func:`why_stale`), else None."""
+    if inputs is None and previous and previous.get("status") in GOOD and \
+            previous.get("stamp") == stamp(job):
+        inputs = files(job.inputs, job.sources)
+    return inputs if why_stale(job, previous, inputs) is None else None
 
 
 def record(job: Job, status: str, **fields) -> dict[str, Any]:
     """A manifest line: key, command, status and whatever ``fields`` adds."""
     out = {"key": job.key, "command": "gonio " + " ".join(job.template), "status": status,
            "stamp": stamp(job), "gonio_version": __version__, "inputs": [], "outputs": [],
-           "time_s": 0.0, "worker": None, "attempts": 0, "error": None, "warnings": [],
-           "labels": dict(job.labels)}
+           "time_s": 0.0, "worker": None, "attempts": 0, "run": None, "error": None,
+           "warnings": [], "labels": dict(job.labels)}
     out.update(fields)
     return out
 
@@ -127,8 +155,59 @@ def note_attempt(outdir: str, job: Job) -> int:
     path = os.path.join(folder, job.file_name + ".log")
     with open(path, "a", encoding="utf-8") as fh:
         fh.write(f"{worker_name()}\n")
-    with open(path, encoding="utf-8") as fh:
-        return sum(1 for _ in fh)
+        fh.flush()
+        os.fsync(fh.fileno())
+    return len(attempt_log(outdir, job))
+
+
+def attempt_log(outdir: str, job: Job) -> list[str]:
+    """The workers (host:pid) that started ``job`` in this batch, in order."""
+    try:
+        with open(os.path.join(outdir, ATTEMPTS_DIR, job.file_name + ".log"),
+                  encoding="utf-8") as fh:
+            return [line.strip() for line in fh if line.strip()]
+    except OSError:
+        return []
+
+
+def timed_out(outdir: str, job: Job) -> float | None:
+    """The time limit (s) that stopped ``job`` in this batch, or None."""
+    try:
+        with open(os.path.join(outdir, TIMEOUT_DIR, job.file_name), encoding="utf-8") as fh:
+            return float(fh.read().split()[0])
+    except (OSError, ValueError, IndexError):
+        return None
+
+
+@contextlib.contextmanager
+def time_limit(outdir: str, job: Job, timeout_s: float | None):
+    """Stop ``job`` if it runs longer than ``timeout_s`` seconds: a marker file says so,
+    then this worker process kills itself (SIGKILL; a Python thread cannot be stopped
+    from outside, and a stuck job may be stuck in C or in a system call). Its nanny
+    starts a new worker; the job's next start, or the driver, finds the marker and
+    reports the job as stopped. Other jobs running in the same worker lose an attempt."""
+    if not timeout_s:
+        yield
+        return
+    import signal
+    import threading
+
+    def stop() -> None:
+        folder = os.path.join(outdir, TIMEOUT_DIR)
+        os.makedirs(folder, exist_ok=True)
+        with open(os.path.join(folder, job.file_name), "w", encoding="utf-8") as fh:
+            fh.write(f"{timeout_s} {worker_name()}\n")
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.kill(os.getpid(), signal.SIGKILL)
+
+    timer = threading.Timer(timeout_s, stop)
+    timer.daemon = True
+    timer.start()
+    try:
+        yield
+    finally:
+        timer.cancel()
 
 
 def worker_name() -> str:
@@ -188,22 +267,66 @@ def make_thumbnails(outdir: str, outputs) -> None:
                 thumbnail(outdir, path)
 
 
+def refused(job: Job, outdir: str, attempts: int, retries: int) -> dict | None:
+    """The failed record of a job that must not start again: the time limit stopped it,
+    or its workers died in more than ``retries`` + 1 starts (whatever the scheduler's
+    own ``allowed-failures``); else None."""
+    limit = timed_out(outdir, job)
+    if limit is not None:
+        return record(job, "failed", attempts=attempts, worker=worker_name(),
+                      error=f"stopped after {limit:g} s (--job-timeout {limit:g}); it may "
+                            "be stuck, or give it a longer limit")
+    if attempts > retries + 1:
+        died = attempt_log(outdir, job)[:-1]
+        return record(job, "failed", attempts=attempts - 1, worker=worker_name(),
+                      error=f"its worker died in each of its {len(died)} attempts (last "
+                            f"{died[-1] if died else '?'}; --retries {retries})")
+    return None
+
+
 def execute(job: Job, outdir: str, previous: Mapping[str, Any] | None,
-            *upstream: Mapping[str, Any]) -> dict[str, Any]:
+            upstream: tuple = (), settings: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """Run one job in a worker and return its manifest record.
 
-    ``upstream``: the records of the jobs that make its inputs (Dask passes the results
-    of the futures it was given); a failed one blocks this job. A job whose earlier
-    record still stands (:func:`up_to_date`) is skipped.
+    ``upstream``: the records of the jobs that make its inputs; a failed one blocks this
+    job. ``settings``: ``run`` (the batch's id), ``retries`` and ``timeout_s`` (seconds
+    or None). A job whose earlier record still stands (:func:`up_to_date`) is skipped; a
+    job already done in this batch (its receipt there, its outputs unchanged: Dask
+    running it again after a worker loss) is not run again, so outputs whose record the
+    driver took are never rewritten.
     """
+    settings = dict(settings or {})
+    run = settings.get("run")
     attempts = note_attempt(outdir, job)
+    done = read_receipt(outdir, job.file_name)
+    if done is not None and done.get("run") == run and all(
+            sha256(o["path"]) == o["sha256"] for o in done.get("outputs", [])):
+        return done
+    want = settings.get("gonio_version")
+    if want and want != __version__:
+        return record(job, "failed", attempts=attempts, worker=worker_name(), run=run,
+                      error=f"worker {worker_name()} runs gonio {__version__}, the driver "
+                            f"{want}; install the same gonio on every worker")
+    stop = refused(job, outdir, attempts, int(settings.get("retries", 0)))
+    if stop is not None:
+        return {**stop, "run": run}
     failed = failed_roots(upstream)
     if failed:
-        return record(job, "blocked", attempts=attempts, worker=worker_name(),
+        return record(job, "blocked", attempts=attempts, worker=worker_name(), run=run,
                       error=f"not run: {', '.join(failed)} failed", failed_roots=failed)
+    with time_limit(outdir, job, settings.get("timeout_s")):
+        rec = _run(job, outdir, previous, attempts, run)
+    if rec["status"] == "ok":
+        write_receipt(outdir, job.file_name, rec)
+    return rec
+
+
+def _run(job: Job, outdir: str, previous, attempts: int, run) -> dict[str, Any]:
+    """Hash the inputs, skip the job if its record stands, else run it; its record."""
     inputs = files(job.inputs, job.sources)  # hashed once: to judge, then to record
     if up_to_date(job, previous, inputs) is not None:
-        return {**previous, "status": "skipped", "attempts": attempts, "labels": dict(job.labels)}
+        return {**previous, "status": "skipped", "attempts": attempts, "run": run,
+                "labels": dict(job.labels)}
     start = time.perf_counter()
     warnings: list[str] = []
     try:
@@ -221,5 +344,10 @@ def execute(job: Job, outdir: str, previous: Mapping[str, Any] | None,
     if error is None:
         make_thumbnails(outdir, job.outputs)
     return record(job, "failed" if error else "ok", inputs=inputs,
-                  outputs=outputs if not error else [], time_s=time_s,
+                  outputs=outputs if not error else [], time_s=time_s, run=run,
                   worker=worker_name(), attempts=attempts, error=error, warnings=warnings)
+
+
+def worker_version() -> str:
+    """gonio's version in this process (the driver asks each worker: they must match)."""
+    return __version__

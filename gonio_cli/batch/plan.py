@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import itertools
 import os
+from collections import deque
 import re
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -83,7 +84,12 @@ class Job:
 
     @property
     def file_name(self) -> str:
-        return _NAME_SAFE.sub("_", self.key)
+        return file_name_of(self.key)
+
+
+def file_name_of(key: str) -> str:
+    """A job key as a file name (attempt logs, receipts): unsafe characters as ``_``."""
+    return _NAME_SAFE.sub("_", key)
 
 
 @dataclass
@@ -402,20 +408,21 @@ def check_graph(plan: Plan) -> list[str]:
     deps = dependencies(plan)
     order: list[str] = []
     waiting = {k: set(d) for k, d in deps.items()}
-    ready = [k for k, d in waiting.items() if not d]
+    ready = deque(k for k, d in waiting.items() if not d)
     users: dict[str, list[str]] = {}
     for k, d in deps.items():
         for x in d:
             users.setdefault(x, []).append(k)
     while ready:
-        k = ready.pop(0)
+        k = ready.popleft()
         order.append(k)
         for u in users.get(k, []):
             waiting[u].discard(k)
             if not waiting[u]:
                 ready.append(u)
     if len(order) < len(plan.jobs):
-        stuck = [k for k in deps if k not in order]
+        placed = set(order)
+        stuck = [k for k in deps if k not in placed]
         cycle = _find_cycle(stuck, deps)
         raise PlanError(f"the jobs form a cycle: {' -> '.join(cycle)}", path=plan.path,
                         fix="a job cannot need, even through others, what it writes")

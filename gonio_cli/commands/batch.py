@@ -13,14 +13,17 @@ A plan (TOML, docs/batch.md) names materials (CSV files to ingest and fit), a ma
 materials x scenes x --var values x turntable frames, and plain jobs; a job whose input is
 another job's output waits for it. Jobs run inside the workers through gonio's own code.
 A job whose outputs exist with the same input hashes, parameters and gonio version is
-skipped. Writes OUTDIR/manifest.jsonl (one record per job) and OUTDIR/index.html (a
-contact sheet). A failing job is reported with its one-line error and the others still
-run; the exit status is then 1.
+skipped. OUTDIR/manifest.jsonl is a journal: a record per job appended as it ends, so a
+kill of the driver or a worker loses at most the jobs running then. Also writes
+OUTDIR/index.html (a contact sheet). A failing job is reported with its one-line error
+and the others still run; the exit status is then 1. Ctrl-C and SIGTERM keep every
+record (exit 130, 143).
 
 \b
 Example:
   gonio batch sample_data/batch/turntable.toml -o out/batch
-  gonio batch plan.toml -o out/batch --workers 4 --retries 3
+  gonio batch plan.toml -o out/batch --workers 4 --retries 3 --job-timeout 600
+  gonio batch plan.toml -o out/batch --dry-run
   gonio batch plan.toml -o out/batch --scheduler tcp://10.0.0.5:8786
 """
 
@@ -38,8 +41,14 @@ def batch(
         help="Use a running Dask scheduler (tcp://host:8786 or a scheduler file) instead "
              "of a local cluster."),
     retries: int = typer.Option(2, "--retries", metavar="N",
-                                help="Times a job is run again after its worker dies (bad "
-                                     "input is never retried)."),
+                                help="Times a job is run again after its worker dies, on "
+                                     "any scheduler (bad input is never retried)."),
+    job_timeout: Optional[float] = typer.Option(
+        None, "--job-timeout", metavar="SECONDS",
+        help="Stop a job that runs longer (its worker process is restarted) and report "
+             "it [default: no limit]."),
+    dry_run: bool = typer.Option(False, "--dry-run",
+                                 help="Print the jobs that would run and why; run nothing."),
     dashboard: bool = typer.Option(False, "--dashboard",
                                    help="Serve the Dask dashboard (on 127.0.0.1)."),
 ) -> None:
@@ -58,24 +67,19 @@ def batch(
         raise InputError(f"--workers {workers} is not a number of processes", fix="give N >= 1")
     if retries < 0:
         raise InputError(f"--retries {retries} is negative", fix="give N >= 0")
+    if job_timeout is not None and not job_timeout > 0:
+        raise InputError(f"--job-timeout {job_timeout:g} is not a time",
+                         fix="give SECONDS > 0, or leave it out for no limit")
     if output.exists() and not output.is_dir():
         raise InputError(f"-o {output} is a file", fix="name a folder")
     p = read_plan(plan, output)  # every plan error before anything runs
-    from ..batch.engine import run_plan
+    if dry_run:
+        _dry_run(p, output)
+        return
     from ..batch.sheet import write_sheet
 
-    bar = _Progress()
-
-    def started(n: int, link: str | None) -> None:
-        if link:
-            log.info(f"gonio batch: dashboard at {link}")
-        bar.start(n)
-
-    try:
-        records = run_plan(p, workers=workers, scheduler=scheduler, retries=retries,
-                           dashboard=dashboard, on_start=started, on_record=bar.update)
-    finally:
-        bar.stop()
+    records = _run(p, output, dict(workers=workers, scheduler=scheduler, retries=retries,
+                                   timeout_s=job_timeout, dashboard=dashboard))
     sheet = write_sheet(output, records, title=f"gonio batch: {plan.name}")
     counts = {s: sum(r["status"] == s for r in records) for s in ("ok", "skipped", "failed", "blocked")}
     ran = counts["ok"] + counts["failed"]
@@ -100,22 +104,82 @@ def batch(
         raise typer.Exit(1)
 
 
+def _dry_run(p, output: Path) -> None:
+    """Print each job that would run and why (stdout), and a summary; run nothing."""
+    from .. import log
+    from ..batch.engine import dry_run
+
+    stale, n_done = dry_run(p)
+    for key, why in stale:
+        print(f"would run {key}: {why}")
+    log.info(f"gonio batch --dry-run: would run {len(stale)} of {len(p.jobs)} jobs "
+             f"({n_done} up to date in {output}); nothing was run")
+
+
+class _Stopped(KeyboardInterrupt):
+    """SIGTERM, handled as Ctrl-C is."""
+
+
+def _run(p, output: Path, options: dict) -> list[dict]:
+    """Run the plan with a progress display; Ctrl-C or SIGTERM: one line saying what was
+    kept, exit 130 or 143 (128 + the signal)."""
+    import signal
+    import sys
+    import threading
+
+    from .. import log
+    from ..batch.engine import run_plan
+
+    bar = _Progress()
+
+    def started(n: int, link: str | None) -> None:
+        if link:
+            log.info(f"gonio batch: dashboard at {link}")
+        bar.start(n)
+
+    def term(signum, frame):  # noqa: ARG001
+        raise _Stopped()
+
+    main = threading.current_thread() is threading.main_thread()
+    old = signal.signal(signal.SIGTERM, term) if main else None
+    try:
+        return run_plan(p, **options, on_start=started, on_record=bar.update)
+    except KeyboardInterrupt as exc:
+        bar.stop()
+        name, code = ("SIGTERM", 143) if isinstance(exc, _Stopped) else ("Ctrl-C", 130)
+        print(f"gonio batch: stopped by {name} after {bar.done} of {bar.n} jobs ended; their "
+              f"records are in {output}/manifest.jsonl and a rerun runs only the rest",
+              file=sys.stderr)
+        raise typer.Exit(code) from None
+    finally:
+        if main:
+            signal.signal(signal.SIGTERM, old)
+        bar.stop()
+
+
 class _Progress:
-    """One bar over the jobs to run (done, running, failed) on stderr, when it is a
-    terminal and not --quiet."""
+    """One bar over the jobs to run (done, running, failed) on stderr when it is a
+    terminal; else a line every tenth of the jobs (at least every job); nothing with
+    --quiet."""
 
     def __init__(self):
         self.bar = self.task = None
         self.done = self.failed = 0
         self.n = 0
+        self.every = 0  # a line per this many jobs (0: none)
 
     def start(self, n: int) -> None:
         import sys
+        import time
 
         from .. import log
 
         self.n = n
-        if not n or log.is_quiet() or not sys.stderr.isatty():
+        self.t0 = time.perf_counter()
+        if not n or log.is_quiet():
+            return
+        if not sys.stderr.isatty():
+            self.every = max(1, -(-n // 10))
             return
         from rich.console import Console
         from rich.progress import Progress
@@ -128,14 +192,21 @@ class _Progress:
         return f"jobs: {self.done} done, {self.n - self.done} running or waiting, {self.failed} failed"
 
     def update(self, rec: dict) -> None:
+        import sys
+        import time
+
         self.done += 1
         self.failed += rec["status"] in ("failed", "blocked")
         if self.bar is not None:
             self.bar.update(self.task, advance=1, description=self._text())
+        elif self.every and (self.done % self.every == 0 or self.done == self.n):
+            print(f"gonio batch: {self.done} of {self.n} jobs done ({self.failed} failed) "
+                  f"in {time.perf_counter() - self.t0:.1f} s", file=sys.stderr, flush=True)
 
     def stop(self) -> None:
         if self.bar is not None:
             self.bar.stop()
+            self.bar = None
 
 
 EXAMPLE = "gonio batch sample_data/batch/turntable.toml -o out/batch"

@@ -1,0 +1,160 @@
+"""The fault mode of benchmarks/bench_batch.py (``--faults``): ``gonio batch`` on an
+external scheduler with two workers, killed in three ways mid-run; what each costs.
+
+For each fault: the jobs started more than once within the run (attempt logs), the
+outputs whose sha256 is not the journal's, and how many jobs the rerun runs against how
+many had not finished when the fault hit (± those running then). A clean run first gives
+the driver's CPU time and wall time per job.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import process  # noqa: E402
+
+#: Share of the jobs recorded when a fault is sent (the run is then well under way).
+FAULT_AT = 1 / 3
+
+
+def _plan(plan: Path, frames: int) -> Path:
+    """The sample plan (already copied, renders sized) with ``frames`` frames a turntable."""
+    text = re.sub(r"(?m)^frames = \d+", f"frames = {frames}", plan.read_text())
+    plan.write_text(text)
+    return plan
+
+
+def _journal(out: Path) -> dict[str, dict]:
+    from gonio_cli.batch.journal import read_journal
+
+    return read_journal(out)
+
+
+def _started_twice(out: Path) -> set[str]:
+    """File names (:func:`gonio_cli.batch.plan.file_name_of`) of the jobs started more
+    than once in the run (a start after the first that finds the job's receipt returns
+    it without running the job)."""
+    folder = out / ".gonio-batch" / "attempts"
+    return {p.stem for p in folder.glob("*.log") if len(p.read_text().split()) > 1} \
+        if folder.is_dir() else set()
+
+
+def _mismatches(out: Path) -> int:
+    from gonio_cli.artifact import sha256_file
+
+    return sum(1 for r in _journal(out).values() if r["status"] in ("ok", "skipped")
+               for o in r["outputs"] if not os.path.exists(o["path"])
+               or sha256_file(o["path"]) != o["sha256"])
+
+
+def _run(gonio: str, plan: Path, out: Path, sched: str, fault=None):
+    """Run the batch; ``fault(proc)`` once FAULT_AT of the jobs are recorded. Returns
+    (exit status, wall s, driver CPU s, keys recorded at the fault)."""
+    env = process.user_environment()
+    start = time.perf_counter()
+    proc = subprocess.Popen([gonio, "-q", "batch", str(plan), "-o", str(out), "--scheduler",
+                             sched, "--retries", "1"], env=env,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    at_fault: set[str] = set()
+    if fault is not None:
+        from gonio_cli.batch.plan import read_plan
+
+        n = len(read_plan(plan, out).jobs)
+        while len(_journal(out)) < FAULT_AT * n:
+            time.sleep(0.05)
+        at_fault = set(_journal(out))
+        fault(proc)
+    _, status, usage = os.wait4(proc.pid, 0)
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    return (proc.returncode, time.perf_counter() - start, usage.ru_utime + usage.ru_stime,
+            at_fault)
+
+
+def _rerun(gonio: str, plan: Path, out: Path, sched: str) -> int:
+    """Jobs the rerun ran (ok or failed in its journal)."""
+    before = {k: r.get("run") for k, r in _journal(out).items()}
+    subprocess.run([gonio, "-q", "batch", str(plan), "-o", str(out), "--scheduler", sched],
+                   env=process.user_environment(), stdout=subprocess.DEVNULL,
+                   stderr=subprocess.DEVNULL)
+    return sum(1 for k, r in _journal(out).items() if r["status"] in ("ok", "failed")
+               and r.get("run") != before.get(k))
+
+
+def _cluster(folder: Path) -> tuple[list[subprocess.Popen], str]:
+    """A scheduler and two single-threaded workers (with nannies) on loopback."""
+    bindir = Path(sys.executable).parent
+    sched = folder / "scheduler.json"
+    common = ["--host", "127.0.0.1", "--no-dashboard"]
+    env = process.user_environment()
+    procs = [subprocess.Popen([str(bindir / "dask"), "scheduler", "--port", "0",
+                               "--scheduler-file", str(sched), *common], env=env,
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
+    while not sched.is_file():
+        time.sleep(0.05)
+    procs.append(subprocess.Popen([str(bindir / "dask"), "worker", "--scheduler-file",
+                                   str(sched), "--nthreads", "1", "--nworkers", "2", *common],
+                                  env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+    from distributed import Client
+
+    with Client(scheduler_file=str(sched), timeout=60) as client:
+        client.wait_for_workers(2, timeout=120)
+    return procs, str(sched)
+
+
+def _kill_a_worker(sched: str):
+    def fault(proc):  # noqa: ARG001
+        from distributed import Client
+
+        with Client(scheduler_file=sched, timeout=60) as client:
+            pid = sorted(client.run(os.getpid).values())[0]
+        os.kill(pid, signal.SIGKILL)
+    return fault
+
+
+def run_faults(gonio: str, tmp: Path, plan: Path, frames: int) -> None:
+    """Print the clean run's driver time per job, then each fault's cost."""
+    plan = _plan(plan, frames)
+    from gonio_cli.batch.plan import read_plan
+
+    n = len(read_plan(plan, tmp / "x").jobs)
+    procs, sched = _cluster(tmp)
+    try:
+        print(f"gonio batch under faults: {n} jobs (the sample plan, {frames} frames a "
+              f"turntable), external scheduler, 2 workers; load {process.load_average()}")
+        code, wall, cpu, _ = _run(gonio, plan, tmp / "clean", sched)
+        print(f"  clean run: exit {code}, {wall:.1f} s; driver {cpu / n * 1e3:.1f} ms CPU and "
+              f"{wall / n * 1e3:.0f} ms wall per job")
+        faults = {"worker SIGKILL": _kill_a_worker(sched),
+                  "driver SIGKILL": lambda p: p.send_signal(signal.SIGKILL),
+                  "driver SIGTERM": lambda p: p.send_signal(signal.SIGTERM)}
+        for name, fault in faults.items():
+            out = tmp / name.replace(" ", "-")
+            code, wall, cpu, at_fault = _run(gonio, plan, out, sched, fault)
+            from gonio_cli.batch.plan import file_name_of
+
+            twice, bad = _started_twice(out), _mismatches(out)
+            again = len(twice & {file_name_of(k) for k in at_fault})
+            time.sleep(2)  # let the scheduler drop a dead driver's tasks (not measured)
+            rerun = _rerun(gonio, plan, out, sched)
+            print(f"  {name:15s}: exit {code}, {len(at_fault)} of {n} recorded at the fault; "
+                  f"{len(twice)} job(s) started twice in the run ({again} recorded before "
+                  f"the fault), {bad} output(s) not as "
+                  f"journalled; the rerun ran {rerun} of the {n - len(at_fault)} not "
+                  f"finished at the fault")
+    finally:
+        for p in reversed(procs):
+            p.terminate()
+        for p in procs:
+            try:
+                p.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                p.kill()
+
