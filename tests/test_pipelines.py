@@ -26,7 +26,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 MAKE = shutil.which("make")
 COPIED = ("Makefile", "pipelines", "sample_data", "pyproject.toml", "requirements.lock",
-          "setup.py", "gonio_cli/halftone/_diffuse.c")
+          "setup.py", "gonio_cli/halftone/_diffuse.c", "gonio_cli/render/_envlookup.c")
 
 pytestmark = pytest.mark.skipif(
     MAKE is None, reason="`make` is not on PATH: the pipelines are Makefiles (install GNU make)")
@@ -328,6 +328,10 @@ def test_stamp_is_order_only(tree):
     stamp.touch()
     time.sleep(0.05)  # past the file system's clock tick (~4 ms): the edit is newer
     tree.touch("gonio_cli/halftone/_diffuse.c")
+    assert tree.plan(stamp=str(stamp)) == {str(stamp)}
+    stamp.touch()
+    time.sleep(0.05)
+    tree.touch("gonio_cli/render/_envlookup.c")
     assert tree.plan(stamp=str(stamp)) == {str(stamp)}
 
 
