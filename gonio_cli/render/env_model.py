@@ -49,6 +49,7 @@ from ..brdf_components import DIFFUSE, Component, components
 from ..envmap import direction_to_spherical, lookup_angles
 from ..errors import InputError
 from ..geometry import Cosines
+from .env_lookup import BUILDS, c_build_available, c_environment  # noqa: F401 (BUILDS)
 
 #: View angles θv (degrees) of the per-material tables; 2° apart, then 89 and 89.9 so
 #: silhouette pixels (θv → 90°) interpolate rather than clamp.
@@ -314,68 +315,12 @@ def model_environment_xyz(environment, tables: list[LobeTable], normal: np.ndarr
     matrices = [channel_matrices(t.albedo, "spectral", wavelength_nm, observer)
                 for t in tables]                                        # (V, 3, C) each
     if (build or ("c" if c_build_available() else "numpy")) == "c":
-        _c_environment(environment, tables, matrices, normal, view, out)
+        c_environment(environment, tables, matrices, normal, view, out, VIEW_ANGLES_DEG)
         return out
     for start in range(0, n, BLOCK):
         b = slice(start, start + BLOCK)
         out[b] = _block_xyz(environment, tables, matrices, normal[b], view[b])
     return out
-
-
-#: Builds of :func:`model_environment_xyz`, in order of preference: the C extension module
-#: built by pip (``_envlookup.c``, optional: skipped where no C compiler was found) and
-#: numpy. They agree to ~1e-6 relative (``tests/test_env_model.py``).
-BUILDS = ("c", "numpy")
-
-#: Pixels per thread of the C build below which one thread does it all.
-C_MIN_PIXELS_PER_THREAD = 16384
-
-
-def c_build_available() -> bool:
-    """Whether the C build (``_envlookup.c``) was compiled when gonio was installed."""
-    try:
-        from . import _envlookup  # noqa: F401
-    except ImportError:
-        return False
-    return True
-
-
-def _c_environment(environment, tables, matrices, normal, view, out) -> None:
-    """:func:`model_environment_xyz` by the C build (``_envlookup.c``, its header): the
-    tables stacked, the maps of the levels some lobe uses, the pixels split over threads
-    (the kernel releases the GIL)."""
-    from concurrent.futures import ThreadPoolExecutor
-
-    from ..machine import cpu_count
-    from ._envlookup import run
-
-    used = sorted({int(level) for t in tables for level in t.levels})
-    maps = tuple(np.ascontiguousarray(environment.level(i), dtype=np.float32)
-                 if i in used else None for i in range(len(environment.exponents)))
-    shapes = np.array([(0, 0) if m is None else m.shape[:2] for m in maps], dtype=np.int64)
-    heights, widths = np.ascontiguousarray(shapes[:, 0]), np.ascontiguousarray(shapes[:, 1])
-    beta = np.array([t.beta for t in tables], dtype=float)                       # (K, V)
-    cos_beta, sin_beta = np.cos(beta), np.sin(beta)
-    weights = np.ascontiguousarray([t.weights for t in tables], dtype=float)     # (K, V, L)
-    mats = np.ascontiguousarray(matrices, dtype=float)                       # (K, V, 3, C)
-    normal = np.ascontiguousarray(normal, dtype=float)
-    view = np.ascontiguousarray(view, dtype=float)
-    views = np.ascontiguousarray(VIEW_ANGLES_DEG, dtype=float)
-    n, channels = out.shape
-
-    def part(b: slice) -> None:
-        run(normal[b], view[b], b.stop - b.start, views, views.size, cos_beta, sin_beta,
-            weights, mats,
-            len(tables), maps, heights, widths, len(maps), channels, out[b])
-
-    threads = max(1, min(cpu_count(), n // C_MIN_PIXELS_PER_THREAD))
-    edges = np.linspace(0, n, threads + 1).astype(int)
-    parts = [slice(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:])]
-    if threads == 1:
-        part(parts[0])
-        return
-    with ThreadPoolExecutor(threads) as pool:
-        list(pool.map(part, parts))
 
 
 def _block_xyz(environment, tables, matrices, normal, view) -> np.ndarray:

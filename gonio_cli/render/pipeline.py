@@ -23,16 +23,12 @@ in the run report only if it ran ("leave out what the scene does not need"):
 ``tonemap``      exposure, tone map, sRGB encoding, 8 bits
 ``write_exr``, ``write_png``, ``write_spectral_exr``   the files (atomic)
 
-The frame time of the issue is rasterize + shadows + occlusion + shade + downsample +
-tonemap; the
-total is scene loading to images written (the CLI measures it from before ``load_scene``).
+The frame time is rasterize + shadows + occlusion + shade + downsample + tonemap; the total
+is scene loading to images written (the CLI measures it from before ``load_scene``).
 
-Writing the frame out (images, their metadata, the run report) is
-:mod:`gonio_cli.render.output`, re-exported here. Why one module for the rest: loading
-(meshes, materials, textures, lobes, maps), the memory check and the stages of
-:func:`render_scene` share one scene and its caches, and each stage is a short call into
-its own module (:mod:`.raster`, :mod:`.shade`, :mod:`.tonemap`); what is left here is the
-order they run in.
+Writing the frame out is :mod:`gonio_cli.render.output` (re-exported here). Loading, the
+memory check and the stages share one scene and its caches; each stage is a short call into
+its own module (:mod:`.raster`, :mod:`.shade`, …): what is left here is their order.
 """
 
 from __future__ import annotations
@@ -495,9 +491,7 @@ def _shade_without_overflow(scene: Scene, gbuffer, surfaces, environment, lights
                                "materials for huge values") from None
 
 
-# ------------------------------------------------------------------------- re-exports --
-# Writing the frame out (images, metadata, the run report) is gonio_cli.render.output; it
-# imports Frame and the stages above, hence these imports at the end.
+# re-exports: writing the frame out is gonio_cli.render.output, which imports Frame (so last)
 
 from .output import (GAMUT_WARNING_RGB, IMAGE_SCHEMA, IMAGE_SCHEMA_VERSION,  # noqa: E402
                      REPORT_SCHEMA, REPORT_VERSION, SPECTRAL_UNITS, TURNTABLE_SCHEMA,
