@@ -40,7 +40,7 @@ setup: $(STAMP)
 # the dependency list or the pins change; the package itself is editable. Pipeline stages
 # take the stamp as an order-only prerequisite: a reinstall reruns nothing.
 ifneq ($(STAMP),)
-$(STAMP): pyproject.toml setup.py gonio_cli/halftone/_diffuse.c gonio_cli/render/_envlookup.c $(LOCK)
+$(STAMP): pyproject.toml setup.py gonio_cli/halftone/_diffuse.c gonio_cli/render/_envlookup.c gonio_cli/render/_rasterscan.c $(LOCK)
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	PIP_CONSTRAINT=$(abspath $(LOCK)) $(BIN)/python -m pip install --quiet --quiet pip
 	PIP_CONSTRAINT=$(abspath $(LOCK)) $(BIN)/python -m pip install --quiet --quiet -e '.[test,batch,mitsuba]'
