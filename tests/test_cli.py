@@ -576,10 +576,10 @@ def test_a_numpy_value_in_a_stage_message_prints_as_a_number():
     sky = np.ones((4, 8, 3), dtype=np.float32)
     sky[1, 2, 0] = np.nan
     with pytest.raises(InputError) as info:
-        prefilter.validate_map(sky, path="sky.exr")
+        prefilter.inputs.validate_map(sky, path="sky.exr")
     assert "texel (row 1, col 2) is nan; 1 texel is NaN" in str(info.value)
     with pytest.raises(InputError) as info:
-        prefilter.validate_exponents(np.array([0.5]))
+        prefilter.inputs.validate_exponents(np.array([0.5]))
     assert str(info.value).startswith("exponent 0.5 is outside")
 
 
