@@ -41,7 +41,7 @@ def test_every_model_parameter_has_a_range():
 
 
 def test_measurement_quantities_are_ingests():
-    from gonio_cli.ingest import QUANTITIES
+    from gonio_cli.ingest.quantities import QUANTITIES
 
     assert set(schemas.Measurement.QUANTITIES) == set(QUANTITIES)
 
