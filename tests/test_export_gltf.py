@@ -215,3 +215,168 @@ def judge_gltf(truth_rgb, m: GltfMaterial) -> np.ndarray:
     """CIEDE2000 of ``m`` against an RGB BRDF on the judgement's in-plane grid."""
     return judge(SpectralTruth(truth_rgb), lambda cos: gltf_brdf(cos, m),
                  *in_plane_grid()).delta_e
+
+
+# ------------------------------------------------------------------ the command --
+
+def coat_material(tmp_path) -> Path:
+    """A clear-coated orange paint inside the sRGB gamut, no colour shift (c = 0)."""
+    basis = rgb_reflectance_basis(GRID)
+    m = Material("goniochromatic-coat", GRID, {
+        "alpha": 0.3, "rho": basis @ np.array([0.5, 0.25, 0.1]), "c": np.zeros(GRID.size),
+        "rho_d": basis @ np.array([0.35, 0.12, 0.05]), "alpha_coat": 0.02, "k_coat": 1.0,
+        "f0_coat": 0.04})
+    path = tmp_path / "orange.material.json"
+    write_material(path, m)
+    return path
+
+
+@pytest.fixture(scope="module")
+def exported(tmp_path_factory):
+    """(glb, report, stderr) of ``gonio export orange.material.json --to gltf``."""
+    from gonio_cli import cli
+
+    tmp = tmp_path_factory.mktemp("gltf")
+    mat = coat_material(tmp)
+    glb = tmp / "orange.glb"
+    import contextlib
+    import io
+
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        code = cli.run(["export", str(mat), "-o", str(glb), "--to", "gltf"])
+    assert code == 0, err.getvalue()
+    return glb, json.loads((tmp / "orange.glb.report.json").read_text()), err.getvalue()
+
+
+def test_export_writes_the_glb_and_its_report(exported):
+    import pygltflib
+
+    glb, rep, err = exported
+    line = [x for x in err.splitlines() if x.startswith("gonio export: orange.glb")]
+    assert len(line) == 1 and "glTF keeps mean CIEDE2000" in line[0]
+    assert f"{rep['delta_e2000_mean']:.1f}" in line[0]
+    assert rep["schema"] == "gonio.export-report" and rep["schema_version"] == 1
+    de = np.asarray(rep["delta_e2000"])
+    assert de.size == np.asarray(rep["theta_i_deg"]).size == len(in_plane_grid()[0])
+    assert rep["delta_e2000_mean"] == pytest.approx(de.mean())
+    assert rep["delta_e2000_worst"] == pytest.approx(de.max())
+    assert rep["material_fit"]["source"] == "not recorded"    # made, not fitted
+    doc = pygltflib.GLTF2.load(glb)
+    mat = doc.materials[0]
+    g = rep["gltf"]
+    assert mat.pbrMetallicRoughness.baseColorFactor == [*g["base_color"], 1.0]
+    assert mat.pbrMetallicRoughness.roughnessFactor == g["roughness"]
+    assert mat.extensions["KHR_materials_clearcoat"]["clearcoatFactor"] == g["clearcoat"]
+    assert mat.extensions["KHR_materials_ior"]["ior"] == g["ior"]
+    # the report judges the file's parameters: re-judge them from the file
+    m = GltfMaterial(base_color=tuple(mat.pbrMetallicRoughness.baseColorFactor[:3]),
+                     metallic=mat.pbrMetallicRoughness.metallicFactor,
+                     roughness=mat.pbrMetallicRoughness.roughnessFactor,
+                     specular=mat.extensions["KHR_materials_specular"]["specularFactor"],
+                     specular_color=tuple(mat.extensions["KHR_materials_specular"]
+                                          ["specularColorFactor"]),
+                     ior=mat.extensions["KHR_materials_ior"]["ior"],
+                     clearcoat=g["clearcoat"], clearcoat_roughness=g["clearcoat_roughness"])
+    from gonio_cli.schemas import read_material
+
+    again = judge(read_material(glb.with_name("orange.material.json")),
+                  lambda cos: gltf_brdf(cos, m), *in_plane_grid())
+    np.testing.assert_allclose(again.delta_e, de, rtol=1e-9)
+
+
+@pytest.mark.parametrize("args, says", [
+    (["-o", "{tmp}/x.gltf"], "--output"),
+    (["-o", "{tmp}/x.glb", "--scene", "{scene}"], "--scene"),
+])
+def test_bad_options_are_one_line_and_write_nothing(run_gonio, tmp_path, args, says):
+    mat = coat_material(tmp_path)
+    scene = sample_data_dir() / "scenes" / "spheres.toml"
+    args = [a.format(tmp=tmp_path, scene=scene) for a in args]
+    r = run_gonio("export", mat, "--to", "gltf", *args)
+    assert r.exit_code == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("gonio: error:") and says in lines[0]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["orange.material.json"]
+
+
+def test_a_grid_without_the_visible_is_refused(run_gonio, tmp_path):
+    grid = parse_grid("500:600:10")
+    m = Material("cook-torrance", grid, {k: np.full(grid.size, v) for k, v in
+                                         (("kd", 0.3), ("ks", 0.1), ("m", 0.3), ("f0", 0.04))})
+    path = tmp_path / "narrow.material.json"
+    write_material(path, m)
+    r = run_gonio("export", path, "-o", tmp_path / "narrow.glb", "--to", "gltf")
+    assert r.exit_code == 2 and "does not cover 400-700 nm" in r.stderr
+    assert "narrow.material.json" in r.stderr
+    assert not (tmp_path / "narrow.glb").exists()
+
+
+# --------------------------------------------------------------- Khronos validator --
+
+def _validator() -> tuple[str, Path]:
+    node = shutil.which("node")
+    if node is None:
+        pytest.skip("node is not installed: the Khronos glTF validator runs on node "
+                    "(apt-get install nodejs npm; make js-tools)")
+    if not (JS / "node_modules" / "gltf-validator").is_dir():
+        pytest.skip("the Khronos glTF validator is not installed: run make js-tools "
+                    "(npm ci in tests/js; make test does it where npm is found)")
+    return node, JS / "validate_gltf.js"
+
+
+def test_glb_passes_the_khronos_validator(exported):
+    node, script = _validator()
+    out = subprocess.run([node, str(script), str(exported[0])], capture_output=True,
+                         text=True, timeout=120, check=True)
+    report = json.loads(out.stdout)
+    assert report["issues"]["numErrors"] == 0, report["issues"]["messages"]
+    assert report["issues"]["numWarnings"] == 0, report["issues"]["messages"]
+    assert set(report["info"]["extensionsUsed"]) == {
+        "KHR_materials_specular", "KHR_materials_ior", "KHR_materials_clearcoat"}
+    assert report["info"]["totalTriangleCount"] > 1000
+
+
+def test_the_validator_sees_a_broken_glb(exported, tmp_path):
+    node, script = _validator()          # the check above can fail: a truncated file
+    bad = tmp_path / "bad.glb"
+    bad.write_bytes(exported[0].read_bytes()[:-64])
+    out = subprocess.run([node, str(script), str(bad)], capture_output=True, text=True,
+                         timeout=120, check=True)
+    assert json.loads(out.stdout)["issues"]["numErrors"] > 0
+
+
+# ------------------------------------------------------------- the demo coat paint --
+
+@pytest.fixture(scope="module")
+def demo_coat(tmp_path_factory):
+    """The demo's clear-coated paint (pipelines/carpaint.mk) fitted in a scratch folder,
+    exported; its report."""
+    from gonio_cli import cli
+
+    tmp = tmp_path_factory.mktemp("coat")
+    meas, mat = tmp / "coat.measurement.json", tmp / "coat.material.json"
+    for args in (["ingest", sample_data_dir() / "coat_paint.csv", "-o", meas],
+                 ["fit", meas, "-o", mat, "--model", "goniochromatic-coat"],
+                 ["export", mat, "-o", tmp / "coat.glb", "--to", "gltf"]):
+        assert cli.run([str(a) for a in args]) == 0
+    return json.loads((tmp / "coat.glb.report.json").read_text())
+
+
+def test_demo_coat_is_judged_at_its_measurement(demo_coat):
+    rep = demo_coat
+    assert rep["configurations"].startswith("the configurations of")
+    own = rep["material_fit"]
+    assert own["delta_e2000_mean"] < 0.5                # the gonio fit itself is good
+    # what glTF reaches (docs/export.md): 3.7 on 2026-12; the paint's blue lies outside
+    # sRGB (no glTF colour can come closer than 1.5 on average at these configurations)
+    # and eq. 5 darkens off the normal as no microfacet lobe does
+    assert rep["delta_e2000_mean"] < 4.2
+    assert rep["delta_e2000_mean"] > own["delta_e2000_mean"]
+
+
+@pytest.mark.xfail(strict=True, reason="glTF reaches mean CIEDE2000 3.7 on the demo's coat "
+                   "paint: its blue is outside sRGB (floor 1.5) and seed 000 eq. 5 has no "
+                   "microfacet lobe's angular shape (docs/export.md, 'What glTF loses')")
+def test_demo_coat_reaches_the_issue_target(demo_coat):
+    assert demo_coat["delta_e2000_mean"] < 3.0
