@@ -140,8 +140,8 @@ def profile_c_columns(x, g, t, w, diffuse: bool, c_limit: float = C_LIMIT,
 C_REFINE = 20
 
 #: Lattices after the scan: cells of 1/20, 1/400, 1/8000 of the scan's cell of 1. The last
-#: puts c within 6e-5 of the bracketed minimum, the cost within ~1e-8 of it (relative):
-#: finer than the parabolic steps (c within ~1e-3) and far inside c's uncertainty from
+#: puts c within 6e-5 of the bracketed minimum, the cost within 3e-7 of it (relative;
+#: the parabolic steps: c within ~1e-3, 1e-7), far inside c's uncertainty from
 #: 2 % noise (~0.05).
 C_REFINE_LEVELS = 3
 
