@@ -46,6 +46,7 @@ from ..errors import InputError
 from .common import (BestPoint, FitData, FitOptions, FitReport, ModelFit, Stopwatch,
                      choose_optimizer, error_figures, nm_list, nnls2)
 from .cook_torrance import M_MAX, M_MIN
+from .warm import WARM_STEP, near
 
 #: Model name by number of lobes.
 MODELS = {2: "cook-torrance-2", 3: "cook-torrance-3"}
@@ -186,19 +187,25 @@ def _from_m(m) -> list[float]:
                                 for a, b in zip(log_m[:-1], log_m[1:])]
 
 
-def _search(problem: Lobes):
-    """(m (J,), ks (J,), evaluations, message): the best coarse start, then BOBYQA."""
+def _search(problem: Lobes, warm: dict | None = None):
+    """(m (J,), ks (J,), evaluations, message): the best coarse start, then BOBYQA; with
+    ``warm`` (a fold of ``--model auto``: the fit to all the data, :mod:`.warm`) BOBYQA
+    from there, with :data:`~.warm.WARM_STEP` first steps."""
     n = problem.n_lobes
     search = BestPoint(lambda v: problem.cost(_to_m(v, n), np.asarray(v[n:], float)))
-    for m in m_starts(n):
-        search(_from_m(m) + problem.start_ks(np.array(m)).tolist())
-    x0 = search.x
     lo = [np.log(M_MIN)] + [0.0] * (n - 1) + [0.0] * n
     hi = [np.log(M_MAX)] + [1.0] * (n - 1) + [KS_MAX] * n
-    message = search.bobyqa(
-        lo, hi, [0.3] + [0.1] * (n - 1) + [max(KS_STEP_FRACTION * k, KS_STEP_FLOOR)
-                                           for k in x0[n:]],
-        MAXEVAL_PER_VARIABLE * 2 * n, xtol_rel=XTOL_REL, ftol_rel=FTOL_REL)
+    if warm is not None:
+        search(np.clip(_from_m([warm[f"m_{j + 1}"] for j in range(n)])
+                       + [warm[f"ks_{j + 1}"] for j in range(n)], lo, hi))
+    else:
+        for m in m_starts(n):
+            search(_from_m(m) + problem.start_ks(np.array(m)).tolist())
+    x0 = search.x
+    step = np.array([0.3] + [0.1] * (n - 1) + [max(KS_STEP_FRACTION * k, KS_STEP_FLOOR)
+                                               for k in x0[n:]])
+    message = search.bobyqa(lo, hi, step * (WARM_STEP if warm is not None else 1.0),
+                            MAXEVAL_PER_VARIABLE * 2 * n, xtol_rel=XTOL_REL, ftol_rel=FTOL_REL)
     v = search.x
     return _to_m(v, n), np.asarray(v[n:], float), search.n, message
 
@@ -219,7 +226,8 @@ def fit_lobes(data: FitData, options: FitOptions, n_lobes: int) -> ModelFit:
     if not problem.signal.any():
         raise InputError(f"no wavelength has a positive weighted reading to fit {model} to",
                          fix="check the measurement's values and weights")
-    m, ks, evaluations, message = search(problem)
+    keys = [f"{k}_{j + 1}" for j in range(n_lobes) for k in ("m", "ks")]
+    m, ks, evaluations, message = search(problem, near(options, *keys))
     kd, f0, _ = problem.solve(m, ks)
     ok = problem.signal
     params: dict = {"kd": np.where(ok, kd, 0.0), "f0": np.where(ok, f0, 0.0)}
