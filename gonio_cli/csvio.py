@@ -659,8 +659,20 @@ def aspecular_angles(label: str) -> tuple[float, float] | None:
     m = _ASPECULAR.match(label)
     if m is None:
         return None
-    theta_i, aspecular = float(m.group(1)), float(m.group(2))
-    return theta_i, theta_i - aspecular
+    theta_i = float(m.group(1))
+    return theta_i, float(theta_o_of_aspecular(theta_i, float(m.group(2))))
+
+
+def theta_o_of_aspecular(theta_i_deg, aspecular_deg):
+    """θo = θi − a (degrees, docs/conventions.md): the detector ``aspecular_deg`` from the
+    specular direction towards the light (ASTM E2194; CxF3's ``Aspecular``)."""
+    return np.asarray(theta_i_deg, dtype=float) - np.asarray(aspecular_deg, dtype=float)
+
+
+def aspecular_of_theta_o(theta_i_deg, theta_o_deg):
+    """The aspecular angle a = θi − θo (degrees) of an in-plane configuration: the inverse
+    of :func:`theta_o_of_aspecular`."""
+    return np.asarray(theta_i_deg, dtype=float) - np.asarray(theta_o_deg, dtype=float)
 
 
 def _read_multiangle(table: Table) -> Spectra:

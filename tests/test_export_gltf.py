@@ -24,7 +24,8 @@ import pytest
 
 from gonio_cli.export import gltf_brdf as gb
 from gonio_cli.export.gltf_brdf import GltfMaterial, gltf_brdf
-from gonio_cli.export.gltf_fit import fit_gltf, material_rgb
+from gonio_cli.export.gltf_fit import fit_gltf
+from gonio_cli.export.standard_fit import material_rgb
 from gonio_cli.export.judge import in_plane_grid, judge
 from gonio_cli.geometry import cosines, in_plane_cosines
 from gonio_cli.samples import sample_data_dir
@@ -348,19 +349,24 @@ def test_the_validator_sees_a_broken_glb(exported, tmp_path):
 
 # ------------------------------------------------------------- the demo coat paint --
 
-@pytest.fixture(scope="module")
-def demo_coat(tmp_path_factory):
-    """The demo's clear-coated paint (pipelines/carpaint.mk) fitted in a scratch folder,
-    exported; its report."""
+def export_demo_coat(tmp: Path, to: str, suffix: str) -> dict:
+    """The demo's clear-coated paint (pipelines/carpaint.mk) fitted in ``tmp``, exported
+    with ``--to to``; its report (also used by tests/test_export_openpbr.py)."""
     from gonio_cli import cli
 
-    tmp = tmp_path_factory.mktemp("coat")
     meas, mat = tmp / "coat.measurement.json", tmp / "coat.material.json"
+    out = tmp / f"coat{suffix}"
     for args in (["ingest", sample_data_dir() / "coat_paint.csv", "-o", meas],
                  ["fit", meas, "-o", mat, "--model", "goniochromatic-coat"],
-                 ["export", mat, "-o", tmp / "coat.glb", "--to", "gltf"]):
+                 ["export", mat, "-o", out, "--to", to]):
         assert cli.run([str(a) for a in args]) == 0
-    return json.loads((tmp / "coat.glb.report.json").read_text())
+    return json.loads(out.with_name(out.name + ".report.json").read_text())
+
+
+@pytest.fixture(scope="module")
+def demo_coat(tmp_path_factory):
+    """The demo's clear-coated paint fitted in a scratch folder, exported; its report."""
+    return export_demo_coat(tmp_path_factory.mktemp("coat"), "gltf", ".glb")
 
 
 def test_demo_coat_is_judged_at_its_measurement(demo_coat):

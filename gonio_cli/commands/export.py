@@ -13,9 +13,10 @@ from ..export import TARGETS  # the registry (light: no renderer is imported her
 def export(
     material: Path = typer.Argument(..., metavar="MATERIAL.json", show_default=False,
                                    help="A gonio.material file (gonio fit)."),
-    output: Path = typer.Option(..., "--output", "-o", metavar="DIR|FILE.glb",
+    output: Path = typer.Option(..., "--output", "-o", metavar="DIR|FILE",
                                 help="The folder to write (made if missing); for --to "
-                                     "gltf the .glb file (its report beside it)."),
+                                     "gltf, openpbr or cxf the .glb, .mtlx or .cxf file "
+                                     "(a fit's report beside it)."),
     to: str = typer.Option("mitsuba", "--to", metavar="TARGET",
                            help=f"The renderer to export to: {', '.join(TARGETS)}."),
     scene: Optional[Path] = typer.Option(None, "--scene", metavar="SCENE.toml",
@@ -24,6 +25,9 @@ def export(
                                               "sphere scene of seed 000 Figure 5)."),
     var: List[str] = typer.Option([], "--var", metavar="NAME=VALUE",
                                   help="A ${NAME} of --scene (as in gonio render)."),
+    at: Optional[Path] = typer.Option(None, "--at", metavar="MEASUREMENT.json",
+                                      help="For --to cxf: the gonio.measurement whose "
+                                           "configurations the spectra are predicted at."),
 ) -> None:
     """Export a fitted material to another renderer, with a scene that shows it.
 
@@ -32,13 +36,17 @@ def export(
     under the scene's lights) and render.py; gonio_scene.toml renders the same scene with
     gonio render. For glTF 2.0: NAME.glb, a sphere with a PBR material (clearcoat,
     specular, ior extensions) fitted to the material's BRDF, and NAME.glb.report.json, its
-    CIEDE2000 against the material. See docs/export.md.
+    CIEDE2000 against the material. For OpenPBR: NAME.mtlx, a MaterialX document with a
+    fitted open_pbr_surface, and its report. For CxF3: NAME.cxf, the material's spectra at
+    the multi-angle geometries of --at MEASUREMENT.json. See docs/export.md.
 
     \b
     Example:
       gonio export red.material.json -o red.mitsuba --to mitsuba
       python red.mitsuba/render.py -o red-mitsuba.exr
       gonio export red.material.json -o red.glb --to gltf
+      gonio export red.material.json -o red.mtlx --to openpbr
+      gonio export red.material.json -o red.cxf --to cxf --at red.measurement.json
     """
     from .. import log
     from ..errors import InputError
@@ -53,17 +61,31 @@ def export(
     variables = parse_vars(var)
     if variables and scene is None:
         raise InputError("--var needs --scene", fix="name the scene the variables are for")
+    if at is not None and not target.at:
+        raise InputError(f"--at: --to {target.name} does not take a measurement",
+                         fix="leave out --at (it is for --to cxf)")
+    if target.at and at is None:
+        raise InputError(f"--to {target.name} needs --at MEASUREMENT.json",
+                         fix="name the measurement whose configurations to predict, "
+                             "e.g. --at red.measurement.json")
+    if at is not None:
+        require_files([at], schema="gonio.measurement")
     if target.output != "folder":
-        from ..export.gltf import check_output, report_path
+        from ..export import check_file_output
+        from ..export.judge import report_path
         from ..outputs import declare
 
-        check_output(output)
-        declare({"-o": output, "-o (its report)": report_path(output)}, [material])
+        check_file_output(output, target)
+        outs = {"-o": output}
+        if target.judged:
+            outs["-o (its report)"] = report_path(output)
+        declare(outs, [material] + ([at] if at is not None else []))
     mat = read_material(material)
     if mat.status == "failed":
         log.warn(f"{material}: a fit with status {mat.status!r} is exported")
     with log.timer() as t:
-        written = target.write(mat, material, output, scene, variables or None)
+        extra = {"at": at} if target.at else {}
+        written = target.write(mat, material, output, scene, variables or None, **extra)
     log.info(f"{output}: {mat.model} for {target.name} ({len(written.files)} files, "
              f"{t['time_s']:.2f} s)")
     if written.report is not None:
@@ -74,8 +96,8 @@ def export(
 
 EXAMPLE = "gonio export red.material.json -o red.mitsuba --to mitsuba"
 
-SHORT_HELP = ("Export a fitted material to another renderer (Mitsuba 3, glTF 2.0), with a "
-              "scene or a preview.")
+SHORT_HELP = ("Export a fitted material to another renderer (Mitsuba 3, glTF 2.0, OpenPBR "
+              "MaterialX) or a QC tool (CxF3), with a scene, a preview or spectra.")
 
 
 def register(app: typer.Typer) -> None:

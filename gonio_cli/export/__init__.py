@@ -7,7 +7,12 @@ writes a folder from a :class:`gonio_cli.schemas.Material`:
   (:mod:`gonio_cli.export.mitsuba`, docs/export.md);
 * ``gltf`` — a binary glTF 2.0 file (``NAME.glb``): a preview sphere with a PBR material
   fitted to the material's BRDF, and a report of what the fit loses
-  (:mod:`gonio_cli.export.gltf`).
+  (:mod:`gonio_cli.export.gltf`);
+* ``openpbr`` — a MaterialX document (``NAME.mtlx``) with an ``open_pbr_surface`` fitted
+  to the material's BRDF, and its report (:mod:`gonio_cli.export.openpbr`);
+* ``cxf`` — an X-Rite CxF3 file (``NAME.cxf``): the material's spectra predicted at a
+  measurement's multi-angle geometries (``--at``), for a QC tool
+  (:mod:`gonio_cli.export.cxf`).
 """
 
 from __future__ import annotations
@@ -22,8 +27,9 @@ from ..errors import InputError
 @dataclass(frozen=True)
 class Target:
     """An export target: ``write(material, material_path, output, scene_path, variables)``
-    returns :class:`Written`; ``models()`` lists the models it takes; ``output`` is
-    ``folder`` (``-o DIR``) or a file suffix (``.glb``: ``-o NAME.glb``)."""
+    (and ``at=`` a measurement's path where ``at``) returns :class:`Written`; ``models()``
+    lists the models it takes; ``output`` is ``folder`` (``-o DIR``) or a file suffix
+    (``.glb``: ``-o NAME.glb``)."""
 
     name: str
     description: str
@@ -31,6 +37,8 @@ class Target:
     models: Callable[[], list[str]]
     output: str = "folder"
     label: str = ""          # its name in a sentence (glTF)
+    at: bool = False         # takes --at MEASUREMENT (the configurations to write)
+    judged: bool = False     # writes NAME.report.json beside its file (judge.py)
 
 
 @dataclass
@@ -59,6 +67,18 @@ def _gltf_write(*args, **kwargs) -> Written:
     return Written(*export_gltf(*args, **kwargs))
 
 
+def _openpbr_write(*args, **kwargs) -> Written:
+    from .openpbr import export_openpbr
+
+    return Written(*export_openpbr(*args, **kwargs))
+
+
+def _cxf_write(*args, **kwargs) -> Written:
+    from .cxf import export_cxf
+
+    return Written(export_cxf(*args, **kwargs))
+
+
 def _all_models() -> list[str]:
     from ..brdf import MODELS
 
@@ -70,7 +90,13 @@ TARGETS: dict[str, Target] = {
                       _mitsuba_write, _mitsuba_models),
     "gltf": Target("gltf", "glTF 2.0 binary (.glb): a preview sphere with a fitted PBR "
                    "material, and its colour-error report", _gltf_write, _all_models,
-                   output=".glb", label="glTF"),
+                   output=".glb", label="glTF", judged=True),
+    "openpbr": Target("openpbr", "MaterialX document (.mtlx) with a fitted OpenPBR Surface, "
+                      "and its colour-error report", _openpbr_write, _all_models,
+                      output=".mtlx", label="OpenPBR", judged=True),
+    "cxf": Target("cxf", "X-Rite CxF3 (.cxf): the material's spectra at a measurement's "
+                  "multi-angle geometries (--at)", _cxf_write, _all_models, output=".cxf",
+                  at=True),
 }
 
 
@@ -80,3 +106,12 @@ def get_target(name: str) -> Target:
         raise InputError(f"--to {name}: unknown export target",
                          fix=f"use one of {', '.join(TARGETS)}")
     return TARGETS[name]
+
+
+def check_file_output(path, target: Target) -> None:
+    """Refuse an output whose name does not end with the target's suffix (one line, with
+    the fix)."""
+    if Path(path).suffix.lower() != target.output:
+        raise InputError(f"--output {path}: --to {target.name} writes one {target.output} "
+                         "file", fix=f"name it with {target.output}, e.g. -o "
+                                     f"{Path(path).stem or 'material'}{target.output}")

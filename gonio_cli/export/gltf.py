@@ -9,7 +9,8 @@
   ``KHR_materials_ior`` and, when the fit wants a coat, ``KHR_materials_clearcoat``
   (none *required*: a viewer without them still shows the core material). The
   parameters are a fit of glTF's own BRDF to the material
-  (:mod:`gonio_cli.export.gltf_fit`), rounded to :data:`DIGITS` decimals as written;
+  (:mod:`gonio_cli.export.gltf_fit`), rounded to
+  :data:`gonio_cli.export.judge.DIGITS` decimals as written;
 * ``NAME.glb.report.json`` (``gonio.export-report`` v1) — the written parameters judged
   against the material (:mod:`gonio_cli.export.judge`): per configuration CIEDE2000,
   mean, p95, worst, and the material's own fit error beside it.
@@ -19,47 +20,18 @@ Written with pygltflib; both files atomically.
 
 from __future__ import annotations
 
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
-from ..artifact import atomic_path, sha256_file, write_artifact
 from ..errors import InputError
 from .gltf_brdf import GltfMaterial, gltf_brdf
-
-REPORT_SCHEMA = "gonio.export-report"
-REPORT_VERSION = 1
-
-#: Decimals of every factor written (1e-6 of a colour factor is far below an 8-bit step).
-DIGITS = 6
 
 #: φ segments of the preview sphere (rings = half): 4 032 triangles, smooth in a viewer.
 PREVIEW_SEGMENTS = 64
 
 #: The extensions a written material may use (all ratified; none is required).
 EXTENSIONS = ("KHR_materials_specular", "KHR_materials_ior", "KHR_materials_clearcoat")
-
-
-def report_path(glb_path) -> Path:
-    """Where the report of ``NAME.glb`` goes: ``NAME.glb.report.json`` beside it."""
-    p = Path(glb_path)
-    return p.with_name(p.name + ".report.json")
-
-
-def check_output(glb_path) -> None:
-    """Refuse an output that is not a ``.glb`` file name (one line, with the fix)."""
-    if Path(glb_path).suffix.lower() != ".glb":
-        raise InputError(f"--output {glb_path}: --to gltf writes one binary glTF file",
-                         fix=f"name it with .glb, e.g. -o {Path(glb_path).stem or 'material'}.glb")
-
-
-def rounded(m: GltfMaterial) -> GltfMaterial:
-    """``m`` as written: every factor rounded to :data:`DIGITS` decimals."""
-    r = lambda x: round(float(x), DIGITS)  # noqa: E731
-    return GltfMaterial(tuple(r(x) for x in m.base_color), r(m.metallic), r(m.roughness),
-                        r(m.specular), tuple(r(x) for x in m.specular_color), r(m.ior),
-                        r(m.clearcoat), r(m.clearcoat_roughness), name=m.name)
 
 
 def _accessor(gltf, blob: bytearray, array: np.ndarray, kind: str, target: int,
@@ -132,25 +104,13 @@ def export_gltf(material, material_path, out, scene_path=None, variables=None
     """Fit, write and judge: ``out`` (``NAME.glb``) and its report; returns both paths and
     the report's payload.
     ``scene_path``/``variables`` are refused (the target writes a preview, not a scene)."""
-    from .gltf_fit import fit_gltf, material_rgb
-    from .judge import check_colour_grid, report
+    from . import check_file_output, get_target
+    from .gltf_fit import fit_gltf
+    from .judge import Fitted, export_judged
 
     if scene_path is not None or variables:
         raise InputError("--scene: --to gltf writes the material on a preview sphere, "
                          "not a scene", fix="leave out --scene and --var")
-    check_output(out)
-    check_colour_grid(material, material_path)
-    fit = fit_gltf(material_rgb(material))
-    m = rounded(replace(fit.material, name=Path(material_path).name.split(".")[0]))
-    rep = report("gltf", material, material_path, lambda cos: gltf_brdf(cos, m))
-    out, rpath = Path(out), report_path(out)
-    extras = {"gonio": {"material": str(material_path),
-                        "material_sha256": sha256_file(material_path),
-                        "report": rpath.name}}
-    data = glb_bytes(m, extras)
-    with atomic_path(out) as tmp:
-        tmp.write_bytes(data)
-    payload = {**rep, "file": out.name, "gltf": m.to_dict(), "fit": fit.to_dict()}
-    write_artifact(rpath, REPORT_SCHEMA, REPORT_VERSION, payload, inputs=[material_path],
-                   parameters={"target": "gltf"}, time_s=fit.time_s)
-    return [out, rpath], payload
+    check_file_output(out, get_target("gltf"))
+    return export_judged(Fitted("gltf", fit_gltf, gltf_brdf, glb_bytes), material,
+                         material_path, out)

@@ -1,7 +1,7 @@
 """What an export loses: the exported BRDF against the material, in CIEDE2000.
 
 Every target that cannot carry a gonio material exactly (glTF: a fit of its own BRDF,
-:mod:`gonio_cli.export.gltf_fit`) is judged here the same way (docs/export.md):
+:mod:`gonio_cli.export.standard_fit`) is judged here the same way (docs/export.md):
 
 * **Where**: at the configurations of the measurement the material was fitted to, when
   the material's ``inputs`` name a ``gonio.measurement`` that is still there (the path as
@@ -10,7 +10,7 @@ Every target that cannot carry a gonio material exactly (glTF: a fit of its own 
 * **Colour**: both as linear-sRGB reflectance factors R = π f under D65 (the CIE 1931 2°
   observer of docs/conventions.md; a spectrum through
   :func:`gonio_cli.export.mitsuba.rgb_weights`), to L*a*b* with each configuration scaled
-  by 1 / max(1, Y) of the material there (:func:`gonio_cli.export.gltf_fit.perceived`,
+  by 1 / max(1, Y) of the material there (:func:`gonio_cli.export.standard_fit.perceived`,
   as ``gonio fit``'s verdict scales a highlight), compared by CIEDE2000
   (:func:`gonio_cli.spectra.delta_e_2000`).
 * **Beside it**: the material's own fit error, the same figure of the material against
@@ -21,7 +21,7 @@ Every target that cannot carry a gonio material exactly (glTF: a fit of its own 
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Any, Callable
 
@@ -33,6 +33,14 @@ from ..geometry import Cosines, in_plane_cosines
 #: 15°, θo −75–85° every 5° (the light's side and the far side, the mirror included).
 GRID_THETA_I_DEG = tuple(range(0, 76, 15))
 GRID_THETA_O_DEG = tuple(range(-75, 86, 5))
+
+#: The report's schema, beside every judged export's file (``NAME.glb.report.json``).
+REPORT_SCHEMA = "gonio.export-report"
+REPORT_VERSION = 1
+
+#: Decimals of every parameter written (1e-6 of a colour factor is far below an 8-bit
+#: step); the report judges the parameters as written.
+DIGITS = 6
 
 #: Percentile reported beside the mean and the worst.
 PERCENTILE = 95.0
@@ -107,7 +115,7 @@ class Judgement:
 def delta_e_rgb(rgb_ref, rgb_test) -> np.ndarray:
     """CIEDE2000 (N,) of linear-sRGB reflectance factors (N, 3) against ``rgb_ref``."""
     from ..spectra import delta_e_2000
-    from .gltf_fit import perceived
+    from .standard_fit import perceived
 
     lab = perceived(rgb_ref)
     return delta_e_2000(lab(rgb_ref), lab(rgb_test))
@@ -117,7 +125,7 @@ def judge(material, exported_rgb: Callable[[Cosines], np.ndarray], theta_i_deg,
           theta_o_deg) -> Judgement:
     """The exported BRDF (f (..., 3) linear sRGB) against ``material`` at in-plane
     configurations (degrees)."""
-    from .gltf_fit import material_rgb
+    from .standard_fit import material_rgb
 
     cos = in_plane_cosines(theta_i_deg, theta_o_deg)
     de = delta_e_rgb(np.pi * material_rgb(material)(cos), np.pi * exported_rgb(cos))
@@ -179,3 +187,60 @@ def sentence(name: str, target_label: str, rep: dict[str, Any]) -> str:
             f"{rep['delta_e2000_mean']:.1f} (worst {rep['delta_e2000_worst']:.1f} at "
             f"θi {w['theta_i_deg']:g}° θo {w['theta_o_deg']:g}°) against the material "
             f"(its own fit: {own_text})")
+
+
+def report_path(path) -> Path:
+    """Where the report of ``NAME.glb`` (``NAME.mtlx`` …) goes: ``NAME.glb.report.json``."""
+    p = Path(path)
+    return p.with_name(p.name + ".report.json")
+
+
+def rounded(m):
+    """The dataclass ``m`` as written: every number (and every number of a tuple) rounded
+    to :data:`DIGITS` decimals."""
+    changes = {}
+    for f in fields(m):
+        v = getattr(m, f.name)
+        if isinstance(v, tuple):
+            changes[f.name] = tuple(round(float(x), DIGITS) for x in v)
+        elif isinstance(v, (int, float)):
+            changes[f.name] = round(float(v), DIGITS)
+    return replace(m, **changes)
+
+
+@dataclass(frozen=True)
+class Fitted:
+    """A standard target that is fitted and judged: its name in reports (``gltf``),
+    the fit (:func:`gonio_cli.export.standard_fit.fit_standard` in a space),
+    ``brdf(cos, m)`` (..., 3), ``encode(m, extras)`` the file's bytes, and ``written(m)``
+    the parameters as the file holds them (a format may print fewer digits)."""
+
+    target: str
+    fit: Callable
+    brdf: Callable
+    encode: Callable[[Any, dict], bytes]
+    written: Callable[[Any], Any] = lambda m: m
+
+
+def export_judged(kind: Fitted, material, material_path, out) -> tuple[list[Path], dict]:
+    """Fit, write and judge: ``out`` and its report (:func:`report_path`), both atomically;
+    returns both paths and the report's payload (``kind.target`` holds the parameters)."""
+    from ..artifact import atomic_path, sha256_file, write_artifact
+    from .standard_fit import material_rgb
+
+    check_colour_grid(material, material_path)
+    fit = kind.fit(material_rgb(material))
+    m = kind.written(rounded(replace(fit.material,
+                                     name=Path(material_path).name.split(".")[0])))
+    rep = report(kind.target, material, material_path, lambda cos: kind.brdf(cos, m))
+    out, rpath = Path(out), report_path(out)
+    extras = {"gonio": {"material": str(material_path),
+                        "material_sha256": sha256_file(material_path),
+                        "report": rpath.name}}
+    data = kind.encode(m, extras)
+    with atomic_path(out) as tmp:
+        tmp.write_bytes(data)
+    payload = {**rep, "file": out.name, kind.target: m.to_dict(), "fit": fit.to_dict()}
+    write_artifact(rpath, REPORT_SCHEMA, REPORT_VERSION, payload, inputs=[material_path],
+                   parameters={"target": kind.target}, time_s=fit.time_s)
+    return [out, rpath], payload

@@ -29,7 +29,8 @@ class InputFormat:
 
 
 #: Input formats besides CSV by name; :func:`input_format` picks one by file suffix.
-FORMATS = {"rgl-bsdf": InputFormat("rgl-bsdf", ".bsdf", "gonio_cli.ingest.rgl")}
+FORMATS = {"rgl-bsdf": InputFormat("rgl-bsdf", ".bsdf", "gonio_cli.ingest.rgl"),
+           "cxf3": InputFormat("cxf3", ".cxf", "gonio_cli.ingest.cxf")}
 
 
 def input_format(paths: Sequence[str | os.PathLike]) -> InputFormat | None:

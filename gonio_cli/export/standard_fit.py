@@ -1,0 +1,187 @@
+"""Choose a standard material for a gonio material: a least-squares fit of its own BRDF.
+
+A standard material (glTF 2.0's, OpenPBR Surface's) cannot hold a spectral,
+goniochromatic BRDF, so ``gonio export`` chooses the parameters whose reflectance is
+closest to the material's over the hemisphere (:func:`fit_standard`), rather than mapping
+one parameter onto another. Every target gives a :class:`Space` (its parameter vector,
+bounds, starts and BRDF); the loop here is the same for all:
+
+* **Where.** :func:`hemisphere_directions`: lights at θi = 0–80°, and for each a fan of
+  half vectors (θh from 0 to 75°, dense near 0 where a clear coat's peak is a degree
+  wide; five azimuths over the half plane y ≥ 0, the materials being symmetric about the
+  plane of incidence); the viewer is the light mirrored about the half vector. In-plane
+  configurations are the φh = 0 and 180° rows, and in-plane viewers every 5°.
+* **What.** Both BRDFs as linear sRGB reflectance factors R = π f under D65 (the
+  material's spectrum through the same weights as the Mitsuba export's RGB variants,
+  :func:`gonio_cli.export.mitsuba.rgb_weights`; the standards' colours are linear sRGB).
+* **How close.** L*a*b* differences with CIE94's chroma weight, each configuration scaled
+  by 1 / max(1, Y) of the material's R (a highlight counts by its relative error, as the
+  judgement's CIEDE2000 does); ``scipy.optimize.least_squares`` (trust region, bounded)
+  from the space's fixed starts, the best polished on CIEDE2000 itself: deterministic.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Any, Callable, Sequence
+
+import numpy as np
+
+from ..geometry import Cosines, cosines, in_plane_directions
+
+#: Residuals are colour differences in units of this (10 → 1): only for the solver's
+#: scaling, the optimum does not depend on it.
+DE_UNIT = 10.0
+#: Evaluations of the last step, the best start polished on CIEDE2000 itself (not smooth
+#: where a difference is 0, so the smooth stand-in does the search).
+POLISH_NFEV = 60
+#: Evaluations allowed per start (each a Jacobian column or a trial step).
+START_NFEV = 400
+#: CIE94's (and CIEDE2000's) chroma weight: S_C = 1 + 0.045 C* (CIE 116-1995).
+CHROMA_WEIGHT = 0.045
+
+#: Light angles θi (degrees) of the fit's sample set.
+THETA_I_DEG = (0.0, 10.0, 20.0, 30.0, 40.0, 50.0, 60.0, 70.0, 80.0)
+#: Half-vector polar angles θh (degrees): dense near the mirror for sharp lobes.
+THETA_H_DEG = (0.0, 0.25, 0.5, 1.0, 1.5, 2.0, 3.0, 4.5, 6.5, 9.0, 12.0, 16.0, 21.0, 27.0,
+               34.0, 42.0, 51.0, 62.0, 75.0)
+#: Half-vector azimuths (degrees) from the plane of incidence, towards +y.
+PHI_H_DEG = (0.0, 45.0, 90.0, 135.0, 180.0)
+#: In-plane viewers (degrees, signed as docs/conventions.md) added for every θi: the
+#: plane a goniometer measures in, where the export is judged (:mod:`.judge`).
+THETA_O_DEG = tuple(float(t) for t in range(-85, 86, 5))
+#: A viewer closer to the horizon than this (cos θo) is left out of the fit (86°; an
+#: instrument's last angle is 85°).
+COS_O_MIN = float(np.cos(np.radians(86.0)))
+
+
+@dataclass(frozen=True)
+class Space:
+    """A target's parameter vector: ``names`` with bounds ``lower``/``upper`` (arrays of
+    the same length), ``starts(base)`` the fixed starting vectors given a first guess
+    ``base`` (3,) of the diffuse colour, ``brdf(cos, x)`` f (..., 3) linear sRGB in sr⁻¹,
+    and ``to_material(x)`` the target's parameter object."""
+
+    names: tuple
+    lower: np.ndarray
+    upper: np.ndarray
+    starts: Callable[[np.ndarray], Sequence[np.ndarray]]
+    brdf: Callable[[Cosines, np.ndarray], np.ndarray]
+    to_material: Callable[[np.ndarray], Any]
+
+
+def hemisphere_directions() -> tuple[np.ndarray, np.ndarray]:
+    """(ωi, ωo), each (N, 3): the fit's sample set (module docstring), light on the −x
+    side as in docs/conventions.md, viewers below :data:`COS_O_MIN` left out."""
+    ti = np.radians(np.asarray(THETA_I_DEG))[:, None, None]
+    th = np.radians(np.asarray(THETA_H_DEG))[None, :, None]
+    ph = np.radians(np.asarray(PHI_H_DEG))[None, None, :]
+    ti, th, ph = np.broadcast_arrays(ti, th, ph)
+    wi = np.stack([-np.sin(ti), np.zeros_like(ti), np.cos(ti)], axis=-1)
+    wh = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], axis=-1)
+    wo = 2.0 * np.sum(wi * wh, axis=-1, keepdims=True) * wh - wi
+    pi, po = in_plane_directions(np.asarray(THETA_I_DEG)[:, None], np.asarray(THETA_O_DEG))
+    wi = np.concatenate([wi.reshape(-1, 3), pi.reshape(-1, 3)])
+    wo = np.concatenate([wo.reshape(-1, 3), po.reshape(-1, 3)])
+    keep = wo[:, 2] > COS_O_MIN
+    return wi[keep], wo[keep]
+
+
+def material_rgb(material) -> Callable[[Cosines], np.ndarray]:
+    """f (..., 3) of a :class:`gonio_cli.schemas.Material` as linear sRGB under D65."""
+    from .mitsuba import rgb_weights
+
+    w = rgb_weights(np.asarray(material.wavelength_nm, dtype=float)).T     # (n_λ, 3)
+    return lambda cos: material.evaluate(cos) @ w
+
+
+def rgb_to_xyz(rgb) -> np.ndarray:
+    """XYZ (..., 3) of linear sRGB (..., 3) (the inverse of the conventions' matrix)."""
+    from ..spectra import xyz_to_linear_srgb_matrix
+
+    return np.asarray(rgb, dtype=float) @ np.linalg.inv(xyz_to_linear_srgb_matrix()).T
+
+
+def perceived(r_ref) -> Callable[[np.ndarray], np.ndarray]:
+    """L*a*b* (..., 3) of linear-sRGB reflectance factors, each configuration scaled by
+    1 / max(1, Y) of ``r_ref`` (..., 3) there (the judgement's scaling of a highlight,
+    as `gonio fit`'s verdict does), white D65 (sRGB's (1, 1, 1))."""
+    from ..spectra import xyz_to_lab
+
+    scale = (1.0 / np.maximum(1.0, rgb_to_xyz(r_ref)[..., 1]))[..., None]
+    white = rgb_to_xyz(np.ones(3))
+    return lambda rgb: xyz_to_lab(rgb_to_xyz(rgb) * scale, white)
+
+
+@dataclass
+class ExportFit:
+    """The fitted standard material and how it was obtained (STYLE 9)."""
+
+    material: Any
+    success: bool
+    message: str
+    evaluations: int
+    rms_residual: float         # RMS of the residuals at the optimum, in DE_UNIT
+    samples: int
+    starts: int
+    time_s: float
+
+    def to_dict(self) -> dict:
+        return {"success": self.success, "message": self.message,
+                "evaluations": self.evaluations, "rms_residual": self.rms_residual,
+                "samples": self.samples, "starts": self.starts, "time_s": self.time_s,
+                "optimizer": "scipy.optimize.least_squares (trf, bounded)"}
+
+
+def first_base_colour(cos: Cosines, r_t: np.ndarray) -> np.ndarray:
+    """A Lambertian base colour's first guess (3,): the material's median R far off the
+    mirror (40° < θh < 60°), or mid-grey."""
+    far = (cos.cos_theta_h < np.cos(np.radians(40.0))) & (cos.cos_theta_h > 0.5)
+    return np.clip(np.median(r_t[far], axis=0) if far.any() else np.full(3, 0.5), 0.0, 1.0)
+
+
+def fit_standard(target_rgb: Callable[[Cosines], np.ndarray], space: Space,
+                 directions=None) -> ExportFit:
+    """The parameters of ``space`` whose BRDF is closest to ``target_rgb`` (f (..., 3)
+    linear sRGB, sr⁻¹) over ``directions`` ((ωi, ωo), default
+    :func:`hemisphere_directions`); module docstring."""
+    from scipy.optimize import least_squares
+
+    from ..spectra import delta_e_2000
+
+    t0 = time.perf_counter()
+    wi, wo = directions if directions is not None else hemisphere_directions()
+    cos = cosines(wi, wo)
+    r_t = np.pi * np.asarray(target_rgb(cos), dtype=float)             # (N, 3)
+    lab = perceived(r_t)
+    lab_t = lab(r_t)
+    # CIE94's chroma weighting S_C = 1 + 0.045 C* of the material's colour on a* and b*: a
+    # smooth stand-in for CIEDE2000, which discounts chroma differences of vivid colours
+    w = np.ones_like(lab_t)
+    w[:, 1:] = 1.0 / (1.0 + CHROMA_WEIGHT * np.hypot(lab_t[:, 1], lab_t[:, 2]))[:, None]
+    bounds = (space.lower, space.upper)
+
+    def residuals(x):
+        return (w * (lab(np.pi * space.brdf(cos, x)) - lab_t) / DE_UNIT).ravel()
+
+    best, evaluations = None, 0
+    starts = [np.clip(x, space.lower, space.upper)
+              for x in space.starts(first_base_colour(cos, r_t))]
+    for x0 in starts:
+        res = least_squares(residuals, x0, bounds=bounds, method="trf", x_scale="jac",
+                            max_nfev=START_NFEV)
+        evaluations += int(res.nfev)
+        if best is None or res.cost < best.cost:
+            best = res
+
+    def residuals_2000(x):
+        return delta_e_2000(lab_t, lab(np.pi * space.brdf(cos, x))) / DE_UNIT
+
+    best = least_squares(residuals_2000, best.x, bounds=bounds, method="trf",
+                         x_scale="jac", max_nfev=POLISH_NFEV)
+    evaluations += int(best.nfev)
+    rms = float(np.sqrt(2.0 * best.cost / best.fun.size))
+    return ExportFit(space.to_material(best.x), bool(best.success), str(best.message),
+                     evaluations, rms, int(cos.cos_theta_i.size), len(starts),
+                     time.perf_counter() - t0)
