@@ -141,10 +141,7 @@ def prepare(doc: Mapping[str, Any], path: str | os.PathLike
     doc = portable(doc, path)
     if doc["schema"] in RUN_RECORDS:
         return doc, None
-    kept, timings = split_timings(doc)
-    if timings is None:
-        return kept, None
-    return kept, timings
+    return split_timings(doc)
 
 
 def side_record(path: str | os.PathLike, artifact_sha256: str,
