@@ -30,7 +30,7 @@ UV_VERSION := 0.13.9
 
 export PATH := $(abspath $(BIN)):$(PATH)
 
-.PHONY: demo test bench clean setup lock refresh-references schemas readme-images readme-check
+.PHONY: demo test bench clean setup lock refresh-references schemas readme-images readme-check js-tools
 .DEFAULT_GOAL := demo
 
 setup: $(STAMP)
@@ -40,7 +40,7 @@ setup: $(STAMP)
 # the dependency list or the pins change; the package itself is editable. Pipeline stages
 # take the stamp as an order-only prerequisite: a reinstall reruns nothing.
 ifneq ($(STAMP),)
-$(STAMP): pyproject.toml setup.py gonio_cli/halftone/_diffuse.c gonio_cli/render/_envlookup.c $(LOCK)
+$(STAMP): pyproject.toml setup.py gonio_cli/halftone/_diffuse.c gonio_cli/render/_envlookup.c gonio_cli/render/_rasterscan.c $(LOCK)
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	PIP_CONSTRAINT=$(abspath $(LOCK)) $(BIN)/python -m pip install --quiet --quiet pip
 	PIP_CONSTRAINT=$(abspath $(LOCK)) $(BIN)/python -m pip install --quiet --quiet -e '.[test,batch,mitsuba]'
@@ -77,8 +77,22 @@ $(OUT)/demo.txt: $(DEMO_TARGETS)
 	    ls -1 $(OUT)/$$d | sed 's/^/    /'; done; } > $@
 	@echo; cat $@; echo "(this list: $@)"
 
-test: $(STAMP)
+test: $(STAMP) js-tools
 	$(BIN)/python -m pytest -q
+
+# JavaScript tools the tests use, pinned in tests/js/package-lock.json: the Khronos glTF
+# validator (tests/test_export_gltf.py checks every exported .glb with it). Installed with
+# npm where npm is found; without it (or offline) that test skips and says why.
+JS_DIR   := tests/js
+JS_STAMP := $(JS_DIR)/node_modules/.gonio-installed
+
+js-tools: $(JS_STAMP)
+
+$(JS_STAMP): $(JS_DIR)/package.json $(JS_DIR)/package-lock.json
+	@if command -v npm >/dev/null 2>&1; then \
+	  npm ci --prefix $(JS_DIR) --no-audit --no-fund --silent && touch $@ || \
+	    echo "make: npm ci in $(JS_DIR) failed: the glTF validator test skips"; \
+	else echo "make: npm not found: the glTF validator test skips (install nodejs and npm)"; fi
 
 # The README's images are demo outputs (tests/readme_images.py lists which): copy them
 # into docs/images, or check they are what the demo makes (CI runs the check after demo).

@@ -138,7 +138,7 @@ def brute_beside(small, exponents) -> None:
 
 
 def error_time(mid, exponents) -> None:
-    prepared = pf.RingInputs(mid)
+    prepared = pf.ring.RingInputs(mid)
     table(["E", "output", "working map", "time (s)", "p99 error", "max error"],
           [[f"{r['exponent']:.4g}", r["output"] + (" (auto)" if r["auto"] else ""),
             r["working"], f"{r['time_s']:.3f}", f"{r['p99_error']:.1e}",
@@ -150,15 +150,15 @@ def lookup_error(m, exponents) -> None:
     """Bilinear lookup (envmap.lookup, as a renderer reads the maps) of each auto-sized map
     at the input's texel centres, against the exact map at the input resolution."""
     h, w = m.shape[:2]
-    prepared = pf.RingInputs(m)
+    prepared = pf.ring.RingInputs(m)
     rows = []
     for e in exponents:
-        levels = pf.output_levels(h, w, e)
-        out, _ = pf.prefilter_ring(m, e, levels, prepared)
-        exact, _ = pf.prefilter_ring(m, e, 0, prepared, working_levels=99)
+        levels = pf.inputs.output_levels(h, w, e)
+        out, _ = pf.ring.prefilter_ring(m, e, levels, prepared)
+        exact, _ = pf.ring.prefilter_ring(m, e, 0, prepared, working_levels=99)
         p99, mx = errors(envmap.lookup(out, envmap.pixel_directions(h, w)), exact)
         rows.append([f"{e:.4g}", f"{w >> levels}×{h >> levels}",
-                     f"{(h >> levels) * pf.lobe_sigma(e) / np.pi:.1f}", f"{p99:.1e}",
+                     f"{(h >> levels) * pf.inputs.lobe_sigma(e) / np.pi:.1f}", f"{p99:.1e}",
                      f"{mx:.1e}"])
     table(["E", "output", "texels per σ", "lookup p99 error", "max error"], rows)
 

@@ -76,7 +76,7 @@ CHANNEL_NAMES = ("spectral", "xyz")
 WEIGHT_SOLVER_NAMES = ("lp", "highs", "lp-simplex", "nnls", "lsq-clamp")
 #: ``gonio lobes basis --solver``: :data:`gonio_cli.lobes.BASIS_SOLVERS`.
 BASIS_SOLVER_NAMES = ("nnls", "lp-simplex")
-#: ``gonio prefilter --method`` (besides ``auto``): :data:`gonio_cli.prefilter.METHODS`.
+#: ``gonio prefilter --method`` (besides ``auto``): :data:`gonio_cli.prefilter.methods.METHODS`.
 PREFILTER_METHOD_NAMES = ("brute", "ring")
 PREFILTER_AUTO = "auto"
 #: ``gonio sparkle --rule``: :data:`gonio_cli.sparkle.SEGMENTATION_RULES`.

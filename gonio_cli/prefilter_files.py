@@ -33,7 +33,7 @@ def read_envmap(envmap_path: Path, fix_invalid: bool = False):
     :func:`gonio_cli.prefilter.validate_map`); an 8-bit image is an InputError."""
     from .errors import InputError
     from .imageio import read_image
-    from .prefilter import validate_map
+    from .prefilter.inputs import validate_map
 
     image = read_image(envmap_path)
     if not image.is_float:

@@ -40,7 +40,7 @@ sys.path.insert(0, str(HERE.parent))  # the clone, when run as a script
 
 from gonio_cli.brdf import evaluate  # noqa: E402
 from gonio_cli.geometry import cosines  # noqa: E402
-from gonio_cli.rgl import write_tensor_file  # noqa: E402
+from gonio_cli.ingest.tensorfile import write_tensor_file  # noqa: E402
 
 MODEL = "goniochromatic-diffuse"
 ALPHA = 0.3

@@ -85,7 +85,10 @@ csv = ["ink_red_missing.csv"]
 @pytest.mark.parametrize("text, words", [
     ("[[job]]\nkey = 'a'\ncommand = 'frobnicate'\noutput = '${out}/a'\n",
      ["'frobnicate' is not a command", "use one of ingest"]),
-    ("[matrix]\nscenes = ['s.toml']\nframs = 4\n", ["[matrix]", "unknown key 'frams'"]),
+    ("[matrix]\nscenes = ['s.toml']\nframs = 4\n",
+     ["[matrix]", "unknown key 'frams'", "did you mean 'frames'?"]),
+    ("[[material]]\nname = 'red'\nmaterial = 'r.json'\n[matrix]\nscenes = ['s.toml']\n"
+     "frames = 4\norbit = 'objekt'\n", ["orbit", "'objekt' is unknown", "did you mean 'object'?"]),
     ("[[job]]\nkey = 'a'\ncommand = 'fit'\noutput = 'a.json'\n",
      ["is not inside the output folder", "${out}/a.json"]),
     ("[[material]]\nname = 'red'\nmaterial = 'r.json'\n[matrix]\nscenes = ['s.toml']\n"

@@ -576,10 +576,10 @@ def test_a_numpy_value_in_a_stage_message_prints_as_a_number():
     sky = np.ones((4, 8, 3), dtype=np.float32)
     sky[1, 2, 0] = np.nan
     with pytest.raises(InputError) as info:
-        prefilter.validate_map(sky, path="sky.exr")
+        prefilter.inputs.validate_map(sky, path="sky.exr")
     assert "texel (row 1, col 2) is nan; 1 texel is NaN" in str(info.value)
     with pytest.raises(InputError) as info:
-        prefilter.validate_exponents(np.array([0.5]))
+        prefilter.inputs.validate_exponents(np.array([0.5]))
     assert str(info.value).startswith("exponent 0.5 is outside")
 
 
@@ -634,7 +634,7 @@ CSV_TEXTS = [
 def test_plain_csv_split_equals_the_csv_module(tmp_path, monkeypatch, text):
     """ingest's split of an unquoted CSV in one go gives the csv module's table (cells,
     their dtype, line numbers, counts) or its error, word for word."""
-    from gonio_cli import csvio, ingest
+    from gonio_cli import csvio
 
     path = text if isinstance(text, Path) else tmp_path / "x.csv"
     if not isinstance(text, Path):
@@ -644,7 +644,7 @@ def test_plain_csv_split_equals_the_csv_module(tmp_path, monkeypatch, text):
         if not plain:
             monkeypatch.setattr(csvio, "_plain_rows", lambda texts, delim: None)
         try:
-            t = ingest.read_table(path, find_header=True)
+            t = csvio.read_table(path, find_header=True)
         except InputError as exc:
             return exc.format()
         finally:

@@ -133,9 +133,9 @@ def test_c_build_gives_the_same_bits_on_any_number_of_threads(sky_case, monkeypa
 def test_c_and_numpy_builds_agree(sky_case, channels):  # noqa: F811
     """The C build (_envlookup.c) against the numpy build on the sky's chain, a clear-coated
     paint and a metal, at 4000 random normals and views (grazing and turned-away ones
-    included) and with a 5-channel observer. The C build computes the lookup angles in
-    float32 (1e-7 rad) and interpolates cos β, sin β (3e-4 rad at most, ~1/20 of the
-    sharpest map's texel), the numpy build the maps' float32 bilinear sums: 2e-3 of the
+    included) and with a 5-channel observer. The C build computes the lookup angles by a
+    polynomial atan2 (1e-5 rad) and interpolates cos β, sin β (3e-4 rad at most, ~1/20 of
+    the sharpest map's texel), the numpy build the maps' float32 bilinear sums: 2e-3 of the
     largest value bounds both, and a wrong level, row or matrix would move values by far
     more (the coat's sharp levels vary by 10× across a texel's neighbours)."""
     env, normal, view, rng = _sky_chain_and_rays()

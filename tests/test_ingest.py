@@ -16,6 +16,8 @@ import pytest
 
 from gonio_cli import ingest as core
 from gonio_cli.artifact import read_artifact
+from gonio_cli.csvio import aspecular_angles, read_spectra
+from gonio_cli.ingest.quantities import DEFAULT_WHITE_REFLECTANCE, QUANTITIES, receptor_solid_angle
 from gonio_cli.schemas import read_measurement
 from gonio_cli.spectra import DEFAULT_GRID_NM, parse_grid
 
@@ -117,12 +119,12 @@ def test_long_layout_column_order_and_case_are_free(tmp_path):
     ("45as0", 45.0, 45.0),       # the specular direction
 ])
 def test_aspecular_labels(label, theta_i, theta_o):
-    assert core.aspecular_angles(label) == (theta_i, theta_o)
+    assert aspecular_angles(label) == (theta_i, theta_o)
 
 
 @pytest.mark.parametrize("label", ["45", "as15", "45as", "45x15", "45as15as3", ""])
 def test_not_aspecular_labels(label):
-    assert core.aspecular_angles(label) is None
+    assert aspecular_angles(label) is None
 
 
 def test_multiangle_layout(tmp_path):
@@ -144,10 +146,10 @@ def test_multiangle_layout(tmp_path):
 def test_quantity_registry_drives_the_help(run_gonio):
     res = run_gonio("ingest", "--help")
     text = "".join(res.stdout.split())  # help wraps lines, even inside names
-    for name in core.QUANTITIES:
+    for name in QUANTITIES:
         assert name in text
     assert f"[default:{DEFAULT_GRID_NM}]" in text
-    assert f"[default:{core.DEFAULT_WHITE_REFLECTANCE}]" in text
+    assert f"[default:{DEFAULT_WHITE_REFLECTANCE}]" in text
 
 
 def test_brdf_is_identity(tmp_path):
@@ -199,7 +201,7 @@ def test_flux_ratio_seed004_eqs_5_and_7(tmp_path):
     omega = math.pi * w_mm ** 2 / (4 * d_mm ** 2)            # eq. 7
     expected = v / (np.cos(np.radians(to))[:, None] * omega)  # eq. 5
     np.testing.assert_allclose(m.brdf, expected, rtol=EXACT)
-    assert core.receptor_solid_angle(w_mm, d_mm) == pytest.approx(7.853981633974483e-05,
+    assert receptor_solid_angle(w_mm, d_mm) == pytest.approx(7.853981633974483e-05,
                                                                   rel=EXACT)
 
 
@@ -513,7 +515,7 @@ def test_reading_a_few_thousand_rows_is_vectorised(tmp_path):
     ti = np.repeat([20.0, 40.0, 60.0], 20)
     to = np.tile(np.arange(-70.0, 80.0, 7.5)[:20], 3)
     v = rng.uniform(0.01, 1.0, (60, GRID.size))
-    spectra = core.read_spectra(write(tmp_path, "l.csv", long_text(ti, to, v)))
+    spectra = read_spectra(write(tmp_path, "l.csv", long_text(ti, to, v)))
     assert spectra.values.shape == (60, 41)
     # Line of value (k, j) is 2 + 41 k + j (header on line 1, rows in file order).
     assert spectra.lines[5, 7] == 2 + 41 * 5 + 7

@@ -18,6 +18,8 @@ import numpy as np
 import pytest
 
 from gonio_cli import ingest as core
+from gonio_cli.errors import InputError
+from gonio_cli.percent import PERCENT_MEDIAN_LIMIT
 from gonio_cli.schemas import read_measurement
 
 FIXTURES = Path(__file__).resolve().parent / "fixtures" / "real"
@@ -190,7 +192,7 @@ def test_many_samples_are_listed_briefly(tmp_path):
     src = tmp_path / "many.csv"
     src.write_text("name,theta_i_deg,theta_o_deg," + ",".join(f"{w:g}" for w in wl) + "\n"
                    + "\n".join(rows) + "\n")
-    with pytest.raises(core.InputError) as err:
+    with pytest.raises(InputError) as err:
         core.ingest([src])
     assert "holds 14 samples (S0, S1, S2, S3, S4, S5, S6, S7, S8, S9, ... (4 more))" \
         in str(err.value)
@@ -253,7 +255,7 @@ def write_wide(path, ti, to, values):
 
 def test_glossy_peak_above_the_limit_is_not_refused(tmp_path):
     ti, to, r = glossy_reflectance_factor()
-    above = np.mean(r > core.PERCENT_MEDIAN_LIMIT, axis=1) > 0
+    above = np.mean(r > PERCENT_MEDIAN_LIMIT, axis=1) > 0
     # the test means something: R > 1.5 (up to ~25) at some configurations, not most
     assert r.max() > 15 and 8 <= above.sum() < 0.5 * above.size
     m = core.ingest([write_wide(tmp_path / "g.csv", ti, to, r)],
@@ -264,7 +266,7 @@ def test_glossy_peak_above_the_limit_is_not_refused(tmp_path):
 
 def test_glossy_in_percent_is_refused(tmp_path):
     ti, to, r = glossy_reflectance_factor()
-    with pytest.raises(core.InputError, match="look like percent"):
+    with pytest.raises(InputError, match="look like percent"):
         core.ingest([write_wide(tmp_path / "g.csv", ti, to, 100 * r)],
                     quantity="reflectance-factor")
 
@@ -308,7 +310,7 @@ def test_the_limit_is_the_median(tmp_path, median, refused):
     values = np.array([[median]] * 3 + [[3.0]] * 2 + [[median]]) * np.ones((1, 41))
     src = write_wide(tmp_path / "m.csv", ti, to, values)
     if refused:
-        with pytest.raises(core.InputError, match="look like percent"):
+        with pytest.raises(InputError, match="look like percent"):
             core.ingest([src], quantity="reflectance-factor")
     else:
         assert core.ingest([src], quantity="reflectance-factor").brdf.max() == \
@@ -318,7 +320,7 @@ def test_the_limit_is_the_median(tmp_path, median, refused):
 def test_far_too_large_values_are_not_called_percent(tmp_path):
     ti, to = np.array([20.0, 20.0]), np.array([0.0, 30.0])
     src = write_wide(tmp_path / "big.csv", ti, to, np.full((2, 41), 0.3))
-    with pytest.raises(core.InputError, match="far too large") as err:
+    with pytest.raises(InputError, match="far too large") as err:
         core.ingest([src], quantity="flux-ratio", aperture_mm=4.0, distance_mm=400.0)
     assert "check --quantity and its options" in str(err.value)
 

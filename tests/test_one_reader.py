@@ -15,7 +15,7 @@ import pytest
 
 from gonio_cli import lobes as L
 from gonio_cli.errors import InputError
-from gonio_cli.ingest import read_spectrum
+from gonio_cli.csvio import read_spectrum
 from gonio_cli.render.scene import load_scene
 from gonio_cli.schemas import Material, read_measurement, write_material
 from gonio_cli.spectra import (cmf_weights, cmfs, illuminant, luminance, parse_grid,

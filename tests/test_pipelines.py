@@ -26,7 +26,8 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 MAKE = shutil.which("make")
 COPIED = ("Makefile", "pipelines", "sample_data", "pyproject.toml", "requirements.lock",
-          "setup.py", "gonio_cli/halftone/_diffuse.c", "gonio_cli/render/_envlookup.c")
+          "setup.py", "gonio_cli/halftone/_diffuse.c", "gonio_cli/render/_envlookup.c",
+          "gonio_cli/render/_rasterscan.c")
 
 pytestmark = pytest.mark.skipif(
     MAKE is None, reason="`make` is not on PATH: the pipelines are Makefiles (install GNU make)")

@@ -36,7 +36,7 @@ def sky_with_sun(h=64, w=128, sun=1e5, seed=7):
 
 
 def run(method, pixels, exponent, levels, **kw):
-    m = pf.METHODS[method]
+    m = pf.methods.METHODS[method]
     return m.run(pixels, exponent, levels, m.prepare(pixels), **kw)[0]
 
 
@@ -46,7 +46,7 @@ def run(method, pixels, exponent, levels, **kw):
 @pytest.mark.parametrize("method,shape", [("brute", (8, 16)), ("ring", (64, 128))])
 def test_constant_map_stays_constant(method, shape, exponent):
     img = np.full(shape + (3,), 2.75)
-    levels = pf.output_levels(*shape, exponent)
+    levels = pf.inputs.output_levels(*shape, exponent)
     out = run(method, img, exponent, levels)
     assert np.allclose(out, 2.75, rtol=FLOAT32_RTOL)
 
@@ -57,7 +57,7 @@ def test_lobe_quadrature_matches_closed_form(exponent):
     h, w = 512, 1024
     r = envmap.spherical_to_direction(1.0, 2.0)
     u = 1.0 - envmap.pixel_directions(h, w) @ r
-    total = (pf.lobe_weights(u, exponent, 0.0) * envmap.solid_angles(h, w)).sum()
+    total = (pf.quadrature.lobe_weights(u, exponent, 0.0) * envmap.solid_angles(h, w)).sum()
     assert total == pytest.approx(2 * np.pi / (exponent + 1), rel=QUADRATURE_RTOL)
 
 
@@ -68,7 +68,7 @@ def test_single_bright_texel_gives_the_lobe(exponent):
     img = np.zeros((h, w, 1))
     t = (40, 90)
     img[t] = 1e3
-    levels = pf.output_levels(h, w, exponent)
+    levels = pf.inputs.output_levels(h, w, exponent)
     out = run("ring", img, exponent, levels)[..., 0]
     omega_t = envmap.row_solid_angles(h, w)[t[0]]
     cos = envmap.pixel_directions(*out.shape) @ envmap.pixel_directions(h, w)[t]
@@ -78,13 +78,13 @@ def test_single_bright_texel_gives_the_lobe(exponent):
 
 def test_exponents_to_1e4_and_beyond_neither_overflow_nor_underflow():
     img = sky_with_sun(16, 32)
-    for e in (1.0, 1e3, 1e4, pf.MAX_EXPONENT):
-        for method in pf.METHODS:
+    for e in (1.0, 1e3, 1e4, pf.inputs.MAX_EXPONENT):
+        for method in pf.methods.METHODS:
             out = run(method, img, e, 0)
             assert np.all(np.isfinite(out)), (method, e)
             assert out.min() >= 0.0
     # a lobe far narrower than a texel sees only the nearest texel: the map itself
-    assert np.allclose(run("brute", img, pf.MAX_EXPONENT, 0), img, rtol=1e-6)
+    assert np.allclose(run("brute", img, pf.inputs.MAX_EXPONENT, 0), img, rtol=1e-6)
 
 
 # ------------------------------------------------------------------- against brute --
@@ -95,9 +95,9 @@ def test_auto_matches_brute_on_a_128x64_sky_with_a_sun(capsys):
     results = pf.prefilter(img, ALL_EXPONENTS, check=False)
     worst = []
     for r in results:
-        levels = pf.output_levels(64, 128, r.exponent)
+        levels = pf.inputs.output_levels(64, 128, r.exponent)
         truth = run("brute", img, r.exponent, levels)
-        err = pf.relative_errors(r.pixels.astype(float), truth)
+        err = pf.methods.relative_errors(r.pixels.astype(float), truth)
         worst.append((r.exponent, r.method, float(np.percentile(err, 99)), float(err.max())))
         assert np.percentile(err, 99) < P99_TARGET, worst[-1]
     with capsys.disabled():
@@ -113,7 +113,7 @@ def test_ring_on_a_reduced_working_map_matches_brute(exponent):
     levels = 3
     truth = run("brute", img, exponent, levels)
     out = run("ring", img, exponent, levels, working_levels=1)
-    err = pf.relative_errors(out, truth)
+    err = pf.methods.relative_errors(out, truth)
     assert np.percentile(err, 99) < P99_TARGET
     assert err.max() < 2 * P99_TARGET
 
@@ -123,7 +123,7 @@ def test_spot_check_reports_the_error_it_finds():
     res = pf.prefilter(img, [10.0])
     assert all(r.checked_texels >= 2 and r.error_estimate < P99_TARGET for r in res)
     bad = res[1].pixels * 1.05
-    err, n = pf.spot_check(img, bad, 10.0)
+    err, n = pf.methods.spot_check(img, bad, 10.0)
     assert err == pytest.approx(0.05, rel=1e-3) and n >= 2
 
 
@@ -198,17 +198,17 @@ def test_a_sun_is_integrated_over_its_texel(exponent):
                                * np.sqrt(exponent))))
     truth = area_true(img, res.height, res.width, exponent, n_sky, sun,
                       REFERENCE_SUN_SUBTEXELS)
-    err = pf.relative_errors(res.pixels.astype(float), truth)
+    err = pf.methods.relative_errors(res.pixels.astype(float), truth)
     assert np.percentile(err, 99) < P99_TARGET, (exponent, np.percentile(err, 99), err.max())
     # the texel-centre (midpoint) quadrature misses it at every one of these exponents
     # (p99 52 %, 5.5 %, 19 %, 15 %): the test can fail
     point = area_true(img, res.height, res.width, exponent, 1, sun, 1)
-    assert np.percentile(pf.relative_errors(point, truth), 99) > 2 * P99_TARGET
+    assert np.percentile(pf.methods.relative_errors(point, truth), 99) > 2 * P99_TARGET
 
 
 # ------------------------------------------------------------------ extreme inputs --
 
-@pytest.mark.parametrize("method", list(pf.METHODS) + ["auto"])
+@pytest.mark.parametrize("method", list(pf.methods.METHODS) + ["auto"])
 def test_a_sun_1e5_times_the_sky_never_gives_negative_or_nan(method):
     img = sky_with_sun(32, 64, sun=1e5)
     img[20:, :] *= 1e-3  # dark ground: any ringing would show as negative values here
@@ -222,7 +222,7 @@ def test_one_by_two_map_is_handled():
         assert r.pixels.shape == (1, 2, 3)
         assert np.allclose(r.pixels, [1, 2, 3], rtol=FLOAT32_RTOL)
     with pytest.raises(InputError, match="not a lat-long map"):
-        pf.validate_map(np.ones((1, 1, 3)))
+        pf.inputs.validate_map(np.ones((1, 1, 3)))
 
 
 def test_non_2_to_1_map_is_read_as_lat_long_with_a_warning(capsys):
@@ -238,11 +238,11 @@ def test_invalid_texels_are_named_and_counted():
     img[6, 2, 0] = np.inf
     img[7, 9, 2] = -1.0
     with pytest.raises(InputError) as exc:
-        pf.validate_map(img, path="sky.exr")
+        pf.inputs.validate_map(img, path="sky.exr")
     msg = exc.value.format()
     assert "sky.exr" in msg and "(row 3, col 5)" in msg and "nan" in msg
     assert "3 texels" in msg and "--fix-invalid" in msg
-    fixed, n = pf.validate_map(img, fix_invalid=True)
+    fixed, n = pf.inputs.validate_map(img, fix_invalid=True)
     assert n == 3 and np.all(np.isfinite(fixed)) and fixed.min() >= 0.0
     assert fixed[7, 9, 2] == 0.0 and fixed[3, 5, 1] == pytest.approx(1.0)
 
@@ -250,20 +250,20 @@ def test_invalid_texels_are_named_and_counted():
 @pytest.mark.parametrize("bad", [0.5, 0.0, -1.0, np.nan, np.inf, 2e6, "x"])
 def test_bad_exponents_are_refused(bad):
     with pytest.raises(InputError):
-        pf.validate_exponents([8, bad])
+        pf.inputs.validate_exponents([8, bad])
 
 
 def test_exponents_are_sorted_unique_and_include_the_diffuse_map():
-    assert pf.validate_exponents([64, 8, 8.0]) == [1.0, 8.0, 64.0]
+    assert pf.inputs.validate_exponents([64, 8, 8.0]) == [1.0, 8.0, 64.0]
 
 
 def test_output_resolution_follows_the_lobe_width_and_can_be_forced():
     h, w = 1024, 2048
-    heights = [h // 2 ** pf.output_levels(h, w, e) for e in (1, 10, 100, 1000, 1e4)]
-    assert heights == sorted(heights) and heights[0] == pf.MIN_OUTPUT_HEIGHT
+    heights = [h // 2 ** pf.inputs.output_levels(h, w, e) for e in (1, 10, 100, 1000, 1e4)]
+    assert heights == sorted(heights) and heights[0] == pf.inputs.MIN_OUTPUT_HEIGHT
     for e, ho in zip((1, 10, 100, 1000, 1e4), heights):
         # at least OUTPUT_TEXELS_PER_SIGMA texels per σ, or the input's resolution
-        assert ho == h or np.pi / ho <= pf.lobe_sigma(e) / pf.OUTPUT_TEXELS_PER_SIGMA
+        assert ho == h or np.pi / ho <= pf.inputs.lobe_sigma(e) / pf.inputs.OUTPUT_TEXELS_PER_SIGMA
     res = pf.prefilter(np.ones((32, 64, 1)), [100], resolution=8)
     assert all(r.pixels.shape == (8, 16, 1) for r in res)
     with pytest.raises(InputError, match="32, 16, 8"):
@@ -276,7 +276,7 @@ def test_unknown_method_lists_the_valid_ones():
 
 
 def test_auto_picks_the_cheapest_method_within_the_accuracy_target():
-    assert pf.choose_method((2, 4, 3), 8.0, 0) == "brute"  # a handful of texels
-    assert pf.choose_method((1024, 2048, 3), 8.0, pf.output_levels(1024, 2048, 8.0)) == "ring"
-    assert all(pf.METHODS[pf.choose_method((64, 128, 3), e, 0)].error_bound
-               <= pf.ACCURACY_TARGET for e in (1.0, 100.0, 1e4))
+    assert pf.methods.choose_method((2, 4, 3), 8.0, 0) == "brute"  # a handful of texels
+    assert pf.methods.choose_method((1024, 2048, 3), 8.0, pf.inputs.output_levels(1024, 2048, 8.0)) == "ring"
+    assert all(pf.methods.METHODS[pf.methods.choose_method((64, 128, 3), e, 0)].error_bound
+               <= pf.methods.ACCURACY_TARGET for e in (1.0, 100.0, 1e4))

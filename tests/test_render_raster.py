@@ -8,6 +8,7 @@ import pytest
 from gonio_cli.render import Camera, Mesh
 from gonio_cli.render import mesh as M
 from gonio_cli.render import raster as R
+from gonio_cli.render import visibility as V
 
 
 def camera(eye=(0, 0, 4.0), target=(0, 0, 0), up=(0, 1, 0), fov=35.0, w=96, h=96):
@@ -317,6 +318,14 @@ def test_grazing_and_edge_on_planes_give_finite_buffers(tilt):
 
 # ----------------------------------------------------------------------------- visibility pass
 
+def builds():
+    """The depth test's builds to check: numpy, and C where it was compiled (pip builds it
+    wherever a compiler is found; CI's machine has one)."""
+    return [pytest.param(b, marks=pytest.mark.skipif(
+        b == "c" and not V.c_build_available(), reason="_rasterscan.c not built"))
+        for b in V.BUILDS]
+
+
 def brute_force_keys(st, w, h, F):
     """The depth keys of testing every pixel of every box with the float32 edge functions
     (the rasterizer's arithmetic, written out per triangle with no spans, no culling)."""
@@ -324,7 +333,7 @@ def brute_force_keys(st, w, h, F):
     cx, cy, inv_f = f32(w / 2.0 - 0.5), f32(h / 2.0 - 0.5), f32(1.0 / F)
     C = st["C"].astype(f32)
     iz = (st["N"] / st["q"]).astype(f32)
-    keys = np.full(h * w, R._KEY_EMPTY, np.int64)
+    keys = np.full(h * w, V.KEY_EMPTY, np.int64)
     for t in range(len(st["q"])):
         cols = np.arange(st["x0"][t], st["x0"][t] + st["bw"][t])
         rows = np.arange(st["y0"][t], st["y0"][t] + st["bh"][t])
@@ -332,7 +341,7 @@ def brute_force_keys(st, w, h, F):
         dy = (cy - rows.astype(f32)) * inv_f
         e = [dx[None, :] * C[k, 0, t] + (dy * C[k, 1, t] + C[k, 2, t])[:, None] for k in range(3)]
         rz = dx[None, :] * iz[0, t] + (dy * iz[1, t] + iz[2, t])[:, None]
-        hit = (np.minimum(np.minimum(e[0], e[1]), e[2]) >= 0) & (rz > 0) & (rz < f32(1 / R.NEAR))
+        hit = (np.minimum(np.minimum(e[0], e[1]), e[2]) >= 0) & (rz > 0) & (rz < f32(1 / V.NEAR))
         pix = (rows[:, None] * w + cols[None, :])[hit]
         key = ((np.int64(0x7FFFFFFF) - rz[hit].view(np.int32)).astype(np.int64) << 32) \
             | (t | (int(st["back"][t]) << 31))
@@ -346,7 +355,7 @@ def setup_of(cam, meshes, ssaa=1):
     basis = np.stack([r, u, f], axis=1)
     h, w = cam.height * ssaa, cam.width * ssaa
     F = R.focal_px(cam, ssaa)
-    st = R._setup((verts - eye) @ basis, faces, float(np.sign(np.linalg.det(basis))), w, h, F)
+    st = V.setup((verts - eye) @ basis, faces, float(np.sign(np.linalg.det(basis))), w, h, F)
     return st, w, h, F
 
 
@@ -358,13 +367,14 @@ def open_bowl():
     return Mesh(s.vertices, s.faces[keep], s.normals)
 
 
+@pytest.mark.parametrize("build", builds())
 @pytest.mark.parametrize("scene", ["sphere", "bowl", "floor", "two spheres"])
-def test_spans_and_culling_give_the_keys_of_testing_every_box_pixel(scene):
+def test_spans_and_culling_give_the_keys_of_testing_every_box_pixel(scene, build):
     """The row spans (sure pixels untested) and the hierarchical-z culling of back faces
-    change nothing: the keys equal those of the float32 edge test at every pixel of every
-    box — on a closed sphere (back faces culled), an open bowl (back faces seen), a
-    floor crossing the near plane (whole-screen boxes) and two spheres (one hides part of
-    the other)."""
+    change nothing, nor does the C build: the keys equal those of the float32 edge test
+    at every pixel of every box — on a closed sphere (back faces culled), an open bowl
+    (back faces seen), a floor crossing the near plane (whole-screen boxes) and two
+    spheres (one hides part of the other)."""
     cams = {"sphere": camera(w=64, h=48), "bowl": camera(eye=(0.3, 2.5, 2.5), w=64, h=64),
             "floor": camera(eye=(0.0, 1.0, 0.0), target=(0.0, 0.7, -3.0), w=48, h=40, fov=70.0),
             "two spheres": camera(eye=(0.5, 0.2, 5.0), w=80, h=64)}
@@ -375,16 +385,17 @@ def test_spans_and_culling_give_the_keys_of_testing_every_box_pixel(scene):
                               M.transform(M.uv_sphere(20, 10), translate=(0.6, 0.2, -1.5))]}
     st, w, h, F = setup_of(cams[scene], meshes[scene])
     truth = brute_force_keys(st, w, h, F)
-    assert (truth != R._KEY_EMPTY).sum() > 200                # the test sees something
+    assert (truth != V.KEY_EMPTY).sum() > 200                # the test sees something
     for hiz in (True, False):
-        np.testing.assert_array_equal(R._visibility(st, w, h, F, hiz=hiz), truth)
+        np.testing.assert_array_equal(V.visible_keys(st, w, h, F, hiz=hiz, build=build),
+                                      truth)
     if scene == "sphere":
         # culling did happen: measured 22 % of this coarse sphere's back faces (the
         # 2 × 2 cells of a box's level reach past the silhouette), 53 % at 96 segments
-        hidden = R._hidden_back_faces(st, R._visibility(st, w, h, F), w, h, F)
+        hidden = V.hidden_back_faces(st, V.visible_keys(st, w, h, F), w, h, F)
         assert hidden.sum() > 0.15 * st["back"].sum()
     if scene == "bowl":                                       # the inside is seen
-        seen = truth[truth != R._KEY_EMPTY] & R._TRI_INDEX_MASK
+        seen = truth[truth != V.KEY_EMPTY] & V.TRI_INDEX_MASK
         assert st["back"][seen].sum() > 100
 
 
@@ -395,10 +406,10 @@ def test_culling_keeps_a_back_face_in_front_of_the_front_faces():
     far = triangle(-1.0)
     st, w, h, F = setup_of(camera(w=64, h=64), [near, far])
     assert st["back"].tolist() == [True, False]
-    keys = R._visibility(st, w, h, F)
+    keys = V.visible_keys(st, w, h, F)
     np.testing.assert_array_equal(keys, brute_force_keys(st, w, h, F))
-    assert not R._hidden_back_faces(st, keys, w, h, F).any()
-    assert ((keys != R._KEY_EMPTY) & ((keys & R._TRI_INDEX_MASK) == 0)).sum() > 100
+    assert not V.hidden_back_faces(st, keys, w, h, F).any()
+    assert ((keys != V.KEY_EMPTY) & ((keys & V.TRI_INDEX_MASK) == 0)).sum() > 100
 
 
 def test_compact_buffers_store_contiguous_components():
@@ -451,16 +462,18 @@ def test_resolve_at_ssaa_1_scatters_rows_and_defers_xyz():
     np.testing.assert_allclose(lin2, linear / 4, rtol=1e-5, atol=1e-6 * np.abs(dense).max())
 
 
-def _culled_and_keys(cam, meshes):
+def _culled_and_keys(cam, meshes, build=None):
     verts, _, faces, obj, _ = R._concat(meshes)
     eye, r, u, f = R.camera_basis(cam)
     st, w, h, F = setup_of(cam, meshes)
-    culled = R._closed_back_faces(meshes, st, obj, (verts - eye) @ np.stack([r, u, f], 1), eye)
-    return st, culled, R._visibility(st, w, h, F, culled=culled), brute_force_keys(st, w, h, F)
+    culled = V.closed_back_faces(meshes, st, obj, (verts - eye) @ np.stack([r, u, f], 1), eye)
+    return (st, culled, V.visible_keys(st, w, h, F, culled=culled, build=build),
+            brute_force_keys(st, w, h, F))
 
 
+@pytest.mark.parametrize("build", builds())
 @pytest.mark.parametrize("seed", range(6))
-def test_closed_meshes_seen_from_outside_skip_their_back_faces_and_keep_every_key(seed):
+def test_closed_meshes_seen_from_outside_skip_their_back_faces_and_keep_every_key(seed, build):
     """Back faces of closed surfaces seen from outside are not tested at all, and every
     key still equals the float32 test at every pixel of every box: a sphere and a
     mirrored, squashed second one from random eyes around them (measured: 0 differing
@@ -471,27 +484,29 @@ def test_closed_meshes_seen_from_outside_skip_their_back_faces_and_keep_every_ke
                  fov=rng.uniform(25.0, 60.0))
     s = M.load_mesh("builtin:sphere?segments=32")
     meshes = [s, M.transform(s, translate=tuple(rng.uniform(-1, 1, 3)), scale=(0.6, -0.3, 0.5))]
-    st, culled, keys, truth = _culled_and_keys(cam, meshes)
+    st, culled, keys, truth = _culled_and_keys(cam, meshes, build)
     assert culled is not None and culled.sum() > 0.4 * st["back"].sum()
-    assert (truth != R._KEY_EMPTY).sum() > 200
+    assert (truth != V.KEY_EMPTY).sum() > 200
     np.testing.assert_array_equal(keys, truth)
 
 
-def test_closed_mesh_around_the_eye_or_through_the_near_plane_keeps_its_back_faces():
+@pytest.mark.parametrize("build", builds())
+def test_closed_mesh_around_the_eye_or_through_the_near_plane_keeps_its_back_faces(build):
     """Inside a closed sphere (the eye within its box) its back faces are all one sees;
     a sphere cut by the near plane shows its inside through the cut: neither is culled."""
     s = M.load_mesh("builtin:sphere?segments=32")
     inside = M.transform(s, scale=10.0)
-    st, culled, keys, truth = _culled_and_keys(camera(eye=(0, 0, 4.0)), [inside])
-    assert culled is None and st["back"][keys[keys != R._KEY_EMPTY] & R._TRI_INDEX_MASK].all()
+    st, culled, keys, truth = _culled_and_keys(camera(eye=(0, 0, 4.0)), [inside], build)
+    assert culled is None and st["back"][keys[keys != V.KEY_EMPTY] & V.TRI_INDEX_MASK].all()
     np.testing.assert_array_equal(keys, truth)
     cut = M.transform(s, translate=(0.0, 0.0, 3.5))          # the eye at z 4: 0.5 away
-    st, culled, keys, truth = _culled_and_keys(camera(eye=(0, 0, 4.0), fov=90.0), [cut])
+    st, culled, keys, truth = _culled_and_keys(camera(eye=(0, 0, 4.0), fov=90.0), [cut], build)
     assert culled is None
     np.testing.assert_array_equal(keys, truth)
 
 
-def test_a_chunk_of_spans_without_sure_pixels_is_skipped():
+@pytest.mark.parametrize("build", builds())
+def test_a_chunk_of_spans_without_sure_pixels_is_skipped(build):
     """A chunk of row spans whose every pixel lies within round-off of an edge (so all are
     tested, none taken as sure) has no sure hits to scatter: it once raised on the empty
     array. Two spheres, one seen past the other, from the eye that found it."""
@@ -501,4 +516,5 @@ def test_a_chunk_of_spans_without_sure_pixels_is_skipped():
     cam = camera(eye=(-0.3412587284677959, 1.846145120338649, 0.5844547556699414), w=96,
                  h=80, fov=41.143570530400865)
     st, w, h, F = setup_of(cam, meshes)
-    np.testing.assert_array_equal(R._visibility(st, w, h, F), brute_force_keys(st, w, h, F))
+    np.testing.assert_array_equal(V.visible_keys(st, w, h, F, build=build),
+                                  brute_force_keys(st, w, h, F))

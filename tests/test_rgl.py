@@ -1,4 +1,4 @@
-"""RGL measured BSDFs in (``gonio ingest MATERIAL.bsdf``, :mod:`gonio_cli.rgl`).
+"""RGL measured BSDFs in (``gonio ingest MATERIAL.bsdf``, :mod:`gonio_cli.ingest.rgl`).
 
 Truth is independent of the code under test: Mitsuba's own ``measured`` plugin driven
 here with directions written from docs/conventions.md, Mitsuba's own tensor reader, the
@@ -21,7 +21,7 @@ import pytest
 from bad_inputs import refused_ingest_line
 from gonio_cli.brdf import evaluate
 from gonio_cli.geometry import in_plane_cosines
-from gonio_cli.rgl import read_tensor_file, write_tensor_file
+from gonio_cli.ingest.tensorfile import read_tensor_file, write_tensor_file
 from gonio_cli.schemas import read_measurement
 
 SAMPLE = Path(__file__).resolve().parent.parent / "sample_data"
@@ -33,7 +33,7 @@ RGB = SAMPLE / "rgl_wrap_rgb.bsdf"
 #: azimuth, the bilinear and parameter weights), so agreement to 1e-5 relative is float
 #: precision. A convention error moves values by far more: dividing by cos θi instead of
 #: cos θo, or flipping the sign of θo, fails every comparison below (tried by breaking
-#: gonio_cli/rgl.py that way).
+#: gonio_cli/ingest/rgl.py that way).
 FLOAT_RTOL = 1e-5
 
 #: Absolute floor of the comparisons, sr⁻¹: float32 round-off of the largest values (≈ 2

@@ -41,7 +41,7 @@ def test_every_model_parameter_has_a_range():
 
 
 def test_measurement_quantities_are_ingests():
-    from gonio_cli.ingest import QUANTITIES
+    from gonio_cli.ingest.quantities import QUANTITIES
 
     assert set(schemas.Measurement.QUANTITIES) == set(QUANTITIES)
 
@@ -50,7 +50,7 @@ def test_ranges_agree_with_the_stages_own_bounds():
     """The read side accepts everything the writers may produce."""
     from gonio_cli.fit.common import ALPHA_MAX, ALPHA_MIN, C_LIMIT
     from gonio_cli.fit.cook_torrance import M_MAX, M_MIN
-    from gonio_cli.prefilter import MAX_EXPONENT
+    from gonio_cli.prefilter.inputs import MAX_EXPONENT
 
     alpha, m, c = (schemas.PARAM_RANGES[k] for k in ("alpha", "m", "c"))
     assert not alpha.outside(np.array([ALPHA_MIN, ALPHA_MAX])).any()

@@ -37,6 +37,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from ..errors import InputError
+from ..names import choices_fix
 
 TOP_KEYS = ("material", "matrix", "job")
 MATERIAL_KEYS = ("name", "csv", "ingest", "fit", "material", "render")
@@ -125,7 +126,7 @@ class _Reader:
         unknown = sorted(set(table) - set(allowed))
         if unknown:
             raise self.error(where, f"unknown key {unknown[0]!r}",
-                             fix=f"use {', '.join(allowed)}")
+                             fix=choices_fix(unknown[0], allowed, "use"))
 
     def strings(self, value, where: str) -> list[str]:
         items = value if isinstance(value, list) else [value]
@@ -311,7 +312,7 @@ def _matrix(r: _Reader, m, materials: Mapping[str, str]) -> None:
 
     orbit = m.get("orbit", "camera")
     if orbit not in ORBITS:
-        raise r.error(f"{where} orbit", f"{orbit!r} is unknown", fix=f"use one of {', '.join(ORBITS)}")
+        raise r.error(f"{where} orbit", f"{orbit!r} is unknown", fix=choices_fix(orbit, ORBITS))
     var = m.get("vars", {})
     r.keys(var, list(var) if isinstance(var, dict) else [], f"{where} vars")
     names = list(var)

@@ -13,8 +13,9 @@ from ..export import TARGETS  # the registry (light: no renderer is imported her
 def export(
     material: Path = typer.Argument(..., metavar="MATERIAL.json", show_default=False,
                                    help="A gonio.material file (gonio fit)."),
-    output: Path = typer.Option(..., "--output", "-o", metavar="DIR",
-                                help="The folder to write (made if missing)."),
+    output: Path = typer.Option(..., "--output", "-o", metavar="DIR|FILE.glb",
+                                help="The folder to write (made if missing); for --to "
+                                     "gltf the .glb file (its report beside it)."),
     to: str = typer.Option("mitsuba", "--to", metavar="TARGET",
                            help=f"The renderer to export to: {', '.join(TARGETS)}."),
     scene: Optional[Path] = typer.Option(None, "--scene", metavar="SCENE.toml",
@@ -29,12 +30,15 @@ def export(
     For Mitsuba 3: a BSDF plugin (gonio_bsdf.py, Python, mi.register_bsdf) that evaluates
     and importance-samples the model, its parameters, scene.xml (the material on a sphere
     under the scene's lights) and render.py; gonio_scene.toml renders the same scene with
-    gonio render. See docs/export.md.
+    gonio render. For glTF 2.0: NAME.glb, a sphere with a PBR material (clearcoat,
+    specular, ior extensions) fitted to the material's BRDF, and NAME.glb.report.json, its
+    CIEDE2000 against the material. See docs/export.md.
 
     \b
     Example:
       gonio export red.material.json -o red.mitsuba --to mitsuba
       python red.mitsuba/render.py -o red-mitsuba.exr
+      gonio export red.material.json -o red.glb --to gltf
     """
     from .. import log
     from ..errors import InputError
@@ -49,18 +53,29 @@ def export(
     variables = parse_vars(var)
     if variables and scene is None:
         raise InputError("--var needs --scene", fix="name the scene the variables are for")
+    if target.output != "folder":
+        from ..export.gltf import check_output, report_path
+        from ..outputs import declare
+
+        check_output(output)
+        declare({"-o": output, "-o (its report)": report_path(output)}, [material])
     mat = read_material(material)
     if mat.status == "failed":
         log.warn(f"{material}: a fit with status {mat.status!r} is exported")
     with log.timer() as t:
-        files = target.write(mat, material, output, scene, variables or None)
-    log.info(f"{output}: {mat.model} for {target.name} ({len(files)} files, "
+        written = target.write(mat, material, output, scene, variables or None)
+    log.info(f"{output}: {mat.model} for {target.name} ({len(written.files)} files, "
              f"{t['time_s']:.2f} s)")
+    if written.report is not None:
+        from ..export.judge import sentence
+
+        log.info(sentence(output.name, target.label, written.report))
 
 
 EXAMPLE = "gonio export red.material.json -o red.mitsuba --to mitsuba"
 
-SHORT_HELP = "Export a fitted material to another renderer (Mitsuba 3), with a scene."
+SHORT_HELP = ("Export a fitted material to another renderer (Mitsuba 3, glTF 2.0), with a "
+              "scene or a preview.")
 
 
 def register(app: typer.Typer) -> None:

@@ -200,7 +200,7 @@ def read_weights(path: Path, m) -> "np.ndarray":
     import numpy as np
 
     from ..errors import InputError
-    from ..ingest import read_table
+    from ..csvio import read_table
     from ..schemas import MAX_MAGNITUDE
     from . import require_files
 

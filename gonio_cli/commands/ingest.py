@@ -98,6 +98,7 @@ def ingest(
                                  "anything dropped or clipped) to stdout."),
 ) -> None:
     from .. import ingest as core
+    from ..ingest.quantities import resolve_parameters
     from .. import log
     from ..errors import InputError
     from ..schemas import write_measurement
@@ -111,7 +112,7 @@ def ingest(
                    aperture_mm=aperture_mm, distance_mm=distance_mm, dark=dark,
                    grid_nm=grid_nm, scale=scale, sample=sample, theta_i_deg=theta_i_deg,
                    theta_o_deg=theta_o_deg)
-    params = core.resolve_parameters(inputs, **options)  # refused before anything is read
+    params = resolve_parameters(inputs, **options)  # refused before anything is read
     with log.timer() as t:
         # the options as given: the core warns about a default it had to choose
         measurement = core.ingest(inputs, **options)

@@ -17,8 +17,8 @@ from typing import Optional
 import typer
 
 from ..names import PREFILTER_AUTO, PREFILTER_METHOD_NAMES, metavar
-# the maps' file names, importable from here as before (pathlib only: a light import)
-from ..prefilter_files import NAME_DIGITS, map_name  # noqa: F401
+from ..prefilter_files import map_name  # the maps' file names (pathlib only: a light import)
+
 
 def parse_exponents(text: str) -> list[float]:
     """``"1,8,64"`` → [1.0, 8.0, 64.0]; a bad item is an error naming it."""
@@ -91,7 +91,7 @@ def prefilter(
     if (exponents is not None) + (lobes is not None) + chain != 1:
         raise InputError("give one of --chain, --exponents or --lobes",
                          fix="e.g. --chain (for any material) or --exponents 1,8,64")
-    core.check_method(method)
+    core.methods.check_method(method)
     if output.exists() and not output.is_dir():
         raise InputError("exists and is not a folder", path=output,
                          fix="give a folder name for -o")
@@ -108,7 +108,7 @@ def prefilter(
     else:
         exps = (parse_exponents(exponents) if exponents is not None
                 else read_as("--lobes", read_lobe_exponents, lobes))
-    exps = core.validate_exponents(exps, path=lobes)
+    exps = core.inputs.validate_exponents(exps, path=lobes)
     if replaced:
         log.warn(f"{envmap_path}: replaced {replaced} NaN, inf or negative texels "
                  "(negative → 0, NaN/inf → the mean of their row)")

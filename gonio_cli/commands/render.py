@@ -88,6 +88,9 @@ def render(
     import time
 
     start = time.perf_counter()  # the total: scene loading to images written
+    from ..machine import one_blas_thread
+
+    one_blas_thread()                                # before numpy loads (its docstring)
     from .. import log
     from ..errors import InputError
     from ..render import Stats

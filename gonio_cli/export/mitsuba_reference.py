@@ -376,7 +376,7 @@ def render_mitsuba(ref: ReferenceScene, folder, *, spp: int = DEFAULT_SPP,
     if variant is None:
         kind = colour
         if ref.bsdf is not None:
-            from ..rgl import check_bsdf
+            from ..ingest.rgl import check_bsdf
 
             kind = check_bsdf(ref.bsdf)[0].name
         variant = choose_variant(kind)

@@ -268,9 +268,9 @@ def read_sample_csv(path) -> tuple[np.ndarray, np.ndarray]:
 
     θi is the light's signed angle φ (the conventions' θi when ≥ 0; < 0 on the detector's
     side), θo the detector. Returns (φ, θo) in degrees, (N,) each (N = 0 for a header
-    alone). Read by :func:`gonio_cli.ingest.read_columns`, the reader of every small CSV.
+    alone). Read by :func:`gonio_cli.csvio.read_columns`, the reader of every small CSV.
     """
-    from ..ingest import THETA_I, THETA_O, read_columns
+    from ..csvio import THETA_I, THETA_O, read_columns
 
     angles, _ = read_columns(path, (THETA_I, THETA_O), "the sample set", allow_empty=True)
     return angles[:, 0].copy(), angles[:, 1].copy()

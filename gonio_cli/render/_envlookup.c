@@ -6,7 +6,7 @@
  * import and the loading of its cached kernel (~0.7-1 s in a fresh process) cost more than
  * the whole render. This module is built by pip when gonio is installed (a C compiler and the
  * Python headers, as _diffuse.c); where it could not be built, env_model.py uses numpy. The
- * two agree to ~1e-5 relative (float32 maps; the angles to 2e-8 rad, fast_atan2):
+ * two agree to ~2e-4 of the largest value (float32 maps; the angles to 1e-5 rad, fast_atan2):
  * tests/test_env_model.py compares them.
  *
  * Per pixel (env_model's module docstring has the equations): θv = acos(N·V) and its view
@@ -36,17 +36,17 @@
 #define MAX_LEVELS 64
 #define MAX_LOBES 16
 
-/* atan2(y, x) in [−π, π] to 2e-8 rad (the lookups' angles; a texel of the sharpest 1024-wide
- * map is 6e-3 rad): Abramowitz & Stegun 4.4.49, atan r = r (1 + Σ a_2k r^2k) on 0 ≤ r ≤ 1,
- * |ε| ≤ 2e-8, folded to the octants. libm's atan2 and acos were 70 % of the kernel's time. */
+/* atan2(y, x) in [−π, π] to 1e-5 rad (the lookups' angles; a texel of the sharpest 1024-wide
+ * map is 6e-3 rad, so 0.2 % of one): Abramowitz & Stegun 4.4.47, atan r = Σ a_2k+1 r^2k+1
+ * on 0 ≤ r ≤ 1, |ε| ≤ 1e-5, folded to the octants. libm's atan2 and acos were 70 % of the
+ * kernel's time; 4.4.49's 2e-8 rad (nine terms) cost 8 % more of it than these five. */
 static double fast_atan2(double y, double x) {
     double ax = fabs(x), ay = fabs(y);
     double hi = ax > ay ? ax : ay, lo = ax > ay ? ay : ax;
     if (hi == 0.0) return 0.0;
     double r = lo / hi, r2 = r * r;
-    double a = r * (1.0 + r2 * (-0.3333314528 + r2 * (0.1999355085 + r2 * (-0.1420889944
-               + r2 * (0.1065626393 + r2 * (-0.0752896400 + r2 * (0.0429096138
-               + r2 * (-0.0161657367 + r2 * 0.0028662257))))))));
+    double a = r * (0.9998660 + r2 * (-0.3302995 + r2 * (0.1801410 + r2 * (-0.0851330
+               + r2 * 0.0208351))));
     if (ay > ax) a = M_PI / 2 - a;
     if (x < 0.0) a = M_PI - a;
     return y < 0.0 ? -a : a;
@@ -58,7 +58,15 @@ typedef struct {
     double row_scale, col_scale;                     /* h / π and w / 2π */
 } Map;
 
-static void bilinear(const Map *m, double theta, double phi, double *rgb) {
+/* Where a direction (θ, φ) falls on a map of h × w texels: its 2 × 2 texels' offsets and
+ * the bilinear weights; levels of the same size share it (the sharp levels of a chain). */
+typedef struct {
+    int64_t h, w;                                    /* the size it was computed for */
+    int64_t a, b, c, d;                              /* float offsets of the four texels */
+    float fr, fc;
+} Footprint;
+
+static void footprint(const Map *m, double theta, double phi, Footprint *f) {
     int64_t h = m->h, w = m->w;
     double row = theta * m->row_scale - 0.5;
     double col = phi * m->col_scale - 0.5;           /* φ in [0, 2π): col in [−0.5, w − 0.5) */
@@ -66,18 +74,31 @@ static void bilinear(const Map *m, double theta, double phi, double *rgb) {
     if (row > (double)(h - 1)) row = (double)(h - 1);
     int64_t r0 = (int64_t)row;
     int64_t c0 = col < 0.0 ? -1 : (int64_t)col;     /* floor */
-    double fr = row - (double)r0, fc = col - (double)c0;
+    f->fr = (float)(row - (double)r0);
+    f->fc = (float)(col - (double)c0);
     int64_t r1 = r0 + 1 < h ? r0 + 1 : h - 1;
     if (c0 < 0) c0 += w;                             /* φ wraps */
     if (c0 >= w) c0 -= w;
     int64_t c1 = c0 + 1 < w ? c0 + 1 : 0;
+    f->h = h;
+    f->w = w;
+    f->a = 3 * (r0 * w + c0);
+    f->b = 3 * (r0 * w + c1);
+    f->c = 3 * (r1 * w + c0);
+    f->d = 3 * (r1 * w + c1);
+}
+
+/* p += weight × the map's bilinear value at the footprint (computed anew unless its size
+ * is the footprint's). */
+static void bilinear_add(const Map *m, double theta, double phi, Footprint *f, double weight,
+                         double *p) {
+    if (f->h != m->h || f->w != m->w) footprint(m, theta, phi, f);
     const float *img = m->texels;
-    const float *a = img + 3 * (r0 * w + c0), *b = img + 3 * (r0 * w + c1);
-    const float *c = img + 3 * (r1 * w + c0), *d = img + 3 * (r1 * w + c1);
+    const float *a = img + f->a, *b = img + f->b, *c = img + f->c, *d = img + f->d;
     for (int j = 0; j < 3; j++) {
-        double top = a[j] + fc * (b[j] - a[j]);
-        double bottom = c[j] + fc * (d[j] - c[j]);
-        rgb[j] = top + fr * (bottom - top);
+        float top = a[j] + f->fc * (b[j] - a[j]);
+        float bottom = c[j] + f->fc * (d[j] - c[j]);
+        p[j] += weight * (double)(top + f->fr * (bottom - top));
     }
 }
 
@@ -131,13 +152,12 @@ static void pixel(const double *nn, const double *vv, const double *view_deg, Py
             if (at_normal[k]) { theta_n = theta; phi_n = phi; have_normal = 1; }
         }
         const double *w0 = weights + (k * V + i0) * L, *w1 = w0 + L;
-        double p[3] = {0.0, 0.0, 0.0}, rgb[3];
+        double p[3] = {0.0, 0.0, 0.0};
+        Footprint f = {-1, -1, 0, 0, 0, 0, 0.0f, 0.0f};
         for (int64_t u = 0; u < n_used[k]; u++) {  /* the levels lobe k mixes somewhere */
             int64_t l = used[k * L + u];
             if (w0[l] <= 0.0 && w1[l] <= 0.0) continue;
-            double wl = w0[l] + t * (w1[l] - w0[l]);
-            bilinear(&maps[l], theta, phi, rgb);
-            for (int j = 0; j < 3; j++) p[j] += wl * rgb[j];
+            bilinear_add(&maps[l], theta, phi, &f, w0[l] + t * (w1[l] - w0[l]), p);
         }
         const double *m0 = matrices + (k * V + i0) * 3 * C, *m1 = m0 + 3 * C;
         for (Py_ssize_t j = 0; j < C; j++) {

@@ -449,10 +449,10 @@ def _light(chk: Checker, raw, number: int, grid: np.ndarray) -> Light:
 def light_spectrum(chk: Checker, value, where: str, grid: np.ndarray) -> np.ndarray:
     """A light spectrum S (n_λ,) on ``grid``, Σ S ȳ / Σ ȳ = 1 (:func:`gonio_cli.spectra.
     unit_luminance`): a CIE illuminant name or a CSV ``wavelength_nm,value`` (relative to
-    the scene file), read by :func:`gonio_cli.ingest.read_spectrum` (the reader of
+    the scene file), read by :func:`gonio_cli.csvio.read_spectrum` (the reader of
     ``gonio ingest``'s white standard and dark: the same delimiters, comments and errors
     naming the CSV's line)."""
-    from ..ingest import read_spectrum
+    from ..csvio import read_spectrum
     from ..spectra import (covers, illuminant, illuminant_names, luminance, resample,
                            same_grid, unit_luminance)
 

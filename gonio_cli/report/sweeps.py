@@ -148,7 +148,7 @@ def prefilter_errors(out, truth) -> tuple[float, float]:
     """(99th percentile, maximum) of the relative error of a prefiltered map."""
     from .. import prefilter as pf
 
-    e = pf.relative_errors(np.asarray(out, float), truth)
+    e = pf.methods.relative_errors(np.asarray(out, float), truth)
     return float(np.percentile(e, 99)), float(e.max())
 
 
@@ -158,12 +158,12 @@ def prefilter_brute_rows(small: np.ndarray, exponents: Iterable[float]) -> list[
     from .. import prefilter as pf
 
     h, w = small.shape[:2]
-    prepared = pf.RingInputs(small)
+    prepared = pf.ring.RingInputs(small)
     rows = []
     for e in exponents:
-        levels = pf.output_levels(h, w, e)
-        (fast, _), t_fast = timed(pf.prefilter_ring, small, e, levels, prepared)
-        (truth, _), t_brute = timed(pf.prefilter_brute, small, e, levels)
+        levels = pf.inputs.output_levels(h, w, e)
+        (fast, _), t_fast = timed(pf.ring.prefilter_ring, small, e, levels, prepared)
+        (truth, _), t_brute = timed(pf.brute.prefilter_brute, small, e, levels)
         p99, mx = prefilter_errors(fast, truth)
         rows.append({"exponent": float(e), "output": f"{w >> levels}×{h >> levels}",
                      "ring_s": t_fast, "brute_s": t_brute, "p99_error": p99,
@@ -177,19 +177,19 @@ def prefilter_ring_rows(m: np.ndarray, exponent: float, prepared=None) -> list[d
     is ring on the full input (equal to brute to float32 round-off)."""
     from .. import prefilter as pf
 
-    prepared = prepared if prepared is not None else pf.RingInputs(m)
+    prepared = prepared if prepared is not None else pf.ring.RingInputs(m)
     h, w = m.shape[:2]
-    auto = pf.output_levels(h, w, exponent)
+    auto = pf.inputs.output_levels(h, w, exponent)
     rows = []
     for levels in sorted({auto, max(0, auto - 1)}, reverse=True):
-        ref, _ = pf.prefilter_ring(m, exponent, levels, prepared, working_levels=99)
+        ref, _ = pf.ring.prefilter_ring(m, exponent, levels, prepared, working_levels=99)
         for wl in range(0, min(levels, 3) + 1):
-            (out, ws), dt = timed(pf.prefilter_ring, m, exponent, levels, prepared,
+            (out, ws), dt = timed(pf.ring.prefilter_ring, m, exponent, levels, prepared,
                                   working_levels=wl)
             p99, mx = prefilter_errors(out, ref)
             rows.append({"exponent": float(exponent), "output": f"{w >> levels}×{h >> levels}",
                          "working": f"{ws[1]}×{ws[0]}",
-                         "auto": bool(levels == auto and wl == min(levels, pf.WORKING_LEVELS)),
+                         "auto": bool(levels == auto and wl == min(levels, pf.ring.WORKING_LEVELS)),
                          "time_s": dt, "p99_error": p99, "max_error": mx})
     return rows
 

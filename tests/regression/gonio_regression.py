@@ -123,7 +123,7 @@ def prefiltered_sky() -> dict[float, np.ndarray]:
     from gonio_cli import prefilter
     from gonio_cli.imageio import read_image
 
-    pixels, _ = prefilter.validate_map(read_image(SKY).pixels, path=str(SKY))
+    pixels, _ = prefilter.inputs.validate_map(read_image(SKY).pixels, path=str(SKY))
     results = prefilter.prefilter(pixels, PREFILTER_EXPONENTS, check=False, path=str(SKY))
     return {r.exponent: r.pixels for r in results}
 

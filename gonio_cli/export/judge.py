@@ -1,0 +1,181 @@
+"""What an export loses: the exported BRDF against the material, in CIEDE2000.
+
+Every target that cannot carry a gonio material exactly (glTF: a fit of its own BRDF,
+:mod:`gonio_cli.export.gltf_fit`) is judged here the same way (docs/export.md):
+
+* **Where**: at the configurations of the measurement the material was fitted to, when
+  the material's ``inputs`` name a ``gonio.measurement`` that is still there (the path as
+  recorded, else beside the material) and on its spectral grid; otherwise on
+  :func:`in_plane_grid`.
+* **Colour**: both as linear-sRGB reflectance factors R = π f under D65 (the CIE 1931 2°
+  observer of docs/conventions.md; a spectrum through
+  :func:`gonio_cli.export.mitsuba.rgb_weights`), to L*a*b* with each configuration scaled
+  by 1 / max(1, Y) of the material there (:func:`gonio_cli.export.gltf_fit.perceived`,
+  as ``gonio fit``'s verdict scales a highlight), compared by CIEDE2000
+  (:func:`gonio_cli.spectra.delta_e_2000`).
+* **Beside it**: the material's own fit error, the same figure of the material against
+  the measured data (with the fit's light-source gains, as ``gonio eval``), when the
+  measurement is found; else the figures the fit recorded (D65, 10° observer).
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from ..geometry import Cosines, in_plane_cosines
+
+#: The in-plane grid used when the material's measurement is not at hand: θi 0–75° every
+#: 15°, θo −75–85° every 5° (the light's side and the far side, the mirror included).
+GRID_THETA_I_DEG = tuple(range(0, 76, 15))
+GRID_THETA_O_DEG = tuple(range(-75, 86, 5))
+
+#: Percentile reported beside the mean and the worst.
+PERCENTILE = 95.0
+
+COLOUR = ("CIEDE2000 of R = pi f as linear sRGB under D65 (CIE 1931 2 degree observer), "
+          "each configuration scaled by 1/max(1, Y) of the material")
+
+
+def check_colour_grid(material, material_path) -> None:
+    """Refuse a material whose grid misses the visible (its colour cannot be judged)."""
+    from ..errors import InputError
+    from ..fit.verdict import COLOUR_RANGE_NM, covers_colour
+
+    if not covers_colour(material.wavelength_nm):
+        wl = np.asarray(material.wavelength_nm, dtype=float)
+        raise InputError(f"wavelength_nm {wl[0]:g}-{wl[-1]:g} nm does not cover "
+                         f"{COLOUR_RANGE_NM[0]:g}-{COLOUR_RANGE_NM[1]:g} nm, so its colour "
+                         "cannot be fitted or judged", path=material_path,
+                         fix="fit the material on a grid covering the visible (gonio ingest "
+                             "--grid-nm 380:780:10)")
+
+
+def in_plane_grid() -> tuple[np.ndarray, np.ndarray]:
+    """(θi, θo) in degrees, (N,) each: :data:`GRID_THETA_I_DEG` × :data:`GRID_THETA_O_DEG`."""
+    ti, to = np.meshgrid(GRID_THETA_I_DEG, GRID_THETA_O_DEG, indexing="ij")
+    return ti.ravel().astype(float), to.ravel().astype(float)
+
+
+def find_measurement(material_path, material_doc: dict):
+    """(path, Measurement) of the material's recorded input measurement, or (None, None)
+    when none is recorded, found, readable or on the material's grid."""
+    from ..errors import GonioError
+    from ..schemas import read_measurement
+    from ..spectra import same_grid
+
+    base = Path(material_path).resolve().parent
+    for record in material_doc.get("inputs") or []:
+        recorded = Path(str(record.get("path", "")))
+        for path in (recorded, base / recorded.name):
+            if not path.is_file():
+                continue
+            try:
+                meas = read_measurement(path)
+            except GonioError:
+                continue
+            if same_grid(meas.wavelength_nm, material_doc.get("wavelength_nm", [])):
+                return path, meas
+    return None, None
+
+
+@dataclass
+class Judgement:
+    """CIEDE2000 (N,) of an export against its material at (θi, θo) (N,) degrees."""
+
+    delta_e: np.ndarray
+    theta_i_deg: np.ndarray
+    theta_o_deg: np.ndarray
+
+    @property
+    def worst_index(self) -> int:
+        return int(np.argmax(self.delta_e))
+
+    def summary(self) -> dict[str, Any]:
+        k = self.worst_index
+        return {"delta_e2000_mean": float(np.mean(self.delta_e)),
+                "delta_e2000_p95": float(np.percentile(self.delta_e, PERCENTILE)),
+                "delta_e2000_worst": float(self.delta_e[k]),
+                "worst_configuration": {"theta_i_deg": float(self.theta_i_deg[k]),
+                                        "theta_o_deg": float(self.theta_o_deg[k])}}
+
+
+def delta_e_rgb(rgb_ref, rgb_test) -> np.ndarray:
+    """CIEDE2000 (N,) of linear-sRGB reflectance factors (N, 3) against ``rgb_ref``."""
+    from ..spectra import delta_e_2000
+    from .gltf_fit import perceived
+
+    lab = perceived(rgb_ref)
+    return delta_e_2000(lab(rgb_ref), lab(rgb_test))
+
+
+def judge(material, exported_rgb: Callable[[Cosines], np.ndarray], theta_i_deg,
+          theta_o_deg) -> Judgement:
+    """The exported BRDF (f (..., 3) linear sRGB) against ``material`` at in-plane
+    configurations (degrees)."""
+    from .gltf_fit import material_rgb
+
+    cos = in_plane_cosines(theta_i_deg, theta_o_deg)
+    de = delta_e_rgb(np.pi * material_rgb(material)(cos), np.pi * exported_rgb(cos))
+    return Judgement(de, np.asarray(theta_i_deg, float), np.asarray(theta_o_deg, float))
+
+
+def own_fit(material, material_path, material_doc: dict, meas_path, meas) -> dict[str, Any]:
+    """The material's own fit error, as :func:`judge` measures (material against the
+    data) when the measurement is at hand, else the verdict recorded by ``gonio fit``."""
+    from ..evaluate import evaluate_at, gains_for
+    from .mitsuba import rgb_weights
+
+    if meas is not None:
+        gains = gains_for(material, meas, "auto", material_path=material_path,
+                          measurement_path=meas_path)
+        model = evaluate_at(material, meas, gains=gains).brdf
+        w = rgb_weights(meas.wavelength_nm).T
+        j = Judgement(delta_e_rgb(np.pi * meas.brdf @ w, np.pi * model @ w),
+                      meas.theta_i_deg, meas.theta_o_deg)
+        return {"source": f"the material against {os.fspath(meas_path)}, as above",
+                **j.summary()}
+    verdict = (material_doc.get("fit") or {}).get("verdict") or {}
+    if "delta_e2000_mean" not in verdict:
+        return {"source": "not recorded"}
+    return {"source": "recorded by gonio fit: " + str(verdict.get("colour", "")),
+            "delta_e2000_mean": float(verdict["delta_e2000_mean"]),
+            "delta_e2000_worst": float(verdict.get("delta_e2000_worst", np.nan))}
+
+
+def report(target: str, material, material_path, exported_rgb) -> dict[str, Any]:
+    """The payload of an export's report: where it was judged, per configuration
+    CIEDE2000, mean, p95, worst, and the material's own fit error beside it."""
+    from ..artifact import read_artifact
+    from ..schemas import Material
+
+    doc = read_artifact(material_path, Material.SCHEMA, Material.READ_VERSIONS)
+    meas_path, meas = find_measurement(material_path, doc)
+    if meas is not None:
+        ti, to = meas.theta_i_deg, meas.theta_o_deg
+        where = f"the configurations of {os.fspath(meas_path)}"
+    else:
+        ti, to = in_plane_grid()
+        where = "an in-plane grid (the material's measurement was not found)"
+    j = judge(material, exported_rgb, ti, to)
+    return {"target": target, "model": material.model, "configurations": where,
+            "colour": COLOUR, **j.summary(),
+            "material_fit": own_fit(material, material_path, doc, meas_path, meas),
+            "theta_i_deg": j.theta_i_deg, "theta_o_deg": j.theta_o_deg,
+            "delta_e2000": j.delta_e}
+
+
+def sentence(name: str, target_label: str, rep: dict[str, Any]) -> str:
+    """The one stderr line: ``gonio export: red.glb: glTF keeps mean CIEDE2000 2.1 (worst
+    5.3 at θi 45° θo 10°) against the material (its own fit: 1.2)``."""
+    w = rep["worst_configuration"]
+    own = rep["material_fit"].get("delta_e2000_mean")
+    own_text = f"{own:.1f}" if own is not None else "not recorded"
+    return (f"gonio export: {name}: {target_label} keeps mean CIEDE2000 "
+            f"{rep['delta_e2000_mean']:.1f} (worst {rep['delta_e2000_worst']:.1f} at "
+            f"θi {w['theta_i_deg']:g}° θo {w['theta_o_deg']:g}°) against the material "
+            f"(its own fit: {own_text})")
