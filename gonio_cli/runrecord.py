@@ -14,9 +14,10 @@ run measures, and what only says where and when it ran, moves out of the artifac
   Documents whose subject is the run itself (:data:`RUN_RECORDS`: ``gonio report``'s
   ``report.json``, ``gonio render --report``) keep their times.
 * **Paths** an artifact records are made relative to the artifact's folder
-  (:func:`portable`): every input's, and every other string that is an absolute path
-  (a scene, a ``--var`` value, an output named by its absolute path). A relative path given
-  on the command line for anything but an input is kept as given.
+  (:func:`portable`): every input's, and the absolute paths among its options and the
+  outputs it names (:data:`PATH_FIELDS`: a scene, a ``--var`` value, ``--dark``, a
+  halftone's ``mask``). A relative path given on the command line for anything but an
+  input is kept as given, and so is a path inside a message.
 
 Images take the same paths, and carry no times at all (:func:`drop_timings`).
 """
@@ -116,16 +117,24 @@ def _relative_strings(obj: Any, folder: str) -> Any:
     return obj
 
 
+#: Fields that hold options or output paths: an absolute path anywhere in them is made
+#: relative (other fields, such as messages that start with a file's name, are kept).
+PATH_FIELDS = frozenset({"parameters", "settings", "outputs", "mask", "split"})
+
+
 def portable(doc: Mapping[str, Any], path: str | os.PathLike) -> dict[str, Any]:
     """``doc`` (to be written at ``path``) with its paths relative to ``path``'s folder:
-    each input's path, and every other string that is an absolute path."""
+    each input's path, and the absolute paths among its options and outputs
+    (:data:`PATH_FIELDS`)."""
     folder = os.path.dirname(os.path.abspath(path))
-    out = {k: _relative_strings(v, folder) for k, v in doc.items() if k != "inputs"}
-    if isinstance(doc.get("inputs"), list):
-        out = {**out, "inputs": [
-            {**i, "path": relative_path(i["path"], folder)} if isinstance(i, dict)
-            and isinstance(i.get("path"), str) else i for i in doc["inputs"]]}
-        out = {k: out[k] for k in doc}  # the document's own order of fields
+    out = {}
+    for key, value in doc.items():
+        if key == "inputs" and isinstance(value, list):
+            value = [{**i, "path": relative_path(i["path"], folder)} if isinstance(i, dict)
+                     and isinstance(i.get("path"), str) else i for i in value]
+        elif key in PATH_FIELDS:
+            value = _relative_strings(value, folder)
+        out[key] = value
     return out
 
 
