@@ -33,6 +33,7 @@ from gonio_cli.__main__ import use_blas_threads
 
 use_blas_threads()  # before numpy: kernels timed as in a gonio process
 
+from gonio_cli.artifact import read_artifact
 from gonio_cli.names import FIT_MODEL_CHOICES
 from gonio_cli.fit.sweep import (comparison_sweep, format_comparison, format_rows,
                                   goniochromatic_sweep)
@@ -102,7 +103,7 @@ def models_on_data(tmp: Path, quick: bool) -> None:
             if code != 0:
                 print(f"| {label} | {model} | exit {code} | | | | {wall:.2f} | {peak:.0f} |")
                 continue
-            doc = json.loads(out.read_text())
+            doc = read_artifact(out, "gonio.material", (1, 2))   # times: its side record
             v = doc["fit"].get("verdict", {})
             ratios = list(v.get("mirror_peak_y_ratio", {}).values())
             peak_txt = f"{min(ratios):.2f}–{max(ratios):.2f}" if ratios else "–"

@@ -4,12 +4,16 @@ Every file a stage writes for another stage to read is a JSON document of the fo
 
     {
       "schema": "gonio.measurement", "schema_version": 1,
-      "gonio_version": "0.1.0", "created_utc": "2026-11-23T15:00:00Z",
-      "inputs": [{"path": "red.csv", "sha256": "..."}],
+      "gonio_version": "0.1.0",
+      "inputs": [{"path": "../../sample_data/ink_red.csv", "sha256": "..."}],
       "parameters": {...},            # the options that produced it
-      "time_s": 0.012,                # wall time of the stage's core
       ...payload (units in field names: wavelength_nm, theta_i_deg, brdf_per_sr)...
     }
+
+and the same inputs and options give the same bytes: input paths are relative to the
+artifact's folder, and the run's ``created_utc`` and ``time_s`` (the stage's wall time,
+and every ``…time_s`` of the payload) are in its side record ``NAME.run.json``
+(:mod:`gonio_cli.runrecord`), which :func:`read_artifact` merges back in.
 
 Writes go to a temporary file in the destination folder and are moved into place with
 :func:`os.replace`, so a failed or interrupted run leaves the previous file (or none),
@@ -30,7 +34,7 @@ from typing import Any, Iterable, Iterator, Mapping
 
 import numpy as np
 
-from . import __version__
+from . import __version__, runrecord
 from .errors import ArtifactError, GonioError, NumericError, WriteError, binary_kind
 # the record of written files lives with the outputs' transaction (gonio_cli.outputs)
 from .outputs import forget_written, note_written, umask, written_files  # noqa: F401
@@ -260,8 +264,12 @@ def _first_nonfinite(obj: Any, where: str = "") -> tuple[str, Any] | None:
 
 def write_json(path: str | os.PathLike, doc: Mapping[str, Any]) -> None:
     """Write a JSON document atomically. NaN and inf are refused, naming the field
-    (:class:`~gonio_cli.errors.NumericError`): JSON has no such numbers."""
-    plain = _to_jsonable(doc)
+    (:class:`~gonio_cli.errors.NumericError`): JSON has no such numbers.
+
+    An artifact (a document with a ``schema``) is written reproducibly
+    (:mod:`gonio_cli.runrecord`): its paths relative to its folder, its date and times in
+    its side record ``NAME.run.json``, written (and committed) with it."""
+    plain, timings = runrecord.prepare(_to_jsonable(doc), path)
     try:
         text = json.dumps(plain, indent=1, allow_nan=False)
     except ValueError:
@@ -272,8 +280,29 @@ def write_json(path: str | os.PathLike, doc: Mapping[str, Any]) -> None:
                            "overflowed; nothing written", path=path,
                            fix="check the inputs for huge or all-zero values (docs/"
                                "conventions.md, Numeric ranges)") from None
+    data = (text + "\n").encode("utf-8")
     with atomic_path(path) as tmp:
-        tmp.write_text(text + "\n", encoding="utf-8")
+        tmp.write_bytes(data)
+    if timings is not None:
+        _write_side_record(path, data, timings)
+
+
+def _write_side_record(path: str | os.PathLike, data: bytes, timings: Mapping[str, Any]
+                       ) -> None:
+    """Write the side record of the artifact ``data`` at ``path``; staged with it when
+    the artifact is one of the command's declared outputs (so the two land together)."""
+    import hashlib
+
+    from . import outputs
+
+    side = runrecord.side_path(path)
+    tx = outputs.current()
+    if tx is not None and tx.is_output(path):
+        outputs.declare({"the side record": side})
+    record = runrecord.side_record(path, hashlib.sha256(data).hexdigest(), timings)
+    with atomic_path(side) as tmp:
+        tmp.write_text(json.dumps(record, indent=1, allow_nan=False) + "\n",
+                       encoding="utf-8")
 
 
 def write_artifact(path: str | os.PathLike, schema: str, schema_version: int,
@@ -375,7 +404,8 @@ def read_artifact(path: str | os.PathLike, schema: str,
             f"{schema} schema_version {doc.get('schema_version')!r} is not supported "
             f"(this gonio {__version__} reads {', '.join(map(str, versions))})", path=path,
             fix="regenerate it with this version of gonio")
-    return doc
+    timings = runrecord.read_timings(path, data)  # the times of its side record, if its own
+    return doc if timings is None else runrecord.merge_timings(doc, timings)
 
 
 def read_toml(path: str | os.PathLike, what: str, error: type[GonioError],

@@ -4,14 +4,14 @@ Arrays are (row, column, channel), row 0 the top (docs/conventions.md). Reading 
 values as stored (8/16-bit integers scaled to [0, 1]; no colour decoding: the caller
 decides what the numbers mean, e.g. sRGB-encoded PNG vs linear EXR), or, on request, the
 stored 8/16-bit integers themselves. EXR outputs carry gonio metadata (schema, version,
-parameters, time) as string attributes, as pbrt writes its render time into its EXRs
-(STYLE 13).
+parameters) as string attributes (STYLE 13); times go to the command's JSON and run
+report, never into an image (docs/conventions.md, "Files and errors").
 
 Writers take a ``compression`` level by name (:data:`COMPRESSION`); all of them are
-lossless. EXR headers get a ``DateTime``; where the ``SOURCE_DATE_EPOCH`` environment
+lossless. The same pixels and metadata give the same bytes: PNG files carry no time at
+all, and EXR headers a ``DateTime`` only where the ``SOURCE_DATE_EPOCH`` environment
 variable is set (the reproducible-builds convention,
-https://reproducible-builds.org/specs/source-date-epoch/) it is that moment in UTC, so the
-same pixels and metadata give the same bytes. PNG files carry no time at all.
+https://reproducible-builds.org/specs/source-date-epoch/): that moment in UTC.
 """
 
 from __future__ import annotations
@@ -93,7 +93,7 @@ def header_date_time(source_date_epoch: int | str | None = None) -> str | None:
 
     ``source_date_epoch`` (seconds since 1970-01-01T00:00:00Z) or else the
     ``SOURCE_DATE_EPOCH`` environment variable; None when neither is set (the writer then
-    stamps the current time).
+    writes no date).
 
     >>> header_date_time(0)
     '1970:01:01 00:00:00'
@@ -172,10 +172,15 @@ def read_image(path: str | os.PathLike, *, keep_integers: bool = False) -> Image
         inp.close()
 
 
-def _with_version(metadata: Mapping[str, Any] | None) -> dict[str, Any]:
-    """The metadata to write: ``gonio_version`` first (once, whether or not the caller's
-    :func:`gonio_cli.artifact.image_metadata` has it), then the caller's keys."""
-    return {"gonio_version": __version__, **(metadata or {})}
+def _with_version(metadata: Mapping[str, Any] | None, path: str | os.PathLike
+                  ) -> dict[str, Any]:
+    """The metadata to write at ``path``: ``gonio_version`` first (once, whether or not
+    the caller's :func:`gonio_cli.artifact.image_metadata` has it), then the caller's keys,
+    reproducibly (:mod:`gonio_cli.runrecord`): no times (``time_s``, ``…_time_s``: the
+    command's JSON and run report have them), paths relative to the image's folder."""
+    from .runrecord import drop_timings, portable
+
+    return portable(drop_timings({"gonio_version": __version__, **(metadata or {})}), path)
 
 
 def _meta_text(value: Any) -> str:
@@ -203,7 +208,7 @@ def _write(path: str | os.PathLike, pixels: np.ndarray, fmt: str,
             spec.attribute(key, oiio.TypeDesc(TYPED_ATTRIBUTES[key]), tuple(value))
         else:
             spec.attribute(key, value)
-    for key, value in _with_version(metadata).items():
+    for key, value in _with_version(metadata, path).items():
         spec.attribute(META_PREFIX + key, _meta_text(value))
     with atomic_path(path) as tmp:
         out = oiio.ImageOutput.create(str(tmp))
@@ -243,7 +248,7 @@ def _write_pillow_png(path: str | os.PathLike, image, metadata: Mapping[str, Any
     strategy = {} if chosen.png_zlib_strategy is None else {
         "compress_type": chosen.png_zlib_strategy}
     info = PngInfo()
-    for key, value in _with_version(metadata).items():
+    for key, value in _with_version(metadata, path).items():
         info.add_text(META_PREFIX + key, _meta_text(value))
     with atomic_path(path) as tmp:
         image.save(tmp, format="PNG", pnginfo=info, compress_level=level, optimize=False,
@@ -272,7 +277,7 @@ def write_apng(path: str | os.PathLike, frames: Sequence[str | os.PathLike], *,
         with PILImage.open(readable(f)) as im:
             images.append(im.convert("RGBA" if "A" in im.getbands() else "RGB"))
     info = PngInfo()
-    for key, value in _with_version(metadata).items():
+    for key, value in _with_version(metadata, path).items():
         info.add_text(META_PREFIX + key, _meta_text(value))
     with atomic_path(path) as tmp:
         images[0].save(tmp, format="PNG", save_all=True, append_images=images[1:],
@@ -335,17 +340,16 @@ def write_exr(path: str | os.PathLike, pixels: np.ndarray,
     :class:`~gonio_cli.errors.NumericError` naming the file, unless ``allow_nonfinite``
     (for a test that makes a broken map on purpose).
 
-    ``compression``: a key of :data:`COMPRESSION` (all lossless). The header's
-    ``DateTime`` is ``source_date_epoch`` or the ``SOURCE_DATE_EPOCH`` environment variable
-    when set (:func:`header_date_time`), else the current time. ``chromaticities``: CIE xy
+    ``compression``: a key of :data:`COMPRESSION` (all lossless). The header has a
+    ``DateTime`` only when ``source_date_epoch`` or the ``SOURCE_DATE_EPOCH`` environment
+    variable gives one (:func:`header_date_time`): no run's time is written. ``chromaticities``: CIE xy
     of R, G, B and white (8 floats), the standard attribute naming the colour space;
     ``channel_names``: e.g. ``("X", "Y", "Z")`` (default R, G, B, A).
     """
     attributes: dict[str, Any] = {
         "compression": get_compression(compression, "compression").exr_codec}
-    date_time = header_date_time(source_date_epoch)
-    if date_time is not None:
-        attributes["DateTime"] = date_time
+    # an empty DateTime: OpenImageIO then writes none (it would stamp the current time)
+    attributes["DateTime"] = header_date_time(source_date_epoch) or ""
     if chromaticities is not None:
         attributes["chromaticities"] = [float(v) for v in chromaticities]
     with np.errstate(over="ignore"):  # a value beyond float32 becomes inf: refused next
@@ -391,15 +395,12 @@ def write_spectral_exr(path: str | os.PathLike, spectra: np.ndarray, wavelength_
     with np.errstate(over="ignore"):  # a value beyond float32 becomes inf: refused next
         values = np.asarray(spectra, dtype=np.float32)
     check_finite(values, "the spectral image (float32)", path)
-    ours = [Image_Specification_Attribute(META_PREFIX + "gonio_version", __version__)]
-    ours += [Image_Specification_Attribute(META_PREFIX + k, _meta_text(v))
-             for k, v in (metadata or {}).items()]
+    ours = [Image_Specification_Attribute(META_PREFIX + k, _meta_text(v))
+            for k, v in _with_version(metadata, path).items()]
     ours.append(Image_Specification_Attribute(
         "chromaticities", list(rgb_space_chromaticities("srgb")), TypeDesc("float[8]")))
     ours.append(Image_Specification_Attribute("compression", SPECTRAL_EXR_CODEC))
-    date_time = header_date_time()
-    if date_time is not None:
-        ours.append(Image_Specification_Attribute("DateTime", date_time))
+    ours.append(Image_Specification_Attribute("DateTime", header_date_time() or ""))
 
     def preview(components, specification):
         return np.asarray(preview_rgb, dtype=np.float32), ours

@@ -56,21 +56,38 @@ def test_write_then_read_round_trips_the_payload(tmp_path, rng):
 
 
 def test_provenance_fields(tmp_path, rng):
-    src = write_input(tmp_path, rng)
+    """The file holds the provenance but no date or duration; those are in its side record
+    NAME.run.json (with the file's sha256), and read_artifact puts them back."""
+    (tmp_path / "data").mkdir()
+    src = write_input(tmp_path / "data", rng)
+    out = tmp_path / "out" / "a.json"
     before = dt.datetime.now(dt.timezone.utc).replace(microsecond=0)
-    artifact.write_artifact(tmp_path / "a.json", SCHEMA, 3, {"x": 1}, inputs=[src],
-                            parameters={"grid_nm": "380:780:10"}, time_s=0.25)
+    artifact.write_artifact(out, SCHEMA, 3, {"x": 1, "step": {"time_s": 0.5, "n": 2}},
+                            inputs=[src], parameters={"grid_nm": "380:780:10"}, time_s=0.25)
     after = dt.datetime.now(dt.timezone.utc)
-    doc = json.loads((tmp_path / "a.json").read_text())
-    assert set(artifact.ENVELOPE_KEYS) <= set(doc)
+    doc = json.loads(out.read_text())
+    assert list(doc) == ["schema", "schema_version", "gonio_version", "inputs", "parameters",
+                         "x", "step"]
     assert doc["schema"] == SCHEMA and doc["schema_version"] == 3
     assert doc["gonio_version"] == gonio_cli.__version__
-    assert doc["inputs"] == [{"path": os.fspath(src),
+    # the input's path from the artifact's folder: out/ → ../data/
+    assert doc["inputs"] == [{"path": "../data/" + src.name,
                               "sha256": hashlib.sha256(src.read_bytes()).hexdigest()}]
-    assert doc["parameters"] == {"grid_nm": "380:780:10"}
-    assert doc["time_s"] == 0.25
-    created = dt.datetime.strptime(doc["created_utc"], "%Y-%m-%dT%H:%M:%SZ")
+    assert doc["parameters"] == {"grid_nm": "380:780:10"} and doc["step"] == {"n": 2}
+    side = json.loads((tmp_path / "out" / "a.run.json").read_text())
+    assert side["schema"] == "gonio.run" and side["artifact"] == "a.json"
+    assert side["artifact_sha256"] == hashlib.sha256(out.read_bytes()).hexdigest()
+    assert side["timings"] == {"time_s": 0.25, "step": {"time_s": 0.5}}
+    assert side["host"] and side["pid"] == os.getpid()
+    created = dt.datetime.strptime(side["created_utc"], "%Y-%m-%dT%H:%M:%SZ")
     assert before <= created.replace(tzinfo=dt.timezone.utc) <= after
+    back = artifact.read_artifact(out, SCHEMA, (3,))
+    assert back["time_s"] == 0.25 and back["step"] == {"time_s": 0.5, "n": 2}
+    assert back["created_utc"] == side["created_utc"]
+    # a side record of other bytes is not merged: the times are not this file's
+    out.write_text(out.read_text().replace('"x": 1', '"x": 2'))
+    back = artifact.read_artifact(out, SCHEMA, (3,))
+    assert "time_s" not in back and back["step"] == {"n": 2} and back["x"] == 2
 
 
 def test_payload_may_not_shadow_the_envelope():
@@ -319,5 +336,7 @@ def test_image_metadata_is_the_envelope_without_a_time(tmp_path):
     assert a.read_bytes() == b.read_bytes()
     back = read_image(a).metadata
     assert back["gonio_version"] == gonio_cli.__version__
-    assert json.loads(back["inputs"]) == meta["inputs"] and back["schema_version"] == "3"
+    # the file records the input's path relative to its own folder (here, the same one)
+    assert json.loads(back["inputs"]) == [{**meta["inputs"][0], "path": "in.csv"}]
+    assert back["schema_version"] == "3"
     assert a.read_bytes().count(b"gonio:gonio_version") == 1     # written once

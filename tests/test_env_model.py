@@ -93,6 +93,41 @@ def test_constant_environment_reflects_the_directional_albedo(make, theta_v):
     np.testing.assert_allclose(got, want, rtol=5e-3)
 
 
+def _sky_chain_and_rays(n: int = 4000):
+    """The bundled sky's 64-row chain in memory, ``n`` random unit normals and views (grazing
+    and turned-away ones included) and the generator that drew them."""
+    chain = [float(e) for e in envmap.chain_exponents(64)]
+    results = prefilter(sky(64), chain, check=False)
+    env = Environment("memory", np.array([r.exponent for r in results]), [""] * len(results),
+                      [r.pixels.shape[:2] for r in results],
+                      {float(r.exponent): r.pixels for r in results})
+    rng = np.random.default_rng(5)
+    normal = rng.normal(size=(n, 3))
+    view = rng.normal(size=(n, 3))
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    view /= np.linalg.norm(view, axis=1, keepdims=True)
+    return env, normal, view, rng
+
+
+@pytest.mark.skipif(not c_build_available(), reason="the C build was not compiled")
+def test_c_build_gives_the_same_bits_on_any_number_of_threads(sky_case, monkeypatch):  # noqa: F811
+    """The C build splits the pixels over threads; each pixel is computed by one thread on
+    its own (no sum across pixels), so 1, 3 or 7 threads give the same bits, and a render's
+    bytes do not depend on the machine's cores (docs/conventions.md, reproducible files)."""
+    from gonio_cli import machine
+    from gonio_cli.render import env_lookup
+
+    env, normal, view, _ = _sky_chain_and_rays(1001)    # not a multiple of the thread counts
+    tables = material_tables(coat_paint(), WL, env.exponents)
+    monkeypatch.setattr(env_lookup, "C_MIN_PIXELS_PER_THREAD", 10)
+    out = {}
+    for threads in (1, 3, 7):
+        monkeypatch.setattr(machine, "cpu_count", lambda threads=threads: threads)
+        out[threads] = model_environment_xyz(env, tables, normal, view, WL, build="c")
+    assert np.abs(out[1]).max() > 0
+    assert np.array_equal(out[1], out[3]) and np.array_equal(out[1], out[7])
+
+
 @pytest.mark.skipif(not c_build_available(), reason="the C build was not compiled")
 @pytest.mark.parametrize("channels", [None, 5], ids=["xyz", "observer"])
 def test_c_and_numpy_builds_agree(sky_case, channels):  # noqa: F811
@@ -103,16 +138,7 @@ def test_c_and_numpy_builds_agree(sky_case, channels):  # noqa: F811
     the sharpest map's texel), the numpy build the maps' float32 bilinear sums: 2e-3 of the
     largest value bounds both, and a wrong level, row or matrix would move values by far
     more (the coat's sharp levels vary by 10× across a texel's neighbours)."""
-    chain = [float(e) for e in envmap.chain_exponents(64)]
-    results = prefilter(sky(64), chain, check=False)
-    env = Environment("memory", np.array([r.exponent for r in results]), [""] * len(results),
-                      [r.pixels.shape[:2] for r in results],
-                      {float(r.exponent): r.pixels for r in results})
-    rng = np.random.default_rng(5)
-    normal = rng.normal(size=(4000, 3))
-    view = rng.normal(size=(4000, 3))
-    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
-    view /= np.linalg.norm(view, axis=1, keepdims=True)
+    env, normal, view, rng = _sky_chain_and_rays()
     observer = None if channels is None else rng.uniform(0.0, 1.0, (WL.size, channels))
     for material in (coat_paint(), metal()):
         tables = material_tables(material, WL, env.exponents)

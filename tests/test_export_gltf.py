@@ -298,7 +298,8 @@ def test_bad_options_are_one_line_and_write_nothing(run_gonio, tmp_path, args, s
     assert r.exit_code == 2
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("gonio: error:") and says in lines[0]
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["orange.material.json"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["orange.material.json",
+                                                          "orange.material.run.json"]
 
 
 def test_a_grid_without_the_visible_is_refused(run_gonio, tmp_path):

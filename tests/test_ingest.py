@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from gonio_cli import ingest as core
+from gonio_cli.artifact import read_artifact
 from gonio_cli.csvio import aspecular_angles, read_spectra
 from gonio_cli.ingest.quantities import DEFAULT_WHITE_REFLECTANCE, QUANTITIES, receptor_solid_angle
 from gonio_cli.schemas import read_measurement
@@ -246,10 +247,11 @@ def test_dark_provenance_in_artifact(tmp_path, run_gonio):
                     "--white-reflectance", white)
     assert res.exit_code == 0, res.stderr
     doc = json.loads(out.read_text())
-    assert [i["path"] for i in doc["inputs"]] == [str(src), str(dark), str(white)]
+    # paths relative to the artifact's folder (here the same one: reproducible bytes)
+    assert [i["path"] for i in doc["inputs"]] == ["a.csv", "dark.csv", "white.csv"]
     assert all(len(i["sha256"]) == 64 for i in doc["inputs"])
-    assert doc["parameters"]["dark"] == str(dark)
-    assert doc["parameters"]["white_reflectance"] == str(white)
+    assert doc["parameters"]["dark"] == "dark.csv"
+    assert doc["parameters"]["white_reflectance"] == "white.csv"
     np.testing.assert_allclose(read_measurement(out).brdf, (v - 0.001) * 0.98 / np.pi,
                                rtol=1e-12)
 
@@ -474,11 +476,13 @@ def test_artifact_round_trip_and_provenance(tmp_path, run_gonio):
     assert doc["parameters"] == {"quantity": "brdf", "white_reflectance": None,
                                  "aperture_mm": None, "distance_mm": None, "dark": None,
                                  "grid_nm": DEFAULT_GRID_NM, "scale": 1.0, "sample": None}
-    assert doc["time_s"] > 0
+    assert "time_s" not in doc and "created_utc" not in doc    # in its side record
+    assert read_artifact(out, "gonio.measurement", (1,))["time_s"] > 0
     assert doc["brdf_std"] is None
     m = read_measurement(out)
     np.testing.assert_array_equal(m.brdf, v)
-    assert sorted(p.name for p in out.parent.iterdir()) == ["m.json"]  # no temp files
+    # no temp files; the side record beside the artifact
+    assert sorted(p.name for p in out.parent.iterdir()) == ["m.json", "m.run.json"]
 
 
 def test_summary_on_stdout(tmp_path, run_gonio):

@@ -410,7 +410,8 @@ def test_failed_run_keeps_the_previous_artifact(tmp_path, run_gonio):
     before = out.read_bytes()
     assert run_gonio("ingest", bad, "-o", out).exit_code == 2
     assert out.read_bytes() == before
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.csv", "good.csv", "m.json"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.csv", "good.csv", "m.json",
+                                                          "m.run.json"]
 
 
 # ---------------------------------------------- instrument exports (fixtures) --

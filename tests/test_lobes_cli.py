@@ -4,10 +4,12 @@ line on stderr, nothing written)."""
 from __future__ import annotations
 
 import json
+import os
 
 import numpy as np
 import pytest
 
+from gonio_cli.artifact import read_artifact
 from gonio_cli.schemas import (Material, read_lobe_basis, read_lobes, write_material)
 from gonio_cli.synthetic import ink_spectra
 
@@ -53,9 +55,12 @@ def test_round_trip(run_gonio, inks, tmp_path):
     assert lobes.gloss.shape == (3, 2, 3) and lobes.diffuse.shape == (3, 3)
     for arr in (lobes.diffuse, lobes.directional_diffuse, lobes.gloss):
         assert np.all(arr >= 0)
-    assert list(doc["errors"]) == ["lp"] and doc["time_s"] > 0     # no comparison unasked
+    assert list(doc["errors"]) == ["lp"]                            # no comparison unasked
+    back = read_artifact(out, "gonio.lobes", (1,))                  # times: the side record
+    assert back["time_s"] > 0 and len(back["errors"]["lp"]["time_s"]) == 3
     assert doc["errors"]["lp"]["status"] == ["optimal"] * 3
-    assert [i["path"] for i in doc["inputs"]] == [str(inks[0]), str(basis)]
+    assert [i["path"] for i in doc["inputs"]] == [os.path.relpath(p, out.parent)
+                                                   for p in (inks[0], basis)]
     r = run_gonio("lobes", "fit", inks[0], "--basis", basis, "--lobes", "2", "-o", out,
                   "--view-angles", "10,40,70", "--channels", "xyz", "--compare")
     assert r.exit_code == 0, r.stderr

@@ -134,7 +134,7 @@ def test_render_at_a_high_ssaa_is_refused(run_gonio, scene, monkeypatch):
                   "--height-px", "2048", "--ssaa", "16")
     refused(r, "scene.toml: a 2048x2048 render at ssaa 16 needs about",
             "lower --ssaa or --width-px/--height-px")
-    only_inputs(scene.parent, "scene.toml", "red.json")
+    only_inputs(scene.parent, "scene.toml", "red.json", "red.run.json")
 
 
 def test_render_of_a_fine_builtin_sphere_is_refused(run_gonio, scene, monkeypatch):
@@ -143,7 +143,7 @@ def test_render_of_a_fine_builtin_sphere_is_refused(run_gonio, scene, monkeypatc
     r = run_gonio("render", scene, "-o", scene.parent / "o.png", "--var", "seg=4096")
     refused(r, "a 64x64 render of 16.8 M built-in mesh triangles needs about 3.0 GiB",
             "1.0 GiB set by GONIO_MEMORY_AVAILABLE", "lower segments=")
-    only_inputs(scene.parent, "scene.toml", "red.json")
+    only_inputs(scene.parent, "scene.toml", "red.json", "red.run.json")
 
 
 def test_halftone_at_a_large_size_is_refused(run_gonio, tmp_path, monkeypatch):

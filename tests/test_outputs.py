@@ -185,7 +185,7 @@ def test_the_set_is_complete_on_success(run_gonio, image, tmp_path):
     assert r.exit_code == 0, r.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == [
         "photo.png", "print.blue.png", "print.green.png", "print.json", "print.png",
-        "print.red.png"]
+        "print.red.png", "print.run.json"]                # the report's side record
 
 
 # ---------------------------------------------------------------- killed runs --
@@ -212,7 +212,7 @@ def test_stale_temporaries_of_dead_processes_are_removed_live_ones_kept(run_goni
         r = run_gonio("ingest", SAMPLE / "ink_red.csv", "-o", tmp_path / "red.json")
         assert r.exit_code == 0, r.stderr
         assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
-            [live, unrelated, "red.json"])
+            [live, unrelated, "red.json", "red.run.json"])
     finally:
         live_proc.kill()
         live_proc.wait()

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from gonio_cli import envmap
-from gonio_cli.artifact import write_artifact
+from gonio_cli.artifact import read_artifact, write_artifact
 from gonio_cli.imageio import read_image, write_exr, write_png
 
 SAMPLE = Path(__file__).resolve().parent.parent / "sample_data"
@@ -39,7 +39,8 @@ def test_writes_one_map_per_exponent_and_the_index(run_gonio, sky, tmp_path):
     out = tmp_path / "pre"
     r = run_gonio("prefilter", sky, "--exponents", "8,64", "-o", out)
     assert r.exit_code == 0, r.stderr
-    index = json.loads((out / "index.json").read_text())
+    assert "time_s" not in (out / "index.json").read_text()       # in index.run.json
+    index = read_artifact(out / "index.json", "gonio.prefilter", (2,))   # times merged
     assert index["schema"] == "gonio.prefilter" and index["schema_version"] == 2
     assert index["inputs"][0]["sha256"] and index["parameters"]["exponents"] == [1, 8, 64]
     assert [m["exponent"] for m in index["maps"]] == [1.0, 8.0, 64.0]
@@ -54,7 +55,7 @@ def test_writes_one_map_per_exponent_and_the_index(run_gonio, sky, tmp_path):
         assert np.all(img.pixels >= 0.0) and np.all(np.isfinite(img.pixels))
         assert m["error_estimate"] < 0.01
     assert sorted(p.name for p in out.iterdir()) == sorted(
-        [m["path"] for m in index["maps"]] + ["index.json"])
+        [m["path"] for m in index["maps"]] + ["index.json", "index.run.json"])
 
 
 def test_lobes_file_gives_the_exponents(run_gonio, sky, tmp_path):

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import textwrap
 from pathlib import Path
 
@@ -33,7 +34,7 @@ def test_sparkle_writes_the_packed_texture(run_gonio, tmp_path):
     assert img.metadata["schema"] == "gonio.sparkle-texture"
     assert int(img.metadata["schema_version"]) == 1 and img.metadata["gonio_version"]
     inputs = json.loads(img.metadata["inputs"])
-    assert [r["path"] for r in inputs] == [str(p) for p in PHOTOS]
+    assert [r["path"] for r in inputs] == [os.path.relpath(p, out.parent) for p in PHOTOS]
     assert [r["sha256"] for r in inputs] == [hashlib.sha256(p.read_bytes()).hexdigest()
                                              for p in PHOTOS]
     shipped = read_image(SAMPLE / "sparkle.png").pixels
@@ -141,7 +142,8 @@ def test_render_with_sparkles_reports_them(run_gonio, paint_scene, tmp_path):
     shade = reports["sparkle"]["counts"]["shade"]
     assert shade["sparkle_pixels"] > 0
     assert "sparkle_pixels" not in reports["plain"]["counts"]["shade"]
-    assert str(SAMPLE / "sparkle.png") in [i["path"] for i in reports["sparkle"]["inputs"]]
+    assert os.path.relpath(SAMPLE / "sparkle.png", tmp_path) in [
+        i["path"] for i in reports["sparkle"]["inputs"]]
     a = read_image(tmp_path / "plain.exr").pixels
     b = read_image(tmp_path / "sparkle.exr").pixels
     assert np.all(b >= a - 1e-6) and np.any(b > a + 1e-3)       # light is only added

@@ -9,6 +9,7 @@ cached tables, :mod:`gonio_cli.spectra`)."""
 from __future__ import annotations
 
 import json
+import os
 import textwrap
 
 import numpy as np
@@ -185,8 +186,8 @@ def test_spectra_read_back_and_integrate_to_the_colour_exr(run_gonio, scene, tmp
     assert attrs["gonio:schema"] == "gonio.render-spectra"
     assert json.loads(attrs["gonio:settings"])["adapt"] == "none"
     inputs = json.loads(attrs["gonio:inputs"])                       # provenance
-    assert {i["path"] for i in inputs} == {str(scene), str(tmp_path / "ink.json"),
-                                           str(tmp_path / "ts.json")}
+    assert {i["path"] for i in inputs} == {os.path.relpath(p, out["exr"].parent) for p in
+                                           (scene, tmp_path / "ink.json", tmp_path / "ts.json")}
     assert all(len(i["sha256"]) == 64 for i in inputs)
     assert attrs["gonio:gonio_version"]
 

@@ -79,10 +79,11 @@ def why_stale(job: Job, previous: Mapping[str, Any] | None,
               inputs: list[dict[str, Any]] | None = None) -> str | None:
     """Why ``previous`` (the job's record of an earlier run) does not stand, in words
     (``gonio batch --dry-run`` prints it), or None if it does: same stamp (command and
-    gonio version), same input hashes and, for the user's own files (``job.sources``),
-    the same modification times (``touch`` reruns, as with make; a file another job
-    rewrites with the same bytes does not), every output there with its recorded hash.
-    ``inputs``: the input records if already made (:func:`files`)."""
+    gonio version), same input hashes, every output there with its recorded hash. Content
+    decides, never a modification time: a touched but unchanged file (the user's own, or
+    one another job rewrote with the same bytes) reruns nothing; the ``mtime_ns`` of the
+    user's files is recorded, not compared. ``inputs``: the input records if already made
+    (:func:`files`)."""
     if not previous:
         return "no record of an earlier run"
     if previous.get("status") not in GOOD:
@@ -102,8 +103,6 @@ def why_stale(job: Job, previous: Mapping[str, Any] | None,
             return f"input {i['path']} is missing"
         if i["sha256"] != was["sha256"]:
             return f"input {i['path']} changed (sha256)"
-        if i.get("mtime_ns") != was.get("mtime_ns"):
-            return f"input {i['path']} was touched (modification time)"
     outputs = previous.get("outputs", [])
     if [o["path"] for o in outputs] != list(job.outputs):
         return "its outputs changed (other files)"
