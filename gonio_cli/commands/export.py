@@ -13,7 +13,7 @@ from ..export import TARGETS  # the registry (light: no renderer is imported her
 def export(
     material: Path = typer.Argument(..., metavar="MATERIAL.json", show_default=False,
                                    help="A gonio.material file (gonio fit)."),
-    output: Path = typer.Option(..., "--output", "-o", metavar="DIR|FILE",
+    output: Path = typer.Option(..., "--output", "-o", metavar="OUT",
                                 help="The folder to write (made if missing); for --to "
                                      "gltf, openpbr or cxf the .glb, .mtlx or .cxf file "
                                      "(a fit's report beside it)."),
