@@ -346,19 +346,26 @@ def _gather(client, futures: list) -> list[tuple[Any, Any]]:
 
 @contextlib.contextmanager
 def signals_held():
-    """Hold Ctrl-C and SIGTERM back (main thread, POSIX) while the block runs."""
+    """Hold Ctrl-C and SIGTERM back (main thread) while the block runs: a signal that
+    comes meanwhile is noted and raised again after it. (Blocking them in this thread
+    alone is not enough: the kernel then hands a process's signal to another thread,
+    Dask's, and Python still runs the handler here, mid-block.)"""
     import signal
     import threading
 
-    if threading.current_thread() is not threading.main_thread() or not hasattr(
-            signal, "pthread_sigmask"):
+    if threading.current_thread() is not threading.main_thread():
         yield
         return
-    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+    caught: list[int] = []
+    old = {s: signal.signal(s, lambda signum, frame: caught.append(signum))  # noqa: ARG005
+           for s in (signal.SIGINT, signal.SIGTERM)}
     try:
         yield
     finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+        for s, handler in old.items():
+            signal.signal(s, signal.SIG_DFL if handler is None else handler)  # None: set in C
+        for s in caught:
+            signal.raise_signal(s)
 
 
 def _waits(stale: list[str], deps: Mapping[str, list[str]]):

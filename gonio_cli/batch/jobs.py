@@ -254,17 +254,24 @@ def run_preview(job: Job, warnings: list[str]) -> str | None:  # noqa: ARG001
 RUNNERS: dict[str, Callable[[Job, list[str]], str | None]] = {"gonio": run_gonio, "preview": run_preview}
 
 
-def make_thumbnails(outdir: str, outputs) -> None:
+def make_thumbnails(outdir: str, job: Job) -> dict[str, Any] | None:
     """The contact sheet's small copies of a job's PNG images, made here in the worker
     (in parallel with other jobs) rather than one after another when the sheet is
-    written; the sheet reuses them (:func:`gonio_cli.batch.sheet.thumbnail`). A copy
+    written, and what the sheet shows for its first output if that is an image
+    (:func:`gonio_cli.batch.sheet.image_entry`: the thumbnail, its size, a frame's
+    flags), for the record, so that the driver does not open the image again. A copy
     that cannot be made is made (or reported) by the sheet instead."""
-    from .sheet import thumbnail
+    from .sheet import image_entry, thumbnail
 
-    for path in outputs:
+    entry = None
+    for k, path in enumerate(job.outputs):
         if str(path).lower().endswith(".png"):
             with contextlib.suppress(OSError, ValueError):
-                thumbnail(outdir, path)
+                if k == 0:
+                    entry = image_entry(outdir, path, job.labels.get("role") != "preview")
+                else:
+                    thumbnail(outdir, path)
+    return entry
 
 
 def refused(job: Job, outdir: str, attempts: int, retries: int) -> dict | None:
@@ -350,11 +357,11 @@ def _run(job: Job, outdir: str, previous, attempts: int, run) -> dict[str, Any]:
     if error is None and any(o["sha256"] is None for o in outputs):
         missing = next(o["path"] for o in outputs if o["sha256"] is None)
         error = f"{missing}: the command did not write it"
-    if error is None:
-        make_thumbnails(outdir, job.outputs)
+    image = make_thumbnails(outdir, job) if error is None else None
     return record(job, "failed" if error else "ok", inputs=inputs,
                   outputs=outputs if not error else [], time_s=time_s, run=run,
-                  worker=worker_name(), attempts=attempts, error=error, warnings=warnings)
+                  worker=worker_name(), attempts=attempts, error=error, warnings=warnings,
+                  **({"image": image} if image else {}))
 
 
 def worker_version() -> str:
