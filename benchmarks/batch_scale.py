@@ -100,6 +100,9 @@ def in_process_phases(plan_path: Path, out: Path, profile: bool = False) -> dict
     previous = read_journal(out)
     times["read the journal"] = time.process_time() - start
     start = time.process_time()
+    settle(plan, {})
+    times["up-to-date check, no records"] = time.process_time() - start
+    start = time.process_time()
     done, stale, _ = settle(plan, previous)
     times["up-to-date check"] = time.process_time() - start
     start = time.process_time()
@@ -189,9 +192,9 @@ def measure_driver(gonio: str, tmp: Path, jobs: int, workers: int, repeats: int,
           f"(median), a worker busy {costs['busy_per_task_s'] * 1e3:.1f} ms per task")
     for name, value in phases.items():
         if name != "jobs up to date":
-            print(f"  in-process: {name:25s} {value:6.2f} s CPU ({value / n * 1e3:.2f} ms/job)")
-    # the full up-to-date check (every input hashed), more than a fresh run's
-    plan_s = phases["read and check the plan"] + phases["up-to-date check"]
+            print(f"  in-process: {name:29s} {value:6.2f} s CPU ({value / n * 1e3:.2f} ms/job)")
+    # what a fresh run does before the cluster (the simulated runs are fresh)
+    plan_s = phases["read and check the plan"] + phases["up-to-date check, no records"]
     dispatch = best["run"] - fixed - plan_s - phases["contact sheet"]
     print(f"  dispatching and recording (the run less the fixed cost, the plan and the sheet):"
           f" {dispatch / n * 1e3:.2f} ms/job")

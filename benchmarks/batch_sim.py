@@ -13,7 +13,8 @@ The model follows the engine (gonio_cli/batch/engine.py):
 * a free worker takes the waiting task of highest priority: submission order (Dask's
   default, what the engine does), or the longest path to the end of the graph first;
 * a job occupies its worker for its cost plus ``worker_task_s`` (what gonio batch and Dask
-  add to a job in the worker);
+  add to a job in the worker) and, for a frame, ``worker_image_s`` (its thumbnail and
+  flags for the contact sheet);
 * after the last record the driver writes the contact sheet (``sheet_s``, serial).
 
 Efficiency = the jobs' own time / (W × makespan), makespan from the driver's start.
@@ -32,6 +33,7 @@ class Costs:
 
     job_s: Mapping[str, float]          # role (ingest, fit, frame, preview, render) -> s
     worker_task_s: float = 0.0          # worker time a task adds to its job
+    worker_image_s: float = 0.0         # and a frame's image for the sheet (thumbnail, flags)
     driver_job_s: float = 0.0           # driver time per job recorded and dispatched
     driver_batch_s: float = 0.0         # driver time per batch of results (fsync, gather)
     scheduler_task_s: float = 0.0       # scheduler time per task
@@ -80,6 +82,8 @@ def simulate(deps: Mapping[str, Sequence[str]], roles: Mapping[str, str], costs:
     """Simulate the plan ``deps`` ({key: keys it needs}, plan order) with ``roles`` ({key:
     role}) on ``workers`` workers; ``order``: "submission" or "critical-path"."""
     cost = {k: costs.job_s[roles[k]] for k in deps}
+    extra = {k: costs.worker_task_s + (costs.worker_image_s if roles[k] in ("frame", "render")
+                                       else 0.0) for k in deps}
     tail = critical_paths(deps, cost)
     users: dict[str, list[str]] = {k: [] for k in deps}
     for k, ds in deps.items():
@@ -126,7 +130,7 @@ def simulate(deps: Mapping[str, Sequence[str]], roles: Mapping[str, str], costs:
             _, _, k = heapq.heappop(queue)
             free -= 1
             seq += 1
-            heapq.heappush(events, (t + cost[k] + costs.worker_task_s, seq, "done", k))
+            heapq.heappush(events, (t + cost[k] + extra[k], seq, "done", k))
     if recorded != n:
         raise RuntimeError(f"simulated {recorded} of {n} jobs")
     makespan = max(t, driver_free) + costs.sheet_per_job_s * n
