@@ -17,7 +17,8 @@ import base64
 from gonio_cli.batch import jobs
 
 #: A 1 × 1 grey PNG (8-bit greyscale, value 128).
-PNG = base64.b64decode("iVBORw0KGgoAAAANSUhEUgAAAAEAAAABCAAAAAA6fptVAAAACklEQVR4nGNoAAAAggCBd81ytgAAAABJRU5ErkJggg==")
+PNG = base64.b64decode("iVBORw0KGgoAAAANSUhEUgAAAAEAAAABCAAAAAA6fptVAAAACklEQVR4nGNoAAAAggCBd81y"
+                       "tgAAAABJRU5ErkJggg==")
 
 
 def noop(job, warnings) -> None:  # noqa: ARG001  (a runner's signature)

@@ -53,7 +53,8 @@ class Result:
         return self.work_s / (self.workers * self.makespan_s)
 
 
-def critical_paths(deps: Mapping[str, Sequence[str]], cost: Mapping[str, float]) -> dict[str, float]:
+def critical_paths(deps: Mapping[str, Sequence[str]], cost: Mapping[str, float]
+                   ) -> dict[str, float]:
     """{key: the longest path of job costs from the start of ``key`` to the graph's end}."""
     users: dict[str, list[str]] = {k: [] for k in deps}
     for k, ds in deps.items():

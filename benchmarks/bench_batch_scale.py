@@ -97,7 +97,8 @@ def simulate_cases(costs: batch_sim.Costs, title: str) -> float:
             print(f"  {jobs} jobs on {workers} workers: efficiency {r.efficiency:.3f} "
                   f"(makespan {r.makespan_s:.2f} s, work {r.work_s:.0f} s, critical path "
                   f"{r.critical_path_s:.2f} s); critical path first "
-                  f"{runs['critical-path'].efficiency:.3f}; the graph alone {ideal.efficiency:.3f}")
+                  f"{runs['critical-path'].efficiency:.3f}; the graph alone "
+                  f"{ideal.efficiency:.3f}")
             alone = []
             for name in COST_FIELDS:
                 one = batch_sim.Costs(costs.job_s, **{name: getattr(costs, name)})

@@ -285,13 +285,14 @@ def _submit(plan, stale, records, previous, settings, cluster_args, on_start,
                     records[rec["key"]] = rec
                     if on_record is not None:
                         on_record(rec)
-            ready = [u for rec in done for u in users.get(rec["key"], ()) if _count_down(waiting, u)]
+            ready = [u for rec in done for u in users.get(rec["key"], ())
+                     if _count_down(waiting, u)]
             done = []
             for key in ready:
                 bad = failed_roots([records[d] for d in deps[key]])
                 if bad:  # a job it needs failed: not run, recorded in the next round
-                    done.append(record(jobs[key], "blocked", run=settings["run"],
-                                       failed_roots=bad, error=f"not run: {', '.join(bad)} failed"))
+                    done.append(record(jobs[key], "blocked", run=settings["run"], failed_roots=bad,
+                                       error=f"not run: {', '.join(bad)} failed"))
                 else:
                     go.append((key, 1))
         return go

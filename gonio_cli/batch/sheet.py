@@ -122,8 +122,11 @@ def frame_flags(image: str) -> list[str]:
     except (OSError, ValueError):
         return ["unreadable image"]
     flags = []
-    covered = rgb.max(axis=-1) > 0
-    clipped = np.count_nonzero((rgb.max(axis=-1) >= 1.0) & covered)
+    # rgb.max(axis=-1), channel by channel: numpy's reduction over a 3-long last axis
+    # takes ~6 ms on a 384² frame, this ~0.3 ms (a frame's flags are made per job)
+    peak = np.maximum(np.maximum(rgb[..., 0], rgb[..., 1]), rgb[..., 2])
+    covered = peak > 0
+    clipped = np.count_nonzero((peak >= 1.0) & covered)
     share = clipped / max(int(np.count_nonzero(covered)), 1)
     if share > CLIP_WARN:
         flags.append(f"{share:.0%} clipped")
