@@ -16,7 +16,10 @@ the same run.
 3. The simulation (benchmarks/batch_sim.py) of the sample's shape at 1 150 jobs on 64
    workers and 11 500 on 256, with those costs: efficiency = the jobs' own time /
    (workers × makespan), target ≥ 0.9 at 64 workers; then each overhead alone, which
-   says what limits it.
+   says what limits it. Three sets of costs: this machine's jobs; the issue's job costs
+   (ingest 0.19 s, fit 0.23 s, render 0.55 s) with this machine's overheads; the same
+   with a worker's busy time per task (the scheduler's round trip included) in place of
+   its own time, an upper bound.
 """
 
 from __future__ import annotations
@@ -148,10 +151,11 @@ def main() -> None:
     bound = simulate_cases(batch_sim.Costs(ISSUE_JOB_S, **{
         k: upper.get(k, getattr(costs, k)) for k in COST_FIELDS}),
         "the issue's job costs; a worker's busy time per task, not its own time")
-    print(f"\nefficiency at 64 workers on 1 150 jobs: {effs[0]:.3f} (this machine's jobs), "
-          f"{effs[1]:.3f} (the issue's), {bound:.3f} (the issue's, the upper bound of the "
-          f"worker's overhead); target >= {TARGET_EFFICIENCY}: "
-          f"{'met' if min(effs) >= TARGET_EFFICIENCY else 'NOT met'}")
+    # the target is the issue's: its job costs, the overheads measured here
+    print(f"\nefficiency at 64 workers on 1 150 jobs, the issue's job costs: {effs[1]:.3f} "
+          f"(target >= {TARGET_EFFICIENCY}: {'met' if effs[1] >= TARGET_EFFICIENCY else 'NOT met'}"
+          f"); {bound:.3f} with the upper bound of a worker's overhead; {effs[0]:.3f} with this "
+          f"machine's jobs")
 
 
 if __name__ == "__main__":
