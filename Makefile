@@ -43,7 +43,7 @@ ifneq ($(STAMP),)
 $(STAMP): pyproject.toml setup.py gonio_cli/halftone/_diffuse.c gonio_cli/render/_envlookup.c gonio_cli/render/_rasterscan.c $(LOCK)
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	PIP_CONSTRAINT=$(abspath $(LOCK)) $(BIN)/python -m pip install --quiet --quiet pip
-	PIP_CONSTRAINT=$(abspath $(LOCK)) $(BIN)/python -m pip install --quiet --quiet -e '.[test,batch,mitsuba,exchange]'
+	PIP_CONSTRAINT=$(abspath $(LOCK)) $(BIN)/python -m pip install --quiet --quiet -e '.[test,batch,cluster,mitsuba,exchange]'
 	@touch $@
 endif
 

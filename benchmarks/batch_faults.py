@@ -55,7 +55,7 @@ def _mismatches(out: Path) -> int:
                or sha256_file(o["path"]) != o["sha256"])
 
 
-def _run(gonio: str, plan: Path, out: Path, sched: str, fault=None):
+def run_batch(gonio: str, plan: Path, out: Path, sched: str, fault=None):
     """Run the batch; ``fault(proc)`` once FAULT_AT of the jobs are recorded. Returns
     (exit status, wall s, driver CPU s, keys recorded at the fault)."""
     env = process.user_environment()
@@ -88,8 +88,11 @@ def _rerun(gonio: str, plan: Path, out: Path, sched: str) -> int:
                and r.get("run") != before.get(k))
 
 
-def _cluster(folder: Path) -> tuple[list[subprocess.Popen], str]:
-    """A scheduler and two single-threaded workers (with nannies) on loopback."""
+def start_cluster(folder: Path, nworkers: int = 2, worker_args: tuple[str, ...] = ()
+                  ) -> tuple[list[subprocess.Popen], str]:
+    """A scheduler and ``nworkers`` single-threaded workers (with nannies) on loopback,
+    as separate processes (as a job queue starts them); ``worker_args``: more options of
+    ``dask worker`` (``--preload …``). Returns the processes and the scheduler file."""
     bindir = Path(sys.executable).parent
     sched = folder / "scheduler.json"
     common = ["--host", "127.0.0.1", "--no-dashboard"]
@@ -100,13 +103,25 @@ def _cluster(folder: Path) -> tuple[list[subprocess.Popen], str]:
     while not sched.is_file():
         time.sleep(0.05)
     procs.append(subprocess.Popen([str(bindir / "dask"), "worker", "--scheduler-file",
-                                   str(sched), "--nthreads", "1", "--nworkers", "2", *common],
+                                   str(sched), "--nthreads", "1", "--nworkers",
+                                   str(nworkers), *common, *worker_args],
                                   env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
     from distributed import Client
 
     with Client(scheduler_file=str(sched), timeout=60) as client:
-        client.wait_for_workers(2, timeout=120)
+        client.wait_for_workers(nworkers, timeout=120)
     return procs, str(sched)
+
+
+def stop_cluster(procs: list[subprocess.Popen]) -> None:
+    """Stop what :func:`start_cluster` started (workers first)."""
+    for p in reversed(procs):
+        p.terminate()
+    for p in procs:
+        try:
+            p.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            p.kill()
 
 
 def _kill_a_worker(sched: str):
@@ -125,11 +140,11 @@ def run_faults(gonio: str, tmp: Path, plan: Path, frames: int) -> None:
     from gonio_cli.batch.plan import read_plan
 
     n = len(read_plan(plan, tmp / "x").jobs)
-    procs, sched = _cluster(tmp)
+    procs, sched = start_cluster(tmp)
     try:
         print(f"gonio batch under faults: {n} jobs (the sample plan, {frames} frames a "
               f"turntable), external scheduler, 2 workers; load {process.load_average()}")
-        code, wall, cpu, _ = _run(gonio, plan, tmp / "clean", sched)
+        code, wall, cpu, _ = run_batch(gonio, plan, tmp / "clean", sched)
         print(f"  clean run: exit {code}, {wall:.1f} s; driver {cpu / n * 1e3:.1f} ms CPU and "
               f"{wall / n * 1e3:.0f} ms wall per job")
         faults = {"worker SIGKILL": _kill_a_worker(sched),
@@ -137,7 +152,7 @@ def run_faults(gonio: str, tmp: Path, plan: Path, frames: int) -> None:
                   "driver SIGTERM": lambda p: p.send_signal(signal.SIGTERM)}
         for name, fault in faults.items():
             out = tmp / name.replace(" ", "-")
-            code, wall, cpu, at_fault = _run(gonio, plan, out, sched, fault)
+            code, wall, cpu, at_fault = run_batch(gonio, plan, out, sched, fault)
             from gonio_cli.batch.plan import file_name_of
 
             twice, bad = _started_twice(out), _mismatches(out)
@@ -150,11 +165,5 @@ def run_faults(gonio: str, tmp: Path, plan: Path, frames: int) -> None:
                   f"journalled; the rerun ran {rerun} of the {n - len(at_fault)} not "
                   f"finished at the fault")
     finally:
-        for p in reversed(procs):
-            p.terminate()
-        for p in procs:
-            try:
-                p.wait(timeout=30)
-            except subprocess.TimeoutExpired:
-                p.kill()
+        stop_cluster(procs)
 

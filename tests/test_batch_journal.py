@@ -162,3 +162,27 @@ def test_lost_submits_again_within_the_retries(tmp_path, starts, submissions, ag
         assert rec["status"] == "failed" and rec["attempts"] == starts
         assert rec["error"].startswith(f"lost its worker in each of {starts} attempts "
                                        "(--retries 1); last: RuntimeError: KilledWorker")
+
+
+def test_signals_held_defers_sigterm_to_the_end_of_the_block():
+    """A SIGTERM sent while a record is being journalled runs its handler after the
+    block, once; sent from another thread too (the kernel may hand a process's signal to
+    any thread, and Python runs the handler in the main thread)."""
+    import signal
+    import threading
+
+    from gonio_cli.batch.engine import signals_held
+
+    seen: list[str] = []
+    old = signal.signal(signal.SIGTERM, lambda signum, frame: seen.append("handler"))
+    try:
+        with signals_held():
+            t = threading.Thread(target=os.kill, args=(os.getpid(), signal.SIGTERM))
+            t.start()
+            t.join()
+            os.kill(os.getpid(), signal.SIGTERM)
+            seen.append("block ends")
+        seen.append("after")
+    finally:
+        signal.signal(signal.SIGTERM, old)
+    assert seen[0] == "block ends" and seen.count("handler") >= 1 and seen[-1] == "after"

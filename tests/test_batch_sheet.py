@@ -71,3 +71,24 @@ def test_sheet_shows_native_sizes_flags_and_links(tmp_path):
     assert page.count("14% clipped") == 1
     assert page.count("href='red/red.material.json'>material</a>") == 3   # header + 2 frames
     assert page.count("href='red/red.fit.png'>fit plot</a>") == 3
+
+
+def test_sheet_takes_what_the_worker_recorded(tmp_path):
+    """A record's ``image`` (made in the worker by image_entry) is what the sheet shows,
+    without opening the image; an entry for another path, or whose thumbnail is gone, is
+    made again from the image."""
+    from gonio_cli.batch.sheet import image_entry
+
+    out = tmp_path / "out"
+    path = _png(out / "m" / "s.frame000.png", _disk(96, (180, 90, 60)))
+    entry = image_entry(str(out), path)
+    assert entry == {"path": path, "shown": path, "width": 96, "height": 96, "flags": []}
+    labels = {"material": "m", "role": "frame", "scene": "s", "frame": 0}
+    told = {**entry, "flags": ["told by the worker"]}
+    rec = {"key": "f", "status": "ok", "time_s": 0.1, "outputs": [{"path": path}],
+           "labels": labels, "image": told}
+    page = open(write_sheet(out, [rec]), encoding="utf-8").read()
+    assert "told by the worker" in page
+    for stale in ({**told, "path": path + ".old"}, {**told, "shown": str(out / "gone.png")}):
+        page = open(write_sheet(out, [{**rec, "image": stale}]), encoding="utf-8").read()
+        assert "told by the worker" not in page and "<img src='m/s.frame000.png'" in page

@@ -27,7 +27,8 @@ from typing import Any, Callable, Mapping
 
 from .. import __version__
 from ..machine import cpu_count
-from .jobs import attempt_log, execute, failed_roots, record, timed_out, why_stale
+from .jobs import attempt_log, execute_pickled, failed_roots, files, record, timed_out, \
+    why_stale
 from .journal import Journal, clear_run_state, compact, lock_folder, read_journal, \
     recover_receipts
 from .plan import Plan, dependencies
@@ -40,17 +41,19 @@ def settle(plan: Plan, previous: Mapping[str, Mapping[str, Any]]
            ) -> tuple[dict, list[str], dict[str, str]]:
     """({key: record} of the jobs still up to date, keys of the jobs to run in graph
     order, {key: why it runs}): a job runs if its earlier record does not stand
-    (:func:`.jobs.why_stale`) or a job it needs runs. Linear in the number of jobs."""
+    (:func:`.jobs.why_stale`) or a job it needs runs. Linear in the number of jobs: a
+    file many jobs read (a scene, a material) is hashed once."""
     jobs = {j.key: j for j in plan.jobs}
     deps = dependencies(plan)
     done: dict[str, dict] = {}
     stale: list[str] = []
     why: dict[str, str] = {}
+    seen: dict[str, dict[str, Any]] = {}  # path -> its record as files() makes it
     for key in graph_order(deps):
         job = jobs[key]
         upstream = next((d for d in deps[key] if d in why), None)
         reason = f"it needs {upstream}, which runs" if upstream else \
-            why_stale(job, previous.get(key))
+            why_stale(job, previous.get(key), _inputs(job, seen) if key in previous else None)
         if reason is None:
             done[key] = {**previous[key], "status": "skipped", "attempts": 0,
                          "labels": dict(job.labels)}
@@ -58,6 +61,15 @@ def settle(plan: Plan, previous: Mapping[str, Mapping[str, Any]]
             stale.append(key)
             why[key] = reason
     return done, stale, why
+
+
+def _inputs(job, seen: dict[str, dict[str, Any]]) -> list[dict[str, Any]]:
+    """:func:`.jobs.files` of ``job``'s inputs, each path looked at once per ``seen``."""
+    for p in job.inputs:
+        if p not in seen:
+            seen[p] = files([p], (p,))[0]  # with its modification time, used or not
+    return [seen[p] if p in job.sources else {"path": p, "sha256": seen[p]["sha256"]}
+            for p in job.inputs]
 
 
 def graph_order(deps: Mapping[str, list[str]]) -> list[str]:
@@ -230,7 +242,13 @@ def run_plan(plan: Plan, *, workers: int | None = None, scheduler: str | None = 
 def _submit(plan, stale, records, previous, settings, cluster_args, on_start,
             on_record) -> None:
     """Run the ``stale`` jobs on Dask, adding each one's record to ``records`` (which
-    holds the settled ones) and to the journal as it ends."""
+    holds the settled ones) and to the journal as it ends.
+
+    The driver works in batches: it takes every result that has arrived (one gather),
+    journals their records with one ``fsync`` (:meth:`.journal.Journal.extend`) before it
+    counts them, and submits every job they made ready in one ``client.map``. So its
+    cost per job falls as results come faster (a driver under load takes more at once),
+    and no job is submitted before the records it needs are on the disk."""
     from distributed import as_completed
 
     jobs = {j.key: j for j in plan.jobs}
@@ -242,57 +260,58 @@ def _submit(plan, stale, records, previous, settings, cluster_args, on_start,
     pending = as_completed()
     running: dict[str, tuple[str, int]] = {}  # task key -> (job key, submissions)
 
-    def submit(keys: list[str], n: int = 1) -> None:
-        """Submit ``keys`` (their upstream records done) in one call; block the jobs a
-        failed one needs without a worker."""
-        go = []
-        for key in keys:
-            bad = failed_roots([records[d] for d in deps[key]])
-            if bad:
-                finish(record(jobs[key], "blocked", run=settings["run"], failed_roots=bad,
-                              error=f"not run: {', '.join(bad)} failed"))
-            else:
-                go.append(key)
+    def submit(go: list[tuple[str, int]]) -> None:
+        """Submit the jobs ``go`` ((key, submission number)) in one call."""
         if not go:
             return
+        keys = [k for k, _ in go]
         futures = client.map(
-            execute, [jobs[k] for k in go], [outdir] * len(go),
-            [previous.get(k) for k in go], [tuple(records[d] for d in deps[k]) for k in go],
-            [settings] * len(go), key=[task_key(jobs[k], f"{settings['run']}{n}") for k in go],
+            execute_pickled, [jobs[k] for k in keys], [outdir] * len(go),
+            [previous.get(k) for k in keys], [tuple(records[d] for d in deps[k]) for k in keys],
+            [settings] * len(go), key=[task_key(jobs[k], f"{settings['run']}{n}") for k, n in go],
             pure=False, retries=0)
-        for k, f in zip(go, futures):
+        for (k, n), f in zip(go, futures):
             running[f.key] = (k, n)
         pending.update(futures)
 
-    def finish(rec: dict) -> None:
-        key = rec["key"]
-        with signals_held():  # a record is in the journal and counted, or neither
-            records[key] = rec
-            journal.append(rec)
-            if on_record is not None:
-                on_record(rec)
-        ready = []
-        for u in users.get(key, ()):
-            waiting[u] -= 1
-            if waiting[u] == 0:
-                ready.append(u)
-        submit(ready)
+    def finish(done: list[dict]) -> list[tuple[str, int]]:
+        """Journal and count the records ``done`` and those of the jobs they block;
+        return the jobs they made ready to run."""
+        go = []
+        while done:
+            with signals_held():  # a record is in the journal and counted, or neither
+                journal.extend(done)
+                for rec in done:
+                    records[rec["key"]] = rec
+                    if on_record is not None:
+                        on_record(rec)
+            ready = [u for rec in done for u in users.get(rec["key"], ())
+                     if _count_down(waiting, u)]
+            done = []
+            for key in ready:
+                bad = failed_roots([records[d] for d in deps[key]])
+                if bad:  # a job it needs failed: not run, recorded in the next round
+                    done.append(record(jobs[key], "blocked", run=settings["run"], failed_roots=bad,
+                                       error=f"not run: {', '.join(bad)} failed"))
+                else:
+                    go.append((key, 1))
+        return go
 
     try:
         if on_start is not None:
             on_start(len(stale), client.dashboard_link if cluster_args[2] else None)
-        submit([k for k in stale if waiting[k] == 0])
-        for future in pending:
-            key, n = running.pop(future.key)
-            try:
-                rec = future.result()
-            except Exception as exc:  # its worker died (or the cluster went)
-                rec = lost(jobs[key], exc, outdir, settings, n)
-            future.release()  # the result is recorded: Dask may forget it
-            if rec is None:
-                submit([key], n + 1)
-            else:
-                finish(rec)
+        submit([(k, 1) for k in stale if waiting[k] == 0])
+        while not pending.is_empty():
+            done, again = [], []
+            for future, result in _gather(client, pending.next_batch()):
+                key, n = running.pop(future.key)
+                rec = lost(jobs[key], result, outdir, settings, n) \
+                    if isinstance(result, BaseException) else result
+                if rec is None:
+                    again.append((key, n + 1))
+                else:
+                    done.append(rec)
+            submit(again + finish(done))
     finally:
         journal.close()
         client.close()
@@ -300,21 +319,54 @@ def _submit(plan, stale, records, previous, settings, cluster_args, on_start,
             cluster.close()
 
 
+def _count_down(waiting: dict[str, int], key: str) -> bool:
+    """One job ``key`` waits for has ended: True if that was the last."""
+    waiting[key] -= 1
+    return waiting[key] == 0
+
+
+def _gather(client, futures: list) -> list[tuple[Any, Any]]:
+    """[(future, its record or the exception it ended in)], fetched in one call, and the
+    futures released (their results are recorded: Dask may forget them). A batch with a
+    failed task (its worker died) is fetched one by one."""
+    import pickle
+
+    try:
+        out = list(zip(futures, client.gather(futures)))
+    except Exception:  # noqa: BLE001  (which one failed, and why, is asked below)
+        out = []
+        for f in futures:
+            try:
+                out.append((f, f.result()))
+            except Exception as exc:  # its worker died (or the cluster went)
+                out.append((f, exc))
+    for f in futures:
+        f.release()
+    return [(f, pickle.loads(r) if isinstance(r, bytes) else r) for f, r in out]
+
+
 @contextlib.contextmanager
 def signals_held():
-    """Hold Ctrl-C and SIGTERM back (main thread, POSIX) while the block runs."""
+    """Hold Ctrl-C and SIGTERM back (main thread) while the block runs: a signal that
+    comes meanwhile is noted and raised again after it. (Blocking them in this thread
+    alone is not enough: the kernel then hands a process's signal to another thread,
+    Dask's, and Python still runs the handler here, mid-block.)"""
     import signal
     import threading
 
-    if threading.current_thread() is not threading.main_thread() or not hasattr(
-            signal, "pthread_sigmask"):
+    if threading.current_thread() is not threading.main_thread():
         yield
         return
-    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+    caught: list[int] = []
+    old = {s: signal.signal(s, lambda signum, frame: caught.append(signum))  # noqa: ARG005
+           for s in (signal.SIGINT, signal.SIGTERM)}
     try:
         yield
     finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+        for s, handler in old.items():
+            signal.signal(s, signal.SIG_DFL if handler is None else handler)  # None: set in C
+        for s in caught:
+            signal.raise_signal(s)
 
 
 def _waits(stale: list[str], deps: Mapping[str, list[str]]):

@@ -1,13 +1,14 @@
 """The batch journal ``OUTDIR/manifest.jsonl``, the worker's receipts and the folder lock.
 
 The journal *is* the manifest: one JSON line per finished job, appended by the driver as
-each result arrives and flushed to the disk (``fsync``) before the next is taken, with the
-sha256 of the job's inputs and outputs. A key may appear on several lines (a rerun, a
-retry); the last line counts (:func:`read_journal`). A run that ends in the driver (also
-by Ctrl-C or SIGTERM) rewrites it compacted, atomically: one line per job of the plan, in
-plan order (:func:`compact`). After a kill of the driver (SIGKILL, power loss) the
-appended lines are what the rerun reads; a torn last line is skipped, so that job runs
-again.
+each result arrives and flushed to the disk (``fsync``) before the job is counted and
+before any job that needs it is submitted, with the sha256 of the job's inputs and
+outputs; the results that arrive together share one ``fsync`` (:meth:`Journal.extend`).
+A key may appear on several lines (a rerun, a retry); the last line counts
+(:func:`read_journal`). A run that ends in the driver (also by Ctrl-C or SIGTERM)
+rewrites it compacted, atomically: one line per job of the plan, in plan order
+(:func:`compact`). After a kill of the driver (SIGKILL, power loss) the appended lines
+are what the rerun reads; a torn last line is skipped, so that job runs again.
 
 A worker writes a *receipt* (``.gonio-batch/done/JOB.json``) when a job's outputs are in
 place, before its result goes back: a second run of the same job in the same batch (Dask
@@ -84,7 +85,12 @@ class Journal:
 
     def append(self, rec: Mapping[str, Any]) -> None:
         """Append ``rec`` as one line, flushed and fsync'ed (a few ms on a local disk)."""
-        self.fh.write(_line(rec))
+        self.extend([rec])
+
+    def extend(self, recs: Iterable[Mapping[str, Any]]) -> None:
+        """Append ``recs``, a line each, with one flush and one ``fsync`` for them all: the
+        disk's few ms are paid once for every record that arrived together."""
+        self.fh.writelines(_line(r) for r in recs)
         self.fh.flush()
         os.fsync(self.fh.fileno())
 
@@ -148,11 +154,10 @@ def recover_receipts(outdir: str, journal: dict[str, dict[str, Any]],
     if found:
         j = Journal(outdir)
         try:
-            for rec in found:
-                j.append(rec)
-                journal[rec["key"]] = rec
+            j.extend(found)
         finally:
             j.close()
+        journal.update((rec["key"], rec) for rec in found)
     return [r["key"] for r in found]
 
 

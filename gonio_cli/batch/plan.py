@@ -116,6 +116,8 @@ class _Reader:
         self.path, self.outdir, self.base = path, outdir, path.parent
         self.jobs: list[Job] = []
         self.material_render: dict[str, dict] = {}   # [[material]] render = {…}, by name
+        self.words: dict[str, str] = {}   # resolve_word's answers: a plan repeats its words
+        self.paths: dict[str, str] = {}   # resolve's answers
 
     def error(self, where: str, message: str, fix: str | None = None) -> PlanError:
         return PlanError(f"{where}: {message}" if where else message, path=self.path, fix=fix)
@@ -136,13 +138,25 @@ class _Reader:
 
     def resolve(self, text: str) -> str:
         """A plan path → absolute: ``${out}/…`` in the output folder, else beside the plan."""
-        if text == OUT or text.startswith(OUT + "/"):
-            return os.path.normpath(os.path.join(self.outdir, text[len(OUT) + 1:]))
-        return os.path.normpath(os.path.join(self.base, text))
+        done = self.paths.get(text)
+        if done is None:
+            if text == OUT or text.startswith(OUT + "/"):
+                done = os.path.normpath(os.path.join(self.outdir, text[len(OUT) + 1:]))
+            else:
+                done = os.path.normpath(os.path.join(self.base, text))
+            self.paths[text] = done
+        return done
 
     def resolve_word(self, word: str) -> str:
         """A word of a command as it runs: paths (also ``NAME=PATH`` of a render's --var)
-        absolute, anything else as written."""
+        absolute, anything else as written. Each distinct word is looked at (a ``stat``)
+        once per plan."""
+        done = self.words.get(word)
+        if done is None:
+            done = self.words[word] = self._resolve_word(word)
+        return done
+
+    def _resolve_word(self, word: str) -> str:
         if _is_path(word, self.base):
             return self.resolve(word)
         name, sep, value = word.partition("=")
