@@ -170,7 +170,7 @@ def rgl_configurations():
 def make_rgl_fixtures(rgl_dir: Path) -> None:
     """Write the RGB fixtures of :data:`RGL_FIXTURES` from the RGL ``.bsdf`` files in
     ``rgl_dir`` (Mitsuba 3): the linear-sRGB BRDF (sr⁻¹, no cosine) in plane, 4 digits."""
-    from gonio_cli.rgl import check_bsdf, evaluate_in_plane
+    from gonio_cli.ingest.rgl import check_bsdf, evaluate_in_plane
 
     ti, to = rgl_configurations()
     for _, name in RGL_FIXTURES:
