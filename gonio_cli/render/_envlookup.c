@@ -17,16 +17,17 @@
  * its colour: out += p · ((1 − t) M_k[i0] + t M_k[i0 + 1]).
  *
  * Interface (checked by env_model.py before the call; buffers C-contiguous):
- *   run(normal, view, n, view_deg, n_view, cos_beta, sin_beta, weights, matrices, n_lobes,
- *       maps, heights, widths, n_levels, channels, out) -> None
- *   normal, view float64 (n, 3)       unit N and V
+ *   run(normal, view, n, start, stop, view_deg, n_view, cos_beta, sin_beta, weights, matrices,
+ *       n_lobes, maps, heights, widths, n_levels, channels, out) -> None
+ *   normal, view float32 (3, n)       unit N and V, one row per component (the G-buffer's
+ *                                     layout: no copy); pixels start … stop − 1 are done
  *   view_deg     float64 (V,)         the tables' view angles, increasing
  *   cos_beta, sin_beta float64 (K, V) cosine and sine of the axis tilt β
  *   weights      float64 (K, V, L)    level weights
  *   matrices     float64 (K, V, 3, C) rgb -> output channels
  *   maps         tuple of L objects   float32 (H_l, W_l, 3) maps, or None for unused levels
  *   heights, widths int64 (L,)
- *   out          float64 (n, C)       added to
+ *   out          float64 (n, C)       added to (rows start … stop − 1)
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
@@ -171,10 +172,11 @@ static void pixel(const double *nn, const double *vv, const double *view_deg, Py
 
 static PyObject *run(PyObject *self, PyObject *args) {
     Py_buffer bn, bv, bdeg, bcb, bsb, bw, bm, bh, bws, bout;
-    Py_ssize_t n, V, K, L, C;
+    Py_ssize_t n, start, stop, V, K, L, C;
     PyObject *maps_tuple;
-    if (!PyArg_ParseTuple(args, "y*y*ny*ny*y*y*y*nO!y*y*nnw*", &bn, &bv, &n, &bdeg, &V, &bcb, &bsb,
-                          &bw, &bm, &K, &PyTuple_Type, &maps_tuple, &bh, &bws, &L, &C, &bout))
+    if (!PyArg_ParseTuple(args, "y*y*nnny*ny*y*y*y*nO!y*y*nnw*", &bn, &bv, &n, &start, &stop,
+                          &bdeg, &V, &bcb, &bsb, &bw, &bm, &K, &PyTuple_Type, &maps_tuple, &bh,
+                          &bws, &L, &C, &bout))
         return NULL;
     Py_buffer bmaps[MAX_LEVELS];
     Map maps[MAX_LEVELS];
@@ -185,6 +187,12 @@ static PyObject *run(PyObject *self, PyObject *args) {
     if (L > MAX_LEVELS || K > MAX_LOBES
             || PyTuple_GET_SIZE(maps_tuple) != L) {
         PyErr_SetString(PyExc_ValueError, "_envlookup.run: bad level or channel count");
+        goto done;
+    }
+    if (bn.len != (Py_ssize_t)(3 * n * sizeof(float)) || bv.len != bn.len
+            || bout.len != (Py_ssize_t)(n * C * sizeof(double))
+            || start < 0 || stop < start || stop > n) {
+        PyErr_SetString(PyExc_ValueError, "_envlookup.run: buffer sizes or range do not match");
         goto done;
     }
     for (; got < L; got++) {
@@ -220,15 +228,18 @@ static PyObject *run(PyObject *self, PyObject *args) {
         first[d] = r;
     }
     {
-        const double *nn = bn.buf, *vv = bv.buf, *deg = bdeg.buf, *cb = bcb.buf;
+        const float *nn = bn.buf, *vv = bv.buf;
+        const double *deg = bdeg.buf, *cb = bcb.buf;
         const double *sb = bsb.buf;
         const double *w = bw.buf, *mat = bm.buf;
         double *out = bout.buf;
         Py_BEGIN_ALLOW_THREADS
-        for (Py_ssize_t i = 0; i < n; i++)
-            pixel(nn + 3 * i, vv + 3 * i, deg, V, first, cb, sb, w, mat, K, maps, used, n_used,
-                  at_normal, L, C,
+        for (Py_ssize_t i = start; i < stop; i++) {
+            double ni[3] = {nn[i], nn[n + i], nn[2 * n + i]};
+            double vi[3] = {vv[i], vv[n + i], vv[2 * n + i]};
+            pixel(ni, vi, deg, V, first, cb, sb, w, mat, K, maps, used, n_used, at_normal, L, C,
                   out + C * i);
+        }
         Py_END_ALLOW_THREADS
     }
     result = Py_None;

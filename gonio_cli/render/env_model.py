@@ -307,9 +307,7 @@ def model_environment_xyz(environment, tables: list[LobeTable], normal: np.ndarr
     """
     from .environment import channel_matrices
 
-    normal = np.asarray(normal, dtype=float)
-    view = np.asarray(view, dtype=float)
-    n = normal.shape[0]
+    n = np.shape(normal)[0]
     channels = 3 if observer is None else np.shape(observer)[1]
     out = np.zeros((n, channels))
     matrices = [channel_matrices(t.albedo, "spectral", wavelength_nm, observer)
@@ -317,6 +315,8 @@ def model_environment_xyz(environment, tables: list[LobeTable], normal: np.ndarr
     if (build or ("c" if c_build_available() else "numpy")) == "c":
         c_environment(environment, tables, matrices, normal, view, out, VIEW_ANGLES_DEG)
         return out
+    normal = np.asarray(normal, dtype=float)
+    view = np.asarray(view, dtype=float)
     for start in range(0, n, BLOCK):
         b = slice(start, start + BLOCK)
         out[b] = _block_xyz(environment, tables, matrices, normal[b], view[b])
