@@ -81,8 +81,9 @@ test: $(STAMP) js-tools
 	$(BIN)/python -m pytest -q
 
 # JavaScript tools the tests use, pinned in tests/js/package-lock.json: the Khronos glTF
-# validator (tests/test_export_gltf.py checks every exported .glb with it). Installed with
-# npm where npm is found; without it (or offline) that test skips and says why.
+# validator (tests/test_export_gltf.py checks every exported .glb with it) and three.js
+# (tests/test_export_gltf_browser.py opens one in headless Chromium). Installed with npm
+# where npm is found; without it (or offline) those tests skip and say why.
 JS_DIR   := tests/js
 JS_STAMP := $(JS_DIR)/node_modules/.gonio-installed
 
@@ -91,8 +92,8 @@ js-tools: $(JS_STAMP)
 $(JS_STAMP): $(JS_DIR)/package.json $(JS_DIR)/package-lock.json
 	@if command -v npm >/dev/null 2>&1; then \
 	  npm ci --prefix $(JS_DIR) --no-audit --no-fund --silent && touch $@ || \
-	    echo "make: npm ci in $(JS_DIR) failed: the glTF validator test skips"; \
-	else echo "make: npm not found: the glTF validator test skips (install nodejs and npm)"; fi
+	    echo "make: npm ci in $(JS_DIR) failed: the glTF validator and viewer tests skip"; \
+	else echo "make: npm not found: the glTF validator and viewer tests skip (install nodejs and npm)"; fi
 
 # The README's images are demo outputs (tests/readme_images.py lists which): copy them
 # into docs/images, or check they are what the demo makes (CI runs the check after demo).

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from browser import chromium, headless_flags
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLE = ROOT / "sample_data"
@@ -296,15 +297,8 @@ def test_external_scheduler_and_worker_give_the_same_outputs(runs, tmp_path):
     assert all(np.array_equal(one[k], runs["frames"][k]) for k in one)
 
 
-def _chromium() -> str | None:
-    return shutil.which("chromium") or shutil.which("chromium-browser") \
-        or shutil.which("google-chrome")
-
-
 def test_contact_sheet_loads_every_thumbnail_in_a_browser(runs, tmp_path):
-    browser = _chromium()
-    if browser is None:
-        pytest.skip("no Chromium here (CI installs the Debian package 'chromium')")
+    browser = chromium()
     out = runs["out"]
     page = (out / "index.html").read_text(encoding="utf-8")
     n_img = page.count("<img ")
@@ -319,10 +313,7 @@ window.addEventListener('load', function () {
   document.body.setAttribute('data-loaded', ok + '/' + all.length);
 });
 </script></body>"""), encoding="utf-8")
-    flags = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-             "--disable-background-networking", "--disable-component-update",
-             "--disable-sync", f"--user-data-dir={tmp_path / 'profile'}",
-             "--virtual-time-budget=5000"]
+    flags = headless_flags(tmp_path / "profile")
     try:
         dom = subprocess.run([browser, *flags, "--dump-dom", check.as_uri()],
                              capture_output=True, text=True, timeout=120).stdout
