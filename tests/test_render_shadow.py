@@ -21,6 +21,8 @@ the planes of an L), with no code of the renderer:
 
 from __future__ import annotations
 
+import sys
+
 import textwrap
 from pathlib import Path
 
@@ -603,6 +605,28 @@ def test_convexity_of_closed_meshes():
     plane = load_mesh("builtin:plane", None)
     assert not plane.closed and not is_convex(plane)
     assert not is_convex(Mesh(cube, faces, np.zeros_like(cube), closed=False))
+
+
+def test_a_sphere_read_from_a_six_decimal_obj_is_convex(tmp_path):
+    """An OBJ written with 6 decimals (Blender's default) rounds coordinates by 5e-7: the
+    built-in sphere read back so is still one convex solid (its maps are skipped), and a
+    dent 1e-4 of its size deep, 10x the tolerance, still is not."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from test_render_obj import write_sphere_obj
+
+    from gonio_cli.render.mesh import load_mesh
+    from gonio_cli.render.solid import CONVEX_TOLERANCE, convex_surface, is_convex
+
+    path = tmp_path / "sphere.obj"
+    write_sphere_obj(path, 144)
+    sphere = load_mesh(str(path), None)
+    assert len(sphere.faces) == 20448 and is_convex(sphere)
+    v = np.asarray(sphere.vertices, float).copy()
+    size = float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
+    inward = v[5000] / np.linalg.norm(v[5000])
+    same = np.flatnonzero((v == v[5000]).all(axis=1))         # the vertex and its seam twins
+    v[same] -= 10 * CONVEX_TOLERANCE * size * inward
+    assert not convex_surface(v, np.asarray(sphere.faces))
 
 
 # --------------------------------------------------------------------- scene keys --
