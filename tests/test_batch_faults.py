@@ -140,8 +140,9 @@ def _batch(plan: Path, out: Path, *args: str) -> subprocess.CompletedProcess:
 def test_worker_killed_mid_job_loses_nothing_and_reruns_nothing(cluster, tmp_path):
     """SIGKILL of the worker running the gate's job, with --retries 1 on the external
     scheduler: the job succeeds on its second start (the journal counts two attempts),
-    no finished job runs again, every output's sha256 is the journal's, and a rerun runs
-    nothing."""
+    no finished job runs again (one that finished on the killed worker unreported may be
+    started again by Dask: that start returns its receipt and writes nothing), every
+    output's sha256 is the journal's, and a rerun runs nothing."""
     plan = _plan(tmp_path / "data")
     fifo, out = tmp_path / "data" / "gate.fifo", tmp_path / "out"
     proc = _start(plan, out, "--scheduler", cluster, "--retries", "1")
@@ -159,9 +160,13 @@ def test_worker_killed_mid_job_loses_nothing_and_reruns_nothing(cluster, tmp_pat
     assert set(records) == ALL and all(r["status"] == "ok" for r in records.values())
     gate = records["gate"]
     assert gate["attempts"] == 2 and gate["worker"] != worker
-    # no other job started twice: Dask ran no finished job again
-    assert {k: len(_attempts(out, k)) for k in ALL - {"gate"}} == dict.fromkeys(ALL - {"gate"}, 1)
-    assert all(records[k]["attempts"] == 1 for k in ALL - {"gate"})
+    # no other job started twice, but one that finished on the killed worker just before
+    # the kill, its result not yet sent: Dask starts it again, and that start returns the
+    # job's receipt (its outputs committed once: the hashes below are the first start's)
+    for k in ALL - {"gate"}:
+        starts = _attempts(out, k)
+        assert len(starts) == 1 or (len(starts) == 2 and starts[0] == worker), (k, starts)
+        assert records[k]["attempts"] == len(starts), k
     assert _mismatches(records) == []
     _fifo_as_file(fifo, gate)
     again = _batch(plan, out, "--workers", "1")
