@@ -49,27 +49,11 @@ def export(
       gonio export red.material.json -o red.cxf --to cxf --at red.measurement.json
     """
     from .. import log
-    from ..errors import InputError
     from ..export import get_target
     from ..schemas import read_material
-    from . import parse_vars, require_files
 
     target = get_target(to)
-    require_files([material], schema="gonio.material")
-    if scene is not None:
-        require_files([scene], missing_fix="check the path of the scene file")
-    variables = parse_vars(var)
-    if variables and scene is None:
-        raise InputError("--var needs --scene", fix="name the scene the variables are for")
-    if at is not None and not target.at:
-        raise InputError(f"--at: --to {target.name} does not take a measurement",
-                         fix="leave out --at (it is for --to cxf)")
-    if target.at and at is None:
-        raise InputError(f"--to {target.name} needs --at MEASUREMENT.json",
-                         fix="name the measurement whose configurations to predict, "
-                             "e.g. --at red.measurement.json")
-    if at is not None:
-        require_files([at], schema="gonio.measurement")
+    variables = _checked_inputs(target, material, scene, var, at)
     if target.output != "folder":
         from ..export import check_file_output
         from ..export.judge import report_path
@@ -92,6 +76,31 @@ def export(
         from ..export.judge import sentence
 
         log.info(sentence(output.name, target.label, written.report))
+
+
+def _checked_inputs(target, material: Path, scene: Optional[Path], var: List[str],
+                    at: Optional[Path]) -> dict:
+    """The input files checked and the --var values parsed; an option the target does not
+    take (or lacks) is one line."""
+    from ..errors import InputError
+    from . import parse_vars, require_files
+
+    require_files([material], schema="gonio.material")
+    if scene is not None:
+        require_files([scene], missing_fix="check the path of the scene file")
+    variables = parse_vars(var)
+    if variables and scene is None:
+        raise InputError("--var needs --scene", fix="name the scene the variables are for")
+    if at is not None and not target.at:
+        raise InputError(f"--at: --to {target.name} does not take a measurement",
+                         fix="leave out --at (it is for --to cxf)")
+    if target.at and at is None:
+        raise InputError(f"--to {target.name} needs --at MEASUREMENT.json",
+                         fix="name the measurement whose configurations to predict, "
+                             "e.g. --at red.measurement.json")
+    if at is not None:
+        require_files([at], schema="gonio.measurement")
+    return variables
 
 
 EXAMPLE = "gonio export red.material.json -o red.mitsuba --to mitsuba"
