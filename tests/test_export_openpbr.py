@@ -246,11 +246,12 @@ def test_bad_options_are_one_line_and_write_nothing(run_gonio, tmp_path, args, s
     mat = coat_material(tmp_path)
     scene = sample_data_dir() / "scenes" / "spheres.toml"
     args = [a.format(tmp=tmp_path, scene=scene) for a in args]
+    before = sorted(p.name for p in tmp_path.iterdir())     # the material and its run record
     r = run_gonio("export", mat, "--to", "openpbr", *args)
     assert r.exit_code == 2
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("gonio: error:") and says in lines[0]
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["orange.material.json"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
 
 
 # ------------------------------------------------------------- the demo coat paint --
