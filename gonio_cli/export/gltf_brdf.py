@@ -49,6 +49,15 @@ ALPHA_MIN = 1e-6
 COS_EPS = 1e-7
 
 
+def parameters_dict(material) -> dict:
+    """A standard material's parameters as plain JSON numbers (colours as lists), its
+    ``name`` left out: what the export report and the writers read."""
+    d = asdict(material)
+    d.pop("name", None)
+    return {k: ([float(x) for x in v] if isinstance(v, (tuple, list)) else float(v))
+            for k, v in d.items()}
+
+
 @dataclass(frozen=True)
 class GltfMaterial:
     """The parameters of a glTF 2.0 material with the extensions gonio writes.
@@ -69,11 +78,7 @@ class GltfMaterial:
     name: str = field(default="", compare=False)
 
     def to_dict(self) -> dict:
-        d = asdict(self)
-        d.pop("name")
-        d["base_color"] = [float(x) for x in self.base_color]
-        d["specular_color"] = [float(x) for x in self.specular_color]
-        return {k: (float(v) if not isinstance(v, list) else v) for k, v in d.items()}
+        return parameters_dict(self)
 
 
 def ior_f0(ior) -> np.ndarray:

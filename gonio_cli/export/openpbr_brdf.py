@@ -37,13 +37,14 @@ thin film, fuzz, transmission, subsurface, anisotropy (all written at their off 
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from functools import lru_cache
 
 import numpy as np
 
 from ..geometry import Cosines
-from .gltf_brdf import COS_EPS, ALPHA_MIN, ior_f0, specular_brdf, visibility
+from .gltf_brdf import (ALPHA_MIN, COS_EPS, ior_f0, parameters_dict, specular_brdf,
+                        visibility)
 
 #: μ̄ of F82-tint: the cosine (about 82°) where ``specular_color`` sets the metal's edge.
 MU_BAR = 1.0 / 7.0
@@ -83,10 +84,7 @@ class OpenPbrMaterial:
     name: str = field(default="", compare=False)
 
     def to_dict(self) -> dict:
-        d = asdict(self)
-        d.pop("name")
-        return {k: ([float(x) for x in v] if isinstance(v, tuple) else float(v))
-                for k, v in d.items()}
+        return parameters_dict(self)
 
 
 # ------------------------------------------------------------------------ Fresnel --
