@@ -18,7 +18,9 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 
+import batch_gate  # noqa: E402  (the cluster the fault tests start)
 import process  # noqa: E402
 
 #: Share of the jobs recorded when a fault is sent (the run is then well under way).
@@ -90,38 +92,13 @@ def _rerun(gonio: str, plan: Path, out: Path, sched: str) -> int:
 
 def start_cluster(folder: Path, nworkers: int = 2, worker_args: tuple[str, ...] = ()
                   ) -> tuple[list[subprocess.Popen], str]:
-    """A scheduler and ``nworkers`` single-threaded workers (with nannies) on loopback,
-    as separate processes (as a job queue starts them); ``worker_args``: more options of
-    ``dask worker`` (``--preload …``). Returns the processes and the scheduler file."""
-    bindir = Path(sys.executable).parent
-    sched = folder / "scheduler.json"
-    common = ["--host", "127.0.0.1", "--no-dashboard"]
-    env = process.user_environment()
-    procs = [subprocess.Popen([str(bindir / "dask"), "scheduler", "--port", "0",
-                               "--scheduler-file", str(sched), *common], env=env,
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
-    while not sched.is_file():
-        time.sleep(0.05)
-    procs.append(subprocess.Popen([str(bindir / "dask"), "worker", "--scheduler-file",
-                                   str(sched), "--nthreads", "1", "--nworkers",
-                                   str(nworkers), *common, *worker_args],
-                                  env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
-    from distributed import Client
-
-    with Client(scheduler_file=str(sched), timeout=60) as client:
-        client.wait_for_workers(nworkers, timeout=120)
-    return procs, str(sched)
+    """tests/batch_gate.py's cluster (a scheduler and ``nworkers`` workers as separate
+    processes) in the user's environment (:func:`process.user_environment`)."""
+    return batch_gate.start_cluster(folder, nworkers, worker_args,
+                                    env=process.user_environment())
 
 
-def stop_cluster(procs: list[subprocess.Popen]) -> None:
-    """Stop what :func:`start_cluster` started (workers first)."""
-    for p in reversed(procs):
-        p.terminate()
-    for p in procs:
-        try:
-            p.wait(timeout=30)
-        except subprocess.TimeoutExpired:
-            p.kill()
+stop_cluster = batch_gate.stop_cluster
 
 
 def _kill_a_worker(sched: str):

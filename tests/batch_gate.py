@@ -28,6 +28,48 @@ def wait(what: str, test, proc: subprocess.Popen | None = None):
         time.sleep(0.05)
 
 
+def start_cluster(folder: Path, nworkers: int = 2, worker_args: tuple[str, ...] = (),
+                  env: dict | None = None) -> tuple[list[subprocess.Popen], str]:
+    """A scheduler and ``nworkers`` single-threaded workers (with nannies) on loopback,
+    as separate processes (as a job queue starts them); ``worker_args``: more options of
+    ``dask worker`` (``--preload …``). Returns the processes (stop them with
+    :func:`stop_cluster`) and the scheduler file. Shared by the tests and
+    benchmarks/batch_faults.py."""
+    import sys
+
+    bindir = Path(sys.executable).parent
+    sched = folder / "scheduler.json"
+    common = ["--host", "127.0.0.1", "--no-dashboard"]
+    procs = [subprocess.Popen([str(bindir / "dask"), "scheduler", "--port", "0",
+                               "--scheduler-file", str(sched), *common], env=env,
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
+    try:
+        wait("the scheduler", sched.is_file)
+        procs.append(subprocess.Popen([str(bindir / "dask"), "worker", "--scheduler-file",
+                                       str(sched), "--nthreads", "1", "--nworkers",
+                                       str(nworkers), *common, *worker_args], env=env,
+                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        from distributed import Client
+
+        with Client(scheduler_file=str(sched), timeout=60) as client:
+            client.wait_for_workers(nworkers, timeout=DEADLINE_S)
+    except BaseException:
+        stop_cluster(procs)
+        raise
+    return procs, str(sched)
+
+
+def stop_cluster(procs: list[subprocess.Popen]) -> None:
+    """Stop what :func:`start_cluster` started (workers first)."""
+    for p in reversed(procs):
+        p.terminate()
+    for p in procs:
+        try:
+            p.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            p.kill()
+
+
 def attempts(out: Path, key: str) -> list[str]:
     log = out / ".gonio-batch" / "attempts" / (key.replace("/", "_") + ".log")
     return log.read_text().split() if log.is_file() else []

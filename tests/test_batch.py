@@ -15,7 +15,6 @@ import shutil
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -25,7 +24,6 @@ from browser import chromium, headless_flags
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLE = ROOT / "sample_data"
 GONIO = str(Path(sys.executable).with_name("gonio"))
-DASK = str(Path(sys.executable).with_name("dask"))
 INKS = ("red", "green", "blue")
 SCENES = ("sphere", "panel")
 N_FRAMES = 4
@@ -264,32 +262,16 @@ options = {{ var = {{ material = "{material}" }}, width = 16, height = 16, grid-
 
 
 def test_external_scheduler_and_worker_give_the_same_outputs(runs, tmp_path):
+    from batch_gate import start_cluster, stop_cluster
+
     plan = _copy_plan(tmp_path)
-    sched_file = tmp_path / "scheduler.json"
-    common = ["--host", "127.0.0.1", "--no-dashboard"]
-    env = dict(os.environ)
-    procs = [subprocess.Popen([DASK, "scheduler", "--port", "0", "--scheduler-file",
-                               str(sched_file), *common], env=env,
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
+    procs, sched_file = start_cluster(tmp_path, nworkers=1)
     try:
-        deadline = time.monotonic() + 60
-        while not sched_file.is_file():
-            assert time.monotonic() < deadline and procs[0].poll() is None, "no scheduler"
-            time.sleep(0.05)
-        procs.append(subprocess.Popen([DASK, "worker", "--scheduler-file", str(sched_file),
-                                       "--nthreads", "1", "--nworkers", "1", *common], env=env,
-                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
-        address = json.loads(sched_file.read_text())["address"]
+        address = json.loads(Path(sched_file).read_text())["address"]
         assert re.match(r"tcp://127\.0\.0\.1:\d+$", address)  # loopback, a random port
-        done = _batch(plan, tmp_path / "out", "--scheduler", str(sched_file))
+        done = _batch(plan, tmp_path / "out", "--scheduler", sched_file)
     finally:
-        for p in reversed(procs):
-            p.terminate()
-        for p in procs:
-            try:
-                p.wait(timeout=20)
-            except subprocess.TimeoutExpired:
-                p.kill()
+        stop_cluster(procs)
     assert done.returncode == 0, done.stderr
     records = _manifest(tmp_path / "out")
     assert len(records) == 36 and all(r["status"] == "ok" for r in records.values())

@@ -26,12 +26,12 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from batch_gate import DEADLINE_S, attempts as _attempts, fifo_as_file as _fifo_as_file, \
-    open_gate as _open_gate, wait as _wait  # noqa: E402
+    open_gate as _open_gate, start_cluster as _start_cluster, stop_cluster as _stop_cluster, \
+    wait as _wait  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLE = ROOT / "sample_data"
 GONIO = str(Path(sys.executable).with_name("gonio"))
-DASK = str(Path(sys.executable).with_name("dask"))
 MATERIAL = SAMPLE / "scenes" / "floor.material.json"
 SCENE = SAMPLE / "batch" / "scenes" / "sphere.toml"
 FRAMES = [f"render/floor/sphere/frame{k:03d}" for k in range(4)]
@@ -101,30 +101,11 @@ def _ran(done: subprocess.CompletedProcess, out: Path) -> set[str]:
 def cluster(tmp_path_factory):
     """A Dask scheduler and two single-threaded workers (each with its nanny, which
     restarts it when it dies) on loopback; the scheduler file's path."""
-    folder = tmp_path_factory.mktemp("cluster")
-    sched = folder / "scheduler.json"
-    common = ["--host", "127.0.0.1", "--no-dashboard"]
-    procs = [subprocess.Popen([DASK, "scheduler", "--port", "0", "--scheduler-file",
-                               str(sched), *common], stdout=subprocess.DEVNULL,
-                              stderr=subprocess.DEVNULL)]
+    procs, sched = _start_cluster(tmp_path_factory.mktemp("cluster"))
     try:
-        _wait("the scheduler", sched.is_file)
-        procs.append(subprocess.Popen([DASK, "worker", "--scheduler-file", str(sched),
-                                       "--nthreads", "1", "--nworkers", "2", *common],
-                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
-        from distributed import Client
-
-        with Client(scheduler_file=str(sched), timeout=60) as client:
-            client.wait_for_workers(2, timeout=DEADLINE_S)
-        yield str(sched)
+        yield sched
     finally:
-        for p in reversed(procs):
-            p.terminate()
-        for p in procs:
-            try:
-                p.wait(timeout=30)
-            except subprocess.TimeoutExpired:
-                p.kill()
+        _stop_cluster(procs)
 
 
 def _start(plan: Path, out: Path, *args: str) -> subprocess.Popen:
