@@ -128,36 +128,6 @@ RGL_THETA_I_DEG = tuple(range(10, 71, 10))
 RGL_THETA_O_DEG = tuple(range(-80, 86, 5))
 RGL_MIRROR_OFFSETS_DEG = (-3, -2, -1, 1, 2, 3)
 
-#: Forks and execs the command, waits with wait4: wall time, CPU time (user + system of
-#: the process and every child it waited for: auto's forked fitters), peak RSS.
-_CPU_LAUNCHER = """
-import json, os, sys, time
-start = time.perf_counter()
-pid = os.fork()
-if pid == 0:
-    null = os.open(os.devnull, os.O_WRONLY)
-    os.dup2(null, 1)
-    os.dup2(null, 2)
-    os.execv(sys.argv[1], sys.argv[1:])
-_, status, usage = os.wait4(pid, 0)
-print(json.dumps({"wall_s": time.perf_counter() - start,
-                  "cpu_s": usage.ru_utime + usage.ru_stime, "maxrss_kib": usage.ru_maxrss,
-                  "status": os.waitstatus_to_exitcode(status)}))
-"""
-
-
-def run_with_cpu(argv: list[str]) -> dict:
-    """wall_s, cpu_s, maxrss_kib, status of one process (:data:`_CPU_LAUNCHER`)."""
-    import subprocess
-
-    done = subprocess.run([sys.executable, "-I", "-S", "-c", _CPU_LAUNCHER, *argv],
-                          env=process.user_environment(), capture_output=True, text=True)
-    out = json.loads(done.stdout.strip().splitlines()[-1])
-    if out["status"] != 0:
-        raise SystemExit(f"{' '.join(argv)} failed ({out['status']})")
-    return out
-
-
 def rgl_configurations():
     """(θi, θo) in degrees of the RGL fixtures, (280,) each."""
     import numpy as np
@@ -227,7 +197,7 @@ def auto_on_data(tmp: Path, repeats: int = 3) -> None:
         meas, mat = tmp / "auto.measurement.json", tmp / "auto.material.json"
         process.run_measured([gonio, "-q", "ingest", *[str(ROOT / f) for f in files], "-o",
                               str(meas), *opts])
-        runs = [run_with_cpu([gonio, "-q", "fit", str(meas), "-o", str(mat), "--model",
+        runs = [process.run_with_cpu([gonio, "-q", "fit", str(meas), "-o", str(mat), "--model",
                               "auto"]) for _ in range(repeats)]
         best = min(runs, key=lambda r: r["wall_s"])
         doc = json.loads(mat.read_text())

@@ -17,7 +17,9 @@ from pathlib import Path
 
 GNU_TIME = "/usr/bin/time"
 
-#: Forks and execs the command, waits with wait4, prints wall time and peak RSS as JSON.
+#: Forks and execs the command, waits with wait4, prints wall time, CPU time (user +
+#: system of the process and every child it waited for, e.g. gonio fit's forked fitters)
+#: and peak RSS as JSON.
 _LAUNCHER = """
 import json, os, sys, time
 start = time.perf_counter()
@@ -28,6 +30,7 @@ if pid == 0:
     os.execv(sys.argv[1], sys.argv[1:])
 _, status, usage = os.wait4(pid, 0)
 print(json.dumps({"wall_s": time.perf_counter() - start, "maxrss_kib": usage.ru_maxrss,
+                  "cpu_s": usage.ru_utime + usage.ru_stime,
                   "status": os.waitstatus_to_exitcode(status)}))
 """
 
@@ -71,6 +74,19 @@ def run_measured(argv: list[str], env: dict[str, str] | None = None,
         raise SystemExit(f"{' '.join(map(str, argv))} failed ({code}): "
                          f"{tail[-2] if len(tail) > 1 else ''}")
     return wall, peak_kib / 1024.0, code
+
+
+def run_with_cpu(argv: list[str], env: dict[str, str] | None = None) -> dict:
+    """``wall_s``, ``cpu_s``, ``maxrss_kib`` and ``status`` of one process running ``argv``
+    (:data:`_LAUNCHER`, in :func:`user_environment`); a non-zero exit ends the benchmark."""
+    done = subprocess.run([sys.executable, "-I", "-S", "-c", _LAUNCHER, *argv],
+                          env=user_environment(env), capture_output=True, text=True)
+    if not done.stdout.strip():
+        raise SystemExit(f"{argv[0]}: the launcher failed: {done.stderr.strip()}")
+    out = json.loads(done.stdout.strip().splitlines()[-1])
+    if out["status"] != 0:
+        raise SystemExit(f"{' '.join(map(str, argv))} failed ({out['status']})")
+    return out
 
 
 def gonio_command() -> str:
