@@ -15,6 +15,8 @@ from gonio_cli import cli, log
 from gonio_cli.errors import InputError
 from gonio_cli.report import SECTION_NAMES, parse_sections
 from gonio_cli.report import sections as S
+from gonio_cli.report import sheets as SH
+from gonio_cli.report import table1 as T1
 
 PLOTS = {"fit": ["fit.png"], "lobes": ["lobes.png"], "prefilter": ["prefilter.png"],
          "render": ["render.png"], "table1": ["table1.png", "table1_spheres.png"]}
@@ -135,9 +137,9 @@ def test_parse_sections_orders_and_refuses():
 def test_image_errors_closed_forms():
     rng = np.random.default_rng(7)
     a = rng.random((32, 32, 3))
-    assert S.image_errors(a, a) == pytest.approx((0.0, 1.0))
+    assert T1.image_errors(a, a) == pytest.approx((0.0, 1.0))
     # a constant offset d gives RMSE exactly d
-    assert S.image_errors(np.clip(a, 0, 0.9) + 0.1, np.clip(a, 0, 0.9))[0] == \
+    assert T1.image_errors(np.clip(a, 0, 0.9) + 0.1, np.clip(a, 0, 0.9))[0] == \
         pytest.approx(0.1)
 
 
@@ -151,7 +153,7 @@ def test_sheet_colours_grey_lambertian_is_white():
     flat = np.ones_like(wl)
     grey = Material("cook-torrance", wl, {"kd": 0.5 * flat, "ks": 0 * flat,
                                           "m": 0.3 * flat, "f0": 0 * flat})
-    rgb, y = S.direction_colours(grey, [10.0, 50.0], np.linspace(-80, 80, 9))
+    rgb, y = SH.direction_colours(grey, [10.0, 50.0], np.linspace(-80, 80, 9))
     assert rgb.shape == (2, 9, 3) and np.allclose(rgb, 1.0, atol=5e-3)
     assert np.allclose(y, 0.5 / np.pi, rtol=1e-2)  # Y of f = kd/π for a D65-normalised light
 
@@ -213,14 +215,14 @@ def test_plots_say_what_they_show(monkeypatch, tmp_path):
                       [t.get_text() for t in ax.get_legend().get_texts()])
 
     monkeypatch.setattr(Figure, "savefig", record)
-    S._scatter(tmp_path / "t1.png", {"eq. 5": ([10, 20], [0.1, 0.2])}, "x", "y", "t",
+    S.scatter(tmp_path / "t1.png", {"eq. 5": ([10, 20], [0.1, 0.2])}, "x", "y", "t",
                point_labels={"eq. 5": ["red ink", "green ink"]})
     assert seen[tmp_path / "t1.png"][0] == ["red ink", "green ink"]
-    S._scatter(tmp_path / "p.png", {"ring": ([0.1, 0.2, 0.3], [0.0, 1e-12, 1e-4])}, "x", "y",
+    S.scatter(tmp_path / "p.png", {"ring": ([0.1, 0.2, 0.3], [0.0, 1e-12, 1e-4])}, "x", "y",
                "t", floor=S.ERROR_FLOOR)
     legend = seen[tmp_path / "p.png"][1]
     assert legend[0] == "ring" and "≤1e-09 (exact)" in legend[1]
-    S._scatter(tmp_path / "q.png", {"ring": ([0.1], [1e-4])}, "x", "y", "t",
+    S.scatter(tmp_path / "q.png", {"ring": ([0.1], [1e-4])}, "x", "y", "t",
                floor=S.ERROR_FLOOR)
     assert seen[tmp_path / "q.png"][1] == ["ring"]          # nothing floored: no such entry
 

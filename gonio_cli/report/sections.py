@@ -3,13 +3,13 @@
 nothing but the scratch scenes and materials the renderer reads, into the caller's
 ``workdir`` (a temporary folder of the shell).
 
-Why one module: one function per report section, each short and independent, in the
-order the report shows them; the file is long only because there are many sections.
+Here the shared types and helpers and the fit, lobes, prefilter and render sections;
+seed 000's Table 1 is :mod:`.table1`, the colour sheets :mod:`.sheets`, and the registry
+of all of them in report order :data:`SECTIONS` (below, after the imports of those two).
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
@@ -20,7 +20,7 @@ from ..names import SPECTRAL_PATHS
 from . import format_seconds, sweeps
 
 
-def _sample(*parts: str) -> Path:
+def sample_file(*parts: str) -> Path:
     """A file of the bundled sample data (:func:`gonio_cli.samples.sample_data_dir`)."""
     from ..samples import sample_data_dir
 
@@ -68,7 +68,7 @@ class Inputs:
     sources: list[str]
 
 
-def _md_table(header: list[str], rows: list[list[str]]) -> str:
+def md_table(header: list[str], rows: list[list[str]]) -> str:
     align = ["---" if i == 0 or not any(_numeric(r[i]) for r in rows) else "---:"
              for i in range(len(header))]
     return "\n".join(["| " + " | ".join(header) + " |", "|" + "|".join(align) + "|"]
@@ -88,7 +88,7 @@ def _numeric(text: str) -> bool:
 ERROR_FLOOR = 1e-9
 
 
-def _scatter(path: Path, series: dict[str, tuple[list[float], list[float]]], xlabel: str,
+def scatter(path: Path, series: dict[str, tuple[list[float], list[float]]], xlabel: str,
              ylabel: str, title: str, logx=True, logy=True,
              point_labels: dict[str, list[str]] | None = None,
              floor: float | None = None) -> None:
@@ -243,7 +243,7 @@ def fit_section(inputs: Inputs, workdir: Path, quick: bool) -> Section:
             x, y = series.setdefault(f"{r.method} / {r.optimizer}", ([], []))
             x.append(r.time_ms)
             y.append(max(r.alpha_error_percent, 1e-4))
-        _scatter(path, series, "fit time (ms, median)", "α error vs truth (%)",
+        scatter(path, series, "fit time (ms, median)", "α error vs truth (%)",
                  "fit: parameter error against run time (synthetic eq. 5 data, 2% noise)")
 
     md = ("Synthetic measurements from eq. 5 with known α, ρ, c (2 % log-normal noise, "
@@ -261,7 +261,7 @@ def lobes_section(inputs: Inputs, workdir: Path, quick: bool) -> Section:
 
     res = sweeps.lobe_sweep(max_lobes=4 if quick else 8, repeats=3 if quick else 15)
     rows = res["rows"]
-    sky = read_image(_sample("sky.exr")).pixels[:, :, :3].astype(np.float64)
+    sky = read_image(sample_file("sky.exr")).pixels[:, :, :3].astype(np.float64)
     sky = envmap.downsample(sky, max(1, sky.shape[0] // 64))
     ink = inputs.inks[0].materials.get("goniochromatic") if inputs.inks else None
     render = sweeps.lobe_render_times(res["basis"], ink, sky, size=96 if quick else 256) \
@@ -274,18 +274,18 @@ def lobes_section(inputs: Inputs, workdir: Path, quick: bool) -> Section:
             x, y = series.setdefault(r["solver"], ([], []))
             x.append(r["time_ms"])
             y.append(r["rel_rms_worst"])
-        _scatter(path, series, "weight-fit time (ms, median)",
+        scatter(path, series, "weight-fit time (ms, median)",
                  "relative RMS error (worst material)",
                  "lobes: approximation error against weight-fit time (1…N lobes)")
 
     md = (f"Basis search (seed 001 eq. 4, XYZ) over {len(res['materials'])} materials "
           f"({', '.join(res['materials'])}) took {format_seconds(res['basis_time_s'])}:\n\n"
-          + _md_table(["lobes", "eq. 4 error", "exponents"],
+          + md_table(["lobes", "eq. 4 error", "exponents"],
                       [[str(b["lobes"]), f"{b['eq4_error']:.4f}",
                         ", ".join(f"{e:.3g}" for e in b["exponents"])] for b in res["basis"]])
           + f"\n\nOne weight fit ({res['samples']} samples, dense set at 40° view, XYZ) per "
             "lobe count and solver:\n\n"
-          + _md_table(["lobes", "weights", "solver", "L1 (sum)", "rel. RMS (worst)",
+          + md_table(["lobes", "weights", "solver", "L1 (sum)", "rel. RMS (worst)",
                        "time ms"],
                       [[str(r["lobes"]), str(r["weights"]), r["solver"], f"{r['l1_sum']:.4g}",
                         f"{r['rel_rms_worst']:.4g}", f"{r['time_ms']:.3g}"] for r in rows])
@@ -294,7 +294,7 @@ def lobes_section(inputs: Inputs, workdir: Path, quick: bool) -> Section:
              "over the hemisphere, the bundled sky "
              f"prefiltered at the basis's exponents, the environment term over the "
              f"{render[0]['pixels']} pixels of a sphere:\n\n"
-             + _md_table(["lobes", "render ms (median)"],
+             + md_table(["lobes", "render ms (median)"],
                          [[str(r["lobes"]), f"{r['render_ms']:.3g}"] for r in render])
              if render else "")
           + "\n\n![lobes](lobes.png)")
@@ -308,7 +308,7 @@ def prefilter_section(inputs: Inputs, workdir: Path, quick: bool) -> Section:
     from .. import envmap
     from ..imageio import read_image
 
-    sky = read_image(_sample("sky.exr")).pixels[:, :, :3].astype(np.float64)
+    sky = read_image(sample_file("sky.exr")).pixels[:, :, :3].astype(np.float64)
     h = sky.shape[0]
     small = envmap.downsample(sky, max(1, h // 64))
     mid = envmap.downsample(sky, max(1, h // (128 if quick else 256)))
@@ -327,18 +327,18 @@ def prefilter_section(inputs: Inputs, workdir: Path, quick: bool) -> Section:
             x, y = series.setdefault(f"ring E={r['exponent']:g} vs full-res ring", ([], []))
             x.append(r["time_s"])
             y.append(r["p99_error"])
-        _scatter(path, series, "time (s)", "relative error, 99th percentile",
+        scatter(path, series, "time (s)", "relative error, 99th percentile",
                  "prefilter: error against run time", floor=ERROR_FLOOR)
 
     md = (f"The bundled sky (`sample_data/sky.exr`), at {small.shape[1]}×{small.shape[0]} "
           "for brute force (the truth):\n\n"
-          + _md_table(["E", "output", "ring s", "brute s", "p99 error", "max error"],
+          + md_table(["E", "output", "ring s", "brute s", "p99 error", "max error"],
                       [[f"{r['exponent']:.4g}", r["output"], f"{r['ring_s']:.3g}",
                         f"{r['brute_s']:.3g}", f"{r['p99_error']:.1e}", f"{r['max_error']:.1e}"]
                        for r in brute])
           + f"\n\nRing on {mid.shape[1]}×{mid.shape[0]} by output resolution and working map "
             "(reference: ring on the full input):\n\n"
-          + _md_table(["E", "output", "working map", "time s", "p99 error", "max error"],
+          + md_table(["E", "output", "working map", "time s", "p99 error", "max error"],
                       [[f"{r['exponent']:.4g}", r["output"] + (" (auto)" if r["auto"] else ""),
                         r["working"], f"{r['time_s']:.3g}", f"{r['p99_error']:.1e}",
                         f"{r['max_error']:.1e}"] for r in ring])
@@ -353,7 +353,7 @@ def _sphere_scene(segments: int | None) -> tuple[Path, dict]:
     """spheres.toml as data with the sphere's tessellation set: (path, scene)."""
     from ..render.scene import read_scene_toml
 
-    path = _sample("scenes", "spheres.toml")
+    path = sample_file("scenes", "spheres.toml")
     doc = read_scene_toml(path)
     if segments is not None:
         sphere = next(o for o in doc["object"] if o.get("mesh") == "builtin:sphere")
@@ -395,14 +395,14 @@ def render_section(inputs: Inputs, workdir: Path, quick: bool) -> Section:
             x, y = series.setdefault(r["sweep"], ([], []))
             x.append(r["frame_ms"])
             y.append(max(r["de2000_mean"], 1e-4))
-        _scatter(path, series, "frame time (ms)", "mean CIEDE2000 vs reference",
+        scatter(path, series, "frame time (ms)", "mean CIEDE2000 vs reference",
                  f"render: error against frame time ({size}×{size}, {ink} ink)")
 
     md = (f"The {ink} ink on `spheres.toml` at {size}×{size}; reference: exact spectral path, "
           f"ssaa 4, 288 segments ({format_seconds(ref_t)}). CIEDE2000 (Lab, D65 white at Y = 1) "
           "over pixels covered in either image; frame = rasterize + shade + downsample + tone "
           "map, second of two runs.\n\n"
-          + _md_table(["spectral", "ssaa", "segments", "triangles", "ΔE00 mean", "ΔE00 p99",
+          + md_table(["spectral", "ssaa", "segments", "triangles", "ΔE00 mean", "ΔE00 p99",
                        "frame ms", "shade ms"],
                       [[r["spectral"], str(r["ssaa"]), str(r["segments"]), str(r["triangles"]),
                         f"{r['de2000_mean']:.3f}", f"{r['de2000_p99']:.3f}",
@@ -413,262 +413,8 @@ def render_section(inputs: Inputs, workdir: Path, quick: bool) -> Section:
                     "rows": rows}, md, {"render.png": plot})
 
 
-# -------------------------------------------------------------------------------- table1 --
-
-def image_errors(image, reference) -> tuple[float, float]:
-    """(RMSE, SSIM) of two sRGB-encoded images (H, W, 3) in [0, 1] over the whole frame
-    (background included), SSIM from scikit-image with data_range 1, channel axis last."""
-    from skimage.metrics import structural_similarity
-
-    a, b = np.asarray(image, float), np.asarray(reference, float)
-    rmse = float(np.sqrt(np.mean((a - b) ** 2)))
-    ssim = float(structural_similarity(a, b, data_range=1.0, channel_axis=-1))
-    return rmse, ssim
-
-
-def table1_section(inputs: Inputs, workdir: Path, quick: bool) -> Section:
-    size = 128 if quick else 512
-    rows, images = [], {}
-    for ink in inputs.inks:
-        v = {"out": str(workdir), "ink": ink.name}
-        ref, _, ref_t = sweeps.render_scene_file(_sample("scenes", "spheres_measured.toml"), v,
-                                                 width=size, height=size)
-        ref_img = ref.display / 255.0
-        images[(ink.name, "measured")] = ref.display
-        for model, suffix in (("goniochromatic", ""), ("torrance-sparrow", ".torrance-sparrow")):
-            scene = _sample("scenes", "spheres.toml")
-            mv = {"out": str(workdir), "material": ink.name + suffix}
-            sweeps.render_scene_file(scene, mv, width=size, height=size)  # warm
-            frame, _, t = sweeps.render_scene_file(scene, mv, width=size, height=size)
-            rmse, ssim = image_errors(frame.display / 255.0, ref_img)
-            images[(ink.name, model)] = frame.display
-            paper = PAPER_TABLE1[model].get(ink.name)
-            rows.append({"ink": ink.name, "model": model, "rmse": rmse, "ssim": ssim,
-                         "frame_ms": 1e3 * t, "reference_frame_ms": 1e3 * ref_t,
-                         "paper_rmse": paper[0] if paper else None,
-                         "paper_ssim": paper[1] if paper else None,
-                         "paper_frame_us": PAPER_TABLE1[model]["frame_us"]})
-    sparsity = [{"ink": i.name, "configurations": int(i.measurement.n_configurations),
-                 "theta_i_deg": sorted({float(x) for x in i.measurement.theta_i_deg}),
-                 "theta_o_step_deg": _median_step(i.measurement.theta_o_deg)}
-                for i in inputs.inks]
-    numbers = {"size_px": size, "image": "display PNG (filmic tone map of the scene, "
-               "sRGB-encoded) / 255, whole frame", "rows": rows, "sparsity": sparsity,
-               "paper": PAPER_TABLE1}
-
-    def plot(path):
-        series: dict[str, tuple[list, list]] = {}
-        names: dict[str, list[str]] = {}
-        for r in rows:
-            x, y = series.setdefault(MODEL_LABEL[r["model"]], ([], []))
-            x.append(r["frame_ms"])
-            y.append(r["rmse"])
-            names.setdefault(MODEL_LABEL[r["model"]], []).append(f"{r['ink']} ink")
-        _scatter(path, series, f"frame time (ms, {size}×{size}, CPU)",
-                 "RMSE vs measured-reference render",
-                 "seed 000 Table 1: RMSE against render time (label: ink)", logy=False,
-                 point_labels=names)
-
-    def strip(path):
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-
-        cols = ("measured", "goniochromatic", "torrance-sparrow")
-        fig, axes = plt.subplots(len(inputs.inks), 3, figsize=(6, 2 * len(inputs.inks)),
-                                 dpi=100, squeeze=False)
-        for r, ink in enumerate(inputs.inks):
-            for c, col in enumerate(cols):
-                axes[r, c].imshow(images[(ink.name, col)])
-                axes[r, c].set_axis_off()
-                if r == 0:
-                    axes[r, c].set_title({"measured": "measured"}.get(col, MODEL_LABEL.get(col)),
-                                         fontsize=9)
-        fig.tight_layout()
-        fig.savefig(path)
-        plt.close(fig)
-
-    table = _md_table(
-        ["ink", "model", "RMSE (ours)", "RMSE (paper)", "SSIM (ours)", "SSIM (paper)",
-         "frame (ours, CPU)", "frame (paper, RTX 4080)"],
-        [[r["ink"], MODEL_LABEL[r["model"]], f"{r['rmse']:.4f}",
-          "—" if r["paper_rmse"] is None else f"{r['paper_rmse']:.4f}", f"{r['ssim']:.4f}",
-          "—" if r["paper_ssim"] is None else f"{r['paper_ssim']:.4f}",
-          f"{r['frame_ms']:.3g} ms", f"{r['paper_frame_us']:.0f} µs"] for r in rows])
-    md = (f"Spheres of `spheres.toml` / `spheres_measured.toml` at {size}×{size} (ssaa 2, "
-          "filmic tone map, two D65 lights). RMSE and SSIM are computed on the displayed "
-          "images: sRGB-encoded after the scene's tone map, in [0, 1] (8-bit / 255), whole "
-          "frame with its black background, SSIM by scikit-image (data_range 1, 7×7 window, "
-          "channel_axis last). The paper's columns are seed 000 Table 1, pasted and labelled; "
-          "every other number comes from this run.\n\n" + table
-          + "\n\n" + table1_discussion(rows, sparsity, size)
-          + "\n\n![table1](table1.png)\n\n![spheres](table1_spheres.png)")
-    return Section("table1", "Seed 000 Table 1: models against the measured reference",
-                   numbers, md, {"table1.png": plot, "table1_spheres.png": strip})
-
-
-def _median_step(theta_o_deg) -> float:
-    t = np.unique(np.round(np.asarray(theta_o_deg, float), 6))
-    return float(np.median(np.diff(t))) if t.size > 1 else float("nan")
-
-
-def table1_discussion(rows: list[dict], sparsity: list[dict], size: int) -> str:
-    """"Where and why ours differ", written from the numbers of this run."""
-    def mean(model, key):
-        v = [r[key] for r in rows if r["model"] == model and r[key] is not None]
-        return float(np.mean(v)) if v else float("nan")
-
-    ours = {m: (mean(m, "rmse"), mean(m, "ssim")) for m in PAPER_TABLE1}
-    paper = {m: (mean(m, "paper_rmse"), mean(m, "paper_ssim")) for m in PAPER_TABLE1}
-    gc, ts = "goniochromatic", "torrance-sparrow"
-    wins = sum(1 for ink in {r["ink"] for r in rows}
-               if _get(rows, ink, gc, "rmse") < _get(rows, ink, ts, "rmse"))
-    n_inks = len({r["ink"] for r in rows})
-    parts = []
-    better = ours[gc][0] < paper[gc][0]
-    parts.append(
-        f"Our eq. 5 spheres are {'closer to' if better else 'further from'} the measured "
-        f"reference than the paper's (mean RMSE {ours[gc][0]:.4f} against {paper[gc][0]:.4f}, "
-        f"SSIM {ours[gc][1]:.3f} against {paper[gc][1]:.3f}). "
-        + ("That is expected: the sample measurements are synthetic, generated from eq. 5 "
-           "itself (sample_data/make_inks.py) with small noise, so the model can fit them "
-           "almost exactly, while the paper fitted real mica inks whose reflectance eq. 5 "
-           "only approximates." if better else
-           "The sample measurements are synthetic eq. 5 data, so this is surprising: the "
-           "difference must come from the reference's interpolation or the image pipeline "
-           "(tone map, resolution), not from the model."))
-    gap_ours = ours[ts][0] - ours[gc][0]
-    gap_paper = paper[ts][0] - paper[gc][0]
-    parts.append(
-        f"The standard Torrance–Sparrow model is worse than ours for {wins} of {n_inks} inks; "
-        f"its RMSE gap is {gap_ours:+.4f} here against {gap_paper:+.4f} in the paper "
-        f"(SSIM gap {ours[gc][1] - ours[ts][1]:+.3f} against {paper[gc][1] - paper[ts][1]:+.3f}). "
-        "It cannot shift hue with angle (no c(λ) exponent), so it misses the colour change at "
-        "grazing incidence and view that the rim light of the scene shows.")
-    losers = sorted({r["ink"] for r in rows} - {
-        ink for ink in {r["ink"] for r in rows}
-        if _get(rows, ink, gc, "rmse") < _get(rows, ink, ts, "rmse")})
-    if losers:
-        parts.append(
-            f"Where the standard model is closer ({', '.join(losers)}), the eq. 5 hue shift "
-            "is likely small in the image (c(λ) is large where the ink reflects little), so "
-            "the highlight's shape, where the reference's interpolation between sparse "
-            "configurations is coarsest, decides; the paper reports eq. 5 ahead for every ink.")
-    n_conf = ", ".join(f"{s['ink']} {s['configurations']}" for s in sparsity)
-    parts.append(
-        f"The measured reference is sparse ({n_conf} in-plane configurations; θi "
-        f"{', '.join(f'{t:g}' for t in sparsity[0]['theta_i_deg'])}°, θo every "
-        f"{sparsity[0]['theta_o_step_deg']:g}°): out-of-plane and grazing configurations are "
-        "interpolated by a thin-plate spline in the half angle θh and (θi + θo)/2 (the "
-        "two angles of eq. 5; docs/render.md), so neither model can match it exactly and both errors have a floor "
-        "set by the reference itself, as the paper's caption says.")
-    f_ms = mean(gc, "frame_ms")
-    parts.append(
-        f"Render times are not comparable: ours are CPU numpy frames at {size}×{size} "
-        f"(ssaa 2, {f_ms:.3g} ms for eq. 5, {mean(ts, 'frame_ms'):.3g} ms for the standard "
-        f"model, on this machine), the paper's are {PAPER_TABLE1[gc]['frame_us']:.0f} and "
-        f"{PAPER_TABLE1[ts]['frame_us']:.0f} µs on an RTX 4080 laptop GPU at 512×512. In both, "
-        "the two models cost about the same per frame (the eq. 5 exponent is tabulated).")
-    return "**Where and why ours differ.** " + " ".join(parts)
-
-
-def _get(rows, ink, model, key):
-    return next(r[key] for r in rows if r["ink"] == ink and r["model"] == model)
-
-
-# -------------------------------------------------------------------------------- sheets --
-
-#: Angles of incidence of the sheets' lobe plots (deg).
-SHEET_THETA_I_DEG = (15.0, 30.0, 45.0, 60.0, 75.0)
-#: Outgoing angles (deg) of the lobe plots and swatches (in-plane, docs/conventions.md sign).
-SHEET_THETA_O_DEG = np.arange(-88.0, 88.5, 1.0)
-#: A direction whose linear sRGB has no channel above this shows no colour: drawn black.
-MIN_CHANNEL = 1e-12
-
-
-def direction_colours(material, theta_i_deg, theta_o_deg) -> tuple[np.ndarray, np.ndarray]:
-    """The colour each in-plane direction shows under D65 and the BRDF's luminance.
-
-    Radiance f(ωi, ωo) · cos θi · D65(λ) (E = 1) → XYZ (docs/conventions.md) → linear sRGB,
-    normalised per direction so the largest channel is 1 (hue and saturation only; the
-    lobe plot's radius carries the magnitude), then sRGB-encoded.
-    Returns (rgb (n_i, n_o, 3) in [0, 1], Y of f under D65 (n_i, n_o), sr⁻¹).
-    """
-    from ..geometry import in_plane_cosines
-    from ..spectra import illuminant, spectrum_to_xyz, srgb_encode, xyz_to_linear_srgb
-
-    ti, to = np.meshgrid(np.asarray(theta_i_deg, float), np.asarray(theta_o_deg, float),
-                         indexing="ij")
-    f = material.evaluate(in_plane_cosines(ti.ravel(), to.ravel()))
-    f = f.reshape(ti.shape + (f.shape[-1],))
-    wl = material.wavelength_nm
-    d65 = illuminant("D65", wl)
-    xyz_f = spectrum_to_xyz(f * d65, wl)
-    rgb = np.maximum(xyz_to_linear_srgb(xyz_f * np.cos(np.radians(ti))[..., None]), 0.0)
-    peak = rgb.max(axis=-1, keepdims=True)
-    rgb = np.where(peak > MIN_CHANNEL, rgb / np.maximum(peak, MIN_CHANNEL), 0.0)
-    return srgb_encode(rgb), xyz_f[..., 1]
-
-
-def sheet_plot(path: Path, title: str, material) -> None:
-    """A material sheet: in-plane lobe plots per θi (polar, θo from the normal, radius
-    Y of f normalised per θi, points coloured by the colour each direction shows) over a
-    swatch strip (rows θi, columns θo)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    rgb, y = direction_colours(material, SHEET_THETA_I_DEG, SHEET_THETA_O_DEG)
-    n = len(SHEET_THETA_I_DEG)
-    fig = plt.figure(figsize=(2.3 * n, 4.6), dpi=100)
-    th = np.radians(SHEET_THETA_O_DEG)
-    for k, ti in enumerate(SHEET_THETA_I_DEG):
-        ax = fig.add_subplot(2, n, k + 1, projection="polar")
-        r = y[k] / max(float(y[k].max()), MIN_CHANNEL)
-        ax.plot(th, r, color="0.6", lw=0.6)
-        ax.scatter(th, r, c=rgb[k], s=9)
-        ax.plot([-np.radians(ti)] * 2, [0, 1.05], color="orange", lw=1)  # the light
-        ax.set_theta_zero_location("N")
-        ax.set_theta_direction(-1)
-        ax.set_thetamin(-90)
-        ax.set_thetamax(90)
-        ax.set_yticklabels([])
-        ax.set_title(f"θi = {ti:g}°", fontsize=9)
-        ax.tick_params(labelsize=6)
-    ax = fig.add_subplot(2, 1, 2)
-    ax.imshow(rgb, aspect="auto", interpolation="nearest",
-              extent=(SHEET_THETA_O_DEG[0], SHEET_THETA_O_DEG[-1], n - 0.5, -0.5))
-    ax.set_yticks(range(n), [f"θi {t:g}°" for t in SHEET_THETA_I_DEG], fontsize=7)
-    ax.set_xlabel("viewing angle θo (deg; > 0 the specular side, θo = θi the mirror)")
-    ax.set_title("colour swatch over viewing angle (D65, hue normalised)", fontsize=9)
-    fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
-
-
-def sheets_section(inputs: Inputs, workdir: Path, quick: bool) -> Section:
-    plots, items = {}, []
-    for k, (label, mat) in enumerate(inputs.sheets):
-        slug = "".join(ch if ch.isalnum() else "-" for ch in label.lower()).strip("-")
-        name = f"sheet-{k:02d}-{'-'.join(p for p in slug.split('-') if p)}.png"
-        rgb, _ = direction_colours(mat, SHEET_THETA_I_DEG, SHEET_THETA_O_DEG)
-        mirror = [rgb[i, int(np.argmin(np.abs(SHEET_THETA_O_DEG - t)))].tolist()
-                  for i, t in enumerate(SHEET_THETA_I_DEG)]
-        items.append({"material": label, "model": mat.model, "file": name,
-                      "mirror_srgb": mirror})
-        plots[name] = (lambda path, label=label, mat=mat: sheet_plot(path, label, mat))
-    md = ("Per material: the in-plane BRDF over θo for each θi (polar; radius the luminance "
-          "of f under D65, normalised per θi; the orange line is the light), each point "
-          "coloured by the colour that direction shows (XYZ of f·cos θi under D65 → sRGB, "
-          "normalised so its largest channel is 1), and a swatch strip of that colour over "
-          "viewing angle.\n\n" + "\n\n".join(f"**{i['material']}** ({i['model']})\n\n"
-                                             f"![{i['material']}]({i['file']})" for i in items))
-    return Section("sheets", "Material sheets", {"sheets": items,
-                   "theta_i_deg": list(SHEET_THETA_I_DEG)}, md, plots)
-
+from .sheets import sheets_section  # noqa: E402  (they build on the types above)
+from .table1 import table1_section  # noqa: E402
 
 #: Registry: section name → builder, in report order.
 SECTIONS: dict[str, Callable[[Inputs, Path, bool], Section]] = {
@@ -679,14 +425,3 @@ SECTIONS: dict[str, Callable[[Inputs, Path, bool], Section]] = {
     "table1": table1_section,
     "sheets": sheets_section,
 }
-
-
-def finite_numbers(obj) -> bool:
-    """True if every float in a nested structure is finite (None allowed)."""
-    if isinstance(obj, float):
-        return math.isfinite(obj)
-    if isinstance(obj, dict):
-        return all(finite_numbers(v) for v in obj.values())
-    if isinstance(obj, (list, tuple)):
-        return all(finite_numbers(v) for v in obj)
-    return True
