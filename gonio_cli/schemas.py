@@ -549,7 +549,7 @@ class Material:
 
 #: Bound of |c(λ)| in seed 000 eq. 5's exp(c x), x in [0, 1]: e^100 ≈ 3e43, so ρ e^{c x}
 #: stays finite in float64 for any ρ ≤ MAX_MAGNITUDE; gonio fit searches |c| ≤ 60
-#: (fit.common.C_LIMIT), so nothing it writes is refused.
+#: (fit.separable.C_LIMIT), so nothing it writes is refused.
 C_MAX = 100.0
 
 #: The range of every material parameter (brdf.MODELS), by name: α of GGX in (0, 1]

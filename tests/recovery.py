@@ -8,7 +8,8 @@ import numpy as np
 
 from gonio_cli import brdf
 from gonio_cli.fit import fit
-from gonio_cli.fit.common import FitOptions, prepare
+from gonio_cli.fit.common import prepare
+from gonio_cli.fit.results import FitOptions
 from gonio_cli.synthetic import synthetic_measurement
 
 

@@ -255,7 +255,7 @@ def test_every_choice_option_is_checked_against_a_registry():
 
 def test_each_fitter_s_optimizers_are_its_names_default_first():
     from gonio_cli import fit, names
-    from gonio_cli.fit.common import FitOptions
+    from gonio_cli.fit.results import FitOptions
 
     assert tuple(fit.FITTERS) == names.FIT_MODEL_NAMES
     for model in names.FIT_MODEL_NAMES:

@@ -11,8 +11,8 @@ from gonio_cli.artifact import read_artifact
 from gonio_cli.brdf import goniochromatic
 from gonio_cli.errors import FitError, InputError
 from gonio_cli.fit import fit, to_material
-from gonio_cli.fit.common import (FitOptions, LinearProfile, golden_section, prepare,
-                                  weighted_linear_lsq)
+from gonio_cli.fit.common import LinearProfile, golden_section, prepare, weighted_linear_lsq
+from gonio_cli.fit.results import FitOptions
 from gonio_cli.geometry import in_plane_cosines
 from gonio_cli.names import OPTIMIZERS_BY_MODEL
 from gonio_cli.schemas import Measurement, read_material, write_measurement

@@ -12,7 +12,8 @@ import pytest
 
 from gonio_cli.fit import fit
 from gonio_cli.fit.auto import CONFIGURATION_FOLDS, criterion, fit_auto, folds
-from gonio_cli.fit.common import FitOptions, prepare
+from gonio_cli.fit.common import prepare
+from gonio_cli.fit.results import FitOptions
 from gonio_cli.synthetic import ink_spectra, paper_geometry, synthetic_measurement
 
 #: The twelve in-plane geometries of an X-Rite MA-T12 (θo = θi − aspecular angle).

@@ -13,7 +13,8 @@ import pytest
 
 from gonio_cli import brdf
 from gonio_cli.fit import fit
-from gonio_cli.fit.common import FitOptions, prepare
+from gonio_cli.fit.common import prepare
+from gonio_cli.fit.results import FitOptions
 from gonio_cli.geometry import cosines, in_plane_cosines
 from gonio_cli.synthetic import ink_spectra, paper_geometry, synthetic_measurement
 

@@ -23,7 +23,8 @@ from gonio_cli.errors import FitError, InputError
 from gonio_cli.fit import cook_torrance as ct
 from gonio_cli.fit import fit, to_material
 from gonio_cli.fit import torrance_sparrow as ts
-from gonio_cli.fit.common import FitOptions, prepare
+from gonio_cli.fit.common import prepare
+from gonio_cli.fit.results import FitOptions
 from gonio_cli.geometry import in_plane_cosines
 from gonio_cli.schemas import read_material, write_material
 from gonio_cli.spectra import parse_grid

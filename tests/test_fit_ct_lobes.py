@@ -18,7 +18,8 @@ from gonio_cli import brdf
 from gonio_cli.errors import GonioError
 from gonio_cli.fit import fit
 from gonio_cli.fit import cook_torrance_lobes as ctl
-from gonio_cli.fit.common import FitOptions, prepare
+from gonio_cli.fit.common import prepare
+from gonio_cli.fit.results import FitOptions
 from gonio_cli.fit.sweep import _comparison_truths
 from gonio_cli.geometry import in_plane_cosines
 from gonio_cli.schemas import read_material, read_measurement, write_measurement

@@ -10,7 +10,9 @@ import pytest
 
 from gonio_cli.fit import fit
 from gonio_cli.fit import goniochromatic as gc
-from gonio_cli.fit.common import FitOptions, minimize_log_alpha, prepare
+from gonio_cli.fit.alpha import minimize_log_alpha
+from gonio_cli.fit.common import prepare
+from gonio_cli.fit.results import FitOptions
 from gonio_cli.synthetic import ink_spectra, paper_geometry, synthetic_measurement
 
 

@@ -17,8 +17,9 @@ import pytest
 
 from gonio_cli import brdf
 from gonio_cli.fit import fit, judge, to_material
-from gonio_cli.fit.common import (FitOptions, golden_section, nnls2, prepare, profile_c,
-                                  profile_c_columns)
+from gonio_cli.fit.common import golden_section, prepare
+from gonio_cli.fit.results import FitOptions
+from gonio_cli.fit.separable import nnls2, profile_c, profile_c_columns
 from gonio_cli.fit.separable import CScan
 from gonio_cli.fit.verdict import THRESHOLDS, colour_errors, verdict
 from gonio_cli.geometry import in_plane_cosines

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from gonio_cli import brdf
-from gonio_cli.fit.common import nnls3, profile_c, profile_c_columns
+from gonio_cli.fit.separable import nnls3, profile_c, profile_c_columns
 from gonio_cli.geometry import cosines
 from gonio_cli.synthetic import ink_spectra
 
@@ -129,7 +129,8 @@ def test_it_reuses_the_diffuse_models_alpha_search_when_fitted_after_it(monkeypa
     # stages (fit.auto.TOGETHER): the second skips the α search the first made, and ends
     # where it ends alone
     from gonio_cli.fit import fit, layered
-    from gonio_cli.fit.common import FitOptions, prepare
+    from gonio_cli.fit.common import prepare
+    from gonio_cli.fit.results import FitOptions
     from gonio_cli.synthetic import synthetic_measurement
 
     m = synthetic_measurement(MODEL, truth(), *rgl_like_geometry(), noise=0.01, seed=3)
@@ -155,7 +156,8 @@ def test_a_later_search_of_the_run_starts_near_the_first():
     # its roughnesses, and each later one (a fold) starts there instead of scanning 19
     # starts; on a fold it ends where a full search ends
     from gonio_cli.fit import fit, layered
-    from gonio_cli.fit.common import FitOptions, prepare
+    from gonio_cli.fit.common import prepare
+    from gonio_cli.fit.results import FitOptions
     from gonio_cli.synthetic import synthetic_measurement
 
     m = synthetic_measurement(MODEL, truth(), *rgl_like_geometry(), noise=0.01, seed=4)

@@ -86,7 +86,8 @@ def fit(
     from ..fit import fit as run_fit
     from ..fit import fit_auto
     from ..fit import gains as sweep_gains
-    from ..fit.common import FitOptions, prepare
+    from ..fit.common import prepare
+    from ..fit.results import FitOptions
     from ..names import pick
     from ..schemas import read_measurement, write_material
     from . import require_files

@@ -1,8 +1,8 @@
 """``gonio fit``: reflectance models fitted to a measurement (seed 000, seed 004).
 
 The registry :data:`FITTERS` maps a model name (``--model``) to its fitter; each takes
-:class:`~.common.FitData` and :class:`~.common.FitOptions` and returns a
-:class:`~.common.ModelFit` with one :class:`~.common.FitReport` per method.
+:class:`~.common.FitData` and :class:`~.results.FitOptions` and returns a
+:class:`~.results.ModelFit` with one :class:`~.results.FitReport` per method.
 
 - ``goniochromatic`` (default): seed 000 eq. 5; :mod:`.goniochromatic`
 - ``goniochromatic-diffuse``: eq. 5 plus a Lambertian ρ_d(λ); :mod:`.layered`
@@ -33,7 +33,9 @@ from ..names import AUTO_MODEL, FIT_MODEL_CHOICES, OPTIMIZER_NAMES, pick
 from ..schemas import Material
 from . import cook_torrance, cook_torrance_lobes, goniochromatic, layered, torrance_sparrow
 from ..errors import FitError
-from .common import FitData, FitOptions, ModelFit, choose_optimizer
+from .alpha import choose_optimizer
+from .common import FitData
+from .results import FitOptions, ModelFit
 from .gains import NOTE_RATIO
 
 FITTERS: dict[str, Callable[[FitData, FitOptions], ModelFit]] = {

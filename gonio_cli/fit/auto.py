@@ -26,7 +26,8 @@ from typing import Any, Callable
 import numpy as np
 
 from ..errors import GonioError
-from .common import FitData, FitOptions, ModelFit, Stopwatch, compressive_floor
+from .common import FitData, compressive_floor
+from .results import FitOptions, ModelFit, Stopwatch
 from .verdict import THRESHOLDS, colour_errors, covers_colour, fit_colour_errors
 
 #: Models ``auto`` tries, cheapest first (a tie keeps the earlier, simpler one).

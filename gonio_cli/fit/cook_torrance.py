@@ -16,7 +16,7 @@ b = ks (1 − F0):  f = kd/π + a S + b q S. So per wavelength:
    with reweighted targets. m(λ) by a 49-point scan over log m in [:data:`M_MIN`,
    :data:`M_MAX`] and a golden section (:func:`~.common.golden_section`) inside the best
    cell, for all wavelengths at once. ks = a + b, F0 = a/(a + b). Golden section, not
-   nlopt: each wavelength has its own m, and :func:`~.common.minimize_log_alpha` is a
+   nlopt: each wavelength has its own m, and :func:`~.alpha.minimize_log_alpha` is a
    scalar search (41 of them would cost 41 × ~65 profile calls instead of ~100).
 2. ``levenberg_marquardt`` (``--optimizer scipy-least-squares``): seed 004 §5.2's own
    method, ``scipy.optimize.least_squares(method="lm")`` (MINPACK) per wavelength on all
@@ -59,8 +59,9 @@ import numpy as np
 from ..brdf import (LOG_MAX, cook_torrance, cook_torrance_specular_geometry,
                     dlog_beckmann_dlog_m, schlick_fresnel)
 from ..errors import FitError, InputError
-from .common import (SINGULAR_TOL, FitData, FitOptions, FitReport, ModelFit, Stopwatch,
-                     choose_optimizer, error_figures, golden_section, nm_list)
+from .alpha import choose_optimizer
+from .common import FitData, SINGULAR_TOL, golden_section
+from .results import FitOptions, FitReport, ModelFit, Stopwatch, error_figures, nm_list
 
 MODEL = "cook-torrance"
 
@@ -518,7 +519,7 @@ def fit(data: FitData, options: FitOptions) -> ModelFit:
 
     Returns
     -------
-    :class:`~.common.ModelFit` with reports ``profile`` (and ``levenberg_marquardt``),
+    :class:`~.results.ModelFit` with reports ``profile`` (and ``levenberg_marquardt``),
     parameters ``kd``, ``ks``, ``m``, ``f0`` (L,) as in :data:`gonio_cli.brdf.MODELS`,
     error figures including seed 004 eq. 14's relative RMSE.
 

@@ -16,7 +16,7 @@ S = Σ_j ks_j A_j and q = (1 − cos θd)⁵, Schlick's F = F0 (1 − q) + q, so
     f = kd/π + F0 (1 − q) S + q S,
 
 linear in (kd, F0) with a known offset q S: a two-column non-negative least squares
-(:func:`~.common.nnls2`, closed form, every wavelength at once from ten matrix-vector
+(:func:`~.separable.nnls2`, closed form, every wavelength at once from ten matrix-vector
 products). F0 is kept ≤ 1: where the unconstrained F0 exceeds 1 the minimum over the box
 lies on its face F0 = 1 (the cost is convex), and kd alone is solved there. The profile
 cost, the sum of the per-wavelength costs over the wavelengths with signal, is then
@@ -43,8 +43,10 @@ import numpy as np
 
 from ..brdf import cook_torrance_specular_geometry, schlick_fresnel
 from ..errors import InputError
-from .common import (BestPoint, FitData, FitOptions, FitReport, ModelFit, Stopwatch,
-                     choose_optimizer, error_figures, nm_list, nnls2)
+from .alpha import choose_optimizer
+from .common import BestPoint, FitData
+from .results import FitOptions, FitReport, ModelFit, Stopwatch, error_figures, nm_list
+from .separable import nnls2
 from .cook_torrance import M_MAX, M_MIN
 from .warm import WARM_STEP, near
 

@@ -38,7 +38,8 @@ import numpy as np
 
 from ..errors import GonioError, InputError
 from ..names import SWEEP_GAIN_NAMES
-from .common import FitData, FitOptions, ModelFit
+from .common import FitData
+from .results import FitOptions, ModelFit
 
 #: ``--sweep-gain`` values, spelled in :mod:`gonio_cli.names`.
 CHOICES = SWEEP_GAIN_NAMES

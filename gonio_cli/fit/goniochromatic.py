@@ -7,7 +7,7 @@ The model (in :func:`gonio_cli.brdf.goniochromatic`) is, in logs,
 so for a fixed α it is *linear* in (log ρ(λ), c(λ)) for every wavelength: with log
 residuals, step 2 is a weighted linear least-squares problem per wavelength with a closed
 form (all 41 wavelengths in one batched 2 × 2 solve, :func:`solve_spectra`). That turns
-each nonlinear problem into a 1-D search in log α (:func:`~.common.minimize_log_alpha`).
+each nonlinear problem into a 1-D search in log α (:func:`~.alpha.minimize_log_alpha`).
 
 Methods (reported side by side in the material, so a user sees what refinement bought):
 
@@ -21,7 +21,7 @@ Methods (reported side by side in the material, so a user sees what refinement b
 
 With linear or compressive residuals, step 2 is no longer linear in c: ρ keeps its
 closed form for a given c, and c is found per wavelength by a scan and a golden-section
-search, all wavelengths at once (:func:`~.common.profile_c`).
+search, all wavelengths at once (:func:`~.separable.profile_c`).
 """
 
 from __future__ import annotations
@@ -34,10 +34,11 @@ from ..brdf import (LOG_MAX, dlog_ggx_d_dlog_alpha, goniochromatic,
                     goniochromatic_exponent_arg, log_ggx_d, log_goniochromatic_d4)
 from ..errors import FitError, InputError
 from ..names import STEP2_NAMES, pick
-from .common import (ALPHA_MAX, ALPHA_MIN, C_LIMIT, FitData, FitOptions, FitReport,
-                     LinearProfile, ModelFit, Stopwatch, WARM_ALPHA_FACTOR,
-                     WARM_ALPHA_POINTS, choose_optimizer, error_figures, minimize_log_alpha,
-                     nm_list, profile_c, scan_log_alpha)
+from .alpha import choose_optimizer, minimize_log_alpha, scan_log_alpha
+from .common import (ALPHA_MAX, ALPHA_MIN, FitData, LinearProfile, WARM_ALPHA_FACTOR,
+                     WARM_ALPHA_POINTS)
+from .results import FitOptions, FitReport, ModelFit, Stopwatch, error_figures, nm_list
+from .separable import C_LIMIT, profile_c
 
 #: Step 1 fits α per angle of incidence only from groups with at least this many
 #: configurations (2 parameters, scale and α, plus one degree of freedom).
@@ -117,7 +118,7 @@ def solve_spectra(data: FitData, alpha: float):
 
 def _solve_spectra_linear(data: FitData, off, x):
     """Linear (and compressive) residuals: ρ closed form given c; c by a scan and a
-    golden-section search per wavelength (:func:`~.common.profile_c`)."""
+    golden-section search per wavelength (:func:`~.separable.profile_c`)."""
     _, rho, c, cost = profile_c(x, np.exp(off), data.y, data.w, diffuse=False)
     signal = np.any((data.w > 0) & (data.y > 0), axis=0)
     ok = signal & (np.abs(c) < C_LIMIT * (1 - 1e-6)) & np.isfinite(cost)

@@ -13,7 +13,7 @@ Models (in :mod:`gonio_cli.brdf`):
 - ``goniochromatic-two-lobe``: eq. 5, ρ_d(λ) and a second GGX lobe of its own roughness
   α_2 and colour ρ_2(λ) (:func:`gonio_cli.brdf.goniochromatic_two_lobe`): for fixed α and
   α_2 the second lobe is a third non-negative column beside ρ_d and ρ
-  (:func:`~.common.profile_c_columns`, :func:`~.common.nnls3`); the outer search is
+  (:func:`~.separable.profile_c_columns`, :func:`~.separable.nnls3`); the outer search is
   2-D, (log α, log α_2).
 
 The fit keeps the separable structure of the default model. For fixed roughnesses (α and,
@@ -22,7 +22,7 @@ with a coat, α_coat, k_coat and F0_coat) the coat is a known offset o(θ), and 
     min over c, ρ_d ≥ 0, ρ ≥ 0 of Σ_n w (ρ_d/π + ρ D(θh; α)/4 · e^{c x} + o − y)²,
 
 a two-column non-negative least-squares problem in (ρ_d, ρ) with a closed form for any c,
-and a 1-D search in c (:func:`~.common.profile_c`): a scan of all wavelengths at once
+and a 1-D search in c (:func:`~.separable.profile_c`): a scan of all wavelengths at once
 (three matrix products) and safeguarded parabolic steps inside the best cell. The roughnesses are then
 an outer search of 1 (diffuse) or 4 (coat) variables: a coarse scan and nlopt BOBYQA.
 
@@ -40,9 +40,10 @@ from ..brdf import (UNDERCOAT_INDEX, coat_transmission, evaluate, ggx_lobe,
                     torrance_sparrow)
 from ..errors import InputError
 from ..geometry import refracted_cosines
-from .common import (ALPHA_MAX, ALPHA_MIN, C_LIMIT, BestPoint, FitData, FitOptions,
-                     FitReport, ModelFit, Stopwatch, choose_optimizer, error_figures,
-                     minimize_log_alpha, nm_list, nnls2, profile_c_columns)
+from .alpha import choose_optimizer, minimize_log_alpha
+from .common import ALPHA_MAX, ALPHA_MIN, BestPoint, FitData
+from .results import FitOptions, FitReport, ModelFit, Stopwatch, error_figures, nm_list
+from .separable import C_LIMIT, nnls2, profile_c_columns
 from .separable import CScan
 from .warm import WARM_STEP, WARM_XTOL, log_alpha_window, near
 

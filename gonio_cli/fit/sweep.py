@@ -18,7 +18,8 @@ import numpy as np
 from ..synthetic import ink_spectra, paper_geometry, synthetic_measurement
 from . import fit
 from ..names import OPTIMIZERS_BY_MODEL
-from .common import FitOptions, prepare
+from .common import prepare
+from .results import FitOptions
 
 #: (label, options, report key) for each method of the goniochromatic fit.
 METHODS = (

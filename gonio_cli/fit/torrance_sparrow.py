@@ -20,7 +20,7 @@ per wavelength, and the joint problem is a 1-D search in log α of the *profile*
 
 Optimisers (``FitOptions.optimizer``):
 
-- ``nlopt-bobyqa`` / ``nlopt-lbfgs``: :func:`~.common.minimize_log_alpha` on the profile
+- ``nlopt-bobyqa`` / ``nlopt-lbfgs``: :func:`~.alpha.minimize_log_alpha` on the profile
   cost (coarse log-α scan, then the nlopt method inside the best cell).
 - ``scipy-least-squares``: the same scan, then ``scipy.optimize.least_squares`` (trf,
   bounded) over (log α, F0(λ)) jointly with an analytic Jacobian; F0 is then re-solved at
@@ -38,9 +38,9 @@ import numpy as np
 from ..brdf import (dlog_ggx_d_dlog_alpha, dlog_smith_g1_dlog_alpha, schlick_fresnel,
                     torrance_sparrow)
 from ..errors import FitError, InputError
-from .common import (ALPHA_MAX, ALPHA_MIN, FitData, FitOptions, FitReport, ModelFit,
-                     Stopwatch, choose_optimizer, error_figures, minimize_log_alpha, nm_list,
-                     scan_log_alpha)
+from .alpha import choose_optimizer, minimize_log_alpha, scan_log_alpha
+from .common import ALPHA_MAX, ALPHA_MIN, FitData
+from .results import FitOptions, FitReport, ModelFit, Stopwatch, error_figures, nm_list
 
 MODEL = "torrance-sparrow"
 
@@ -291,7 +291,7 @@ def fit(data: FitData, options: FitOptions) -> ModelFit:
 
     Returns
     -------
-    :class:`~.common.ModelFit` with one report, ``joint``: ``alpha`` (float) and ``f0``
+    :class:`~.results.ModelFit` with one report, ``joint``: ``alpha`` (float) and ``f0``
     (L,) named as in :data:`gonio_cli.brdf.MODELS`, the error figures (seed 004 eq. 14
     among them), status and message; failed wavelengths named, never NaN.
 

@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from .. import spectra
-from .common import MIRROR_TOL_DEG, FitData
+from .common import FitData, MIRROR_TOL_DEG
 
 #: Limits of a ``good`` fit. Mean CIEDE2000 0.7: about half of a just-noticeable
 #: difference, the level of an instrument's inter-instrument agreement on a matte sample;

@@ -5,7 +5,7 @@ fitted once to all the data, then once per fold to all but a θi (or a few
 configurations). A fold's data are most of the full data, so its optimum lies near the
 full fit's: the coarse starts that keep a search on all the data from a wrong basin
 (the coat's 40 starts, the α scan over three decades) would only find that basin again.
-With :attr:`FitOptions.warm <.common.FitOptions>` set (auto sets it to the full fit's
+With :attr:`FitOptions.warm <.results.FitOptions>` set (auto sets it to the full fit's
 parameters for each fold), a fitter starts its local search there instead, with smaller
 first steps. The fit to all the data, the one a material carries, never starts warm.
 """
@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .common import FitOptions
+from .results import FitOptions
 
 #: A warm search's first steps, as a fraction of a cold one's (BOBYQA's initial trust
 #: region): a fold's optimum moves by a few percent in each roughness from the full fit's

@@ -162,7 +162,8 @@ def default_inputs(exclude_theta_i_deg=None) -> Inputs:
 def fit_models(m, exclude_theta_i_deg=(70.0,)) -> dict:
     """Goniochromatic and Torrance–Sparrow fits of a measurement, in memory."""
     from ..fit import fit, to_material
-    from ..fit.common import FitOptions, prepare
+    from ..fit.common import prepare
+    from ..fit.results import FitOptions
 
     data = prepare(m, exclude_theta_i_deg=list(exclude_theta_i_deg))
     return {model: to_material(fit(data, model, FitOptions()))

@@ -85,7 +85,8 @@ def measurement(name: str):
 @functools.lru_cache(maxsize=None)
 def material(name: str, model: str):
     from gonio_cli.fit import fit, to_material
-    from gonio_cli.fit.common import FitOptions, prepare
+    from gonio_cli.fit.common import prepare
+    from gonio_cli.fit.results import FitOptions
 
     data = prepare(measurement(name), exclude_theta_i_deg=FIT_EXCLUDE[name])
     result = fit(data, model, FitOptions())
