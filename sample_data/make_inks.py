@@ -206,7 +206,7 @@ def carpaint_parameters() -> dict[str, np.ndarray]:
 
 def make_carpaint(out: Path, truth: dict) -> None:
     """Write ``carpaint_multiangle.csv`` (reflectance factor R = π f) and its truth."""
-    from gonio_cli.csvio import aspecular_angles
+    from gonio_cli.csvlayouts import aspecular_angles
 
     ti, to = np.array([aspecular_angles(g) for g in CARPAINT_GEOMETRIES]).T
     p = carpaint_parameters()

@@ -40,7 +40,7 @@ def truth():
 
 def write_export(path: Path, gains: dict) -> Path:
     """A multi-angle CSV (reflectance factors R = pi f g(theta_i)) of :func:`truth`."""
-    from gonio_cli.csvio import aspecular_angles
+    from gonio_cli.csvlayouts import aspecular_angles
 
     ti, to = np.array([aspecular_angles(g) for g in MA_T12]).T
     f = brdf.evaluate("goniochromatic-diffuse", in_plane_cosines(ti, to), truth())
@@ -99,7 +99,7 @@ def test_lamps_that_agree_get_gains_of_one(tmp_path):
 
 def test_the_gain_step_minimises_the_loss_for_a_fixed_model():
     # closed form g_s = sum w y f / sum w f^2 per sweep, against a scan of the loss
-    from gonio_cli.csvio import aspecular_angles
+    from gonio_cli.csvlayouts import aspecular_angles
     from gonio_cli.schemas import Measurement
 
     ti, to = np.array([aspecular_angles(g) for g in MA_T12]).T

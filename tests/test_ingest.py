@@ -16,7 +16,7 @@ import pytest
 
 from gonio_cli import ingest as core
 from gonio_cli.artifact import read_artifact
-from gonio_cli.csvio import aspecular_angles, read_spectra
+from gonio_cli.csvlayouts import aspecular_angles, read_spectra
 from gonio_cli.ingest.quantities import DEFAULT_WHITE_REFLECTANCE, QUANTITIES, receptor_solid_angle
 from gonio_cli.schemas import read_measurement
 from gonio_cli.spectra import DEFAULT_GRID_NM, parse_grid

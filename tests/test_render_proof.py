@@ -165,7 +165,7 @@ def test_below_the_knee_the_default_equals_none():
 def mirror_spectra():
     """The sample inks' measured BRDF at the mirror configurations (θo = θi), θi ≠ 70°
     (the biased row), on the working grid: {(ink, θi): (n_λ,)}."""
-    from gonio_cli.csvio import read_spectra
+    from gonio_cli.csvlayouts import read_spectra
     from gonio_cli.spectra import resample
 
     out = {}

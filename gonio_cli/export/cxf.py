@@ -65,7 +65,7 @@ def cxf_bytes(name: str, theta_i_deg, theta_o_deg, reflectance, start_wl: int,
     from xsdata.models.datatype import XmlDateTime
 
     from .. import __version__
-    from ..csvio import aspecular_of_theta_o
+    from ..csvlayouts import aspecular_of_theta_o
 
     now = XmlDateTime.from_datetime(datetime.now(timezone.utc).replace(microsecond=0))
     aspec = aspecular_of_theta_o(theta_i_deg, theta_o_deg)

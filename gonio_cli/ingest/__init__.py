@@ -46,7 +46,8 @@ from typing import Any, Sequence
 import numpy as np
 
 from .. import log
-from ..csvio import Spectra, grid_text, read_spectra, read_spectrum
+from ..csvio import Spectra, grid_text, read_spectrum
+from ..csvlayouts import read_spectra
 from ..errors import InputError
 from ..percent import check_percent
 from ..schemas import Measurement

@@ -5,7 +5,7 @@ Multi-angle instruments (car-paint spectrophotometers) export CxF3: per sample a
 ``ColorSpecification`` whose ``MeasurementSpec`` gives the geometry as ``MultiAngle`` /
 ``BRDFAngle`` (``IlluminationAngle`` θi, ``Aspecular`` a) and the ``WavelengthRange``.
 Read with the ``colour-cxf`` package; the angles become gonio's by the conventions'
-rule θo = θi − a (:func:`gonio_cli.csvio.theta_o_of_aspecular`, as for ``45as15``
+rule θo = θi − a (:func:`gonio_cli.csvlayouts.theta_o_of_aspecular`, as for ``45as15``
 labels in CSV); the values are reflectance factors R (CxF3's reflectance, relative to
 the perfect diffuser), so f = R / π (quantity ``reflectance-factor``); the spectra are
 resampled onto the working grid (``--grid-nm``) when their grid differs, with a warning.
@@ -98,7 +98,7 @@ def read_cxf(path: str, sample: str | None):
     import colour_cxf
     from colour_cxf import cxf3
 
-    from ..csvio import theta_o_of_aspecular
+    from ..csvlayouts import theta_o_of_aspecular
 
     try:
         doc = colour_cxf.read_cxf_from_file(path)
@@ -144,7 +144,7 @@ def ingest(paths: Sequence[str | os.PathLike], *, grid_nm: str | None = None,
                          f"grid {grid[0]:g}-{grid[-1]:g} nm", path=path,
                          fix=f"choose a grid inside the file's, e.g. --grid-nm "
                              f"{wl[0]:g}:{wl[-1]:g}:{wl[1] - wl[0]:g}")
-    from ..csvio import _check_angles  # the CSV layer's angle checks, one rule
+    from ..csvlayouts import _check_angles  # the CSV layer's angle checks, one rule
 
     _check_angles(ti, to, np.arange(ti.size) + 1, path)
     from .quantities import QUANTITIES

@@ -10,7 +10,8 @@ from typing import Sequence
 
 import numpy as np
 
-from ..csvio import WAVELENGTH, Spectra, Table, grid_text, rounded_keys
+from ..csvio import WAVELENGTH, Spectra, Table, grid_text
+from ..csvlayouts import rounded_keys
 from ..errors import InputError
 from ..spectra import WAVELENGTH_TOL_NM, covers, resample, same_grid
 
