@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import List, Optional
+from typing import Iterator, List, Optional
 
 import typer
 
+from .. import log
 from ..names import FIT_MODEL_CHOICES as MODEL_NAMES
 from ..names import (OPTIMIZER_NAMES, OPTIMIZERS_BY_MODEL, RESIDUAL_NAMES, STEP2_NAMES,
                      SWEEP_GAIN_NAMES, metavar)
+from ..outputs import declare
+from . import require_files
 
 #: The default model; only its poor fits try the other models for a hint (a model chosen
 #: on purpose, e.g. the standard model for a comparison, is not second-guessed).
@@ -80,156 +83,42 @@ def fit(
       gonio fit red.measurement.json -o red.material.json --exclude-theta-i-deg 70 --plot red.png
       gonio fit wrap.measurement.json -o wrap.material.json --model auto
     """
-    from .. import log
-    from ..errors import FitError, InputError, PoorFitError
-    from ..fit import check_options, judge, to_material
-    from ..fit import fit as run_fit
-    from ..fit import fit_auto
-    from ..fit import gains as sweep_gains
-    from ..fit.common import prepare
-    from ..fit.results import FitOptions
-    from ..names import pick
-    from ..schemas import read_measurement, write_material
-    from . import require_files
-
+    from ..fit import run as stage  # lazy: gonio --help skips the fit core (bench_startup.py)
     require_files([measurement], schema="gonio.measurement")
-    pick(("error", "write"), on_failure, "--on-failure")
-    check_options(model, optimizer)
-    pick(SWEEP_GAIN_NAMES, sweep_gain, "--sweep-gain")
-    if jobs is not None and jobs < 1:
-        raise InputError(f"--jobs {jobs} is not a number of processes", fix="give N >= 1")
-    if max_error is not None and not (max_error > 0 and max_error < 1e3):
-        raise InputError(f"--max-error {max_error:g} is not a CIEDE2000 limit",
-                         fix="give a number in (0, 1000), e.g. 1.0")
-    from ..outputs import declare
+    options = stage.RunOptions(  # checked here, before any file is read
+        model=model, refine=refine, step2=step2, exclude_theta_i_deg=list(exclude_theta_i),
+        exclude_theta_o_deg=list(exclude_theta_o), weights=weights, residuals=residuals,
+        sweep_gain=sweep_gain, std_weights=std_weights, optimizer=optimizer, alpha=alpha,
+        max_error=max_error, jobs=jobs, on_failure=on_failure)
     declare({"-o": output, "--plot": plot}, [measurement, weights])
-    m = read_measurement(measurement)
-    w = read_weights(weights, m) if weights is not None else None
-    options = FitOptions(refine=refine, step2=step2, optimizer=optimizer, alpha=alpha)
-    extra = {}
-    with log.timer() as t:
-        data = prepare(m, residuals=residuals, exclude_theta_i_deg=exclude_theta_i,
-                       exclude_theta_o_deg=exclude_theta_o, weights=w,
-                       use_std=std_weights, path=measurement)
-        why = sweep_gains.wanted(sweep_gain, m, data, path=measurement)
-        gains = None
-        if model == "auto":
-            from ..machine import cpu_count
-
-            n_jobs = jobs if jobs is not None else cpu_count()
-            if why:
-                result, candidates, gains = sweep_gains.fit_auto_with_gains(
-                    data, options, lambda d: _named(fit_auto, measurement)(d, options,
-                                                                          jobs=n_jobs),
-                    _named(run_fit, measurement), why)
-            else:
-                result, candidates = _named(fit_auto, measurement)(data, options,
-                                                                   jobs=n_jobs)
-            from ..fit.auto import criterion
-
-            judged = criterion(data) + (
-                f"; on the data divided by light-source gains first fitted with "
-                f"{sweep_gains.REFERENCE_MODEL}" if gains is not None else "")
-            extra["auto"] = {"criterion": judged, "chosen": result.model,
-                             "candidates": [c.to_dict() for c in candidates]}
-        elif why:
-            result, gains = sweep_gains.fit_with_gains(data, model, options,
-                                                       _named(run_fit, measurement), why)
-        else:
-            result = _named(run_fit, measurement)(data, model, options)
-        if gains is not None:
-            extra["sweep_gain"] = gains.to_dict()
-        judgement = judge(data, result, max_error, gains)
-    final = result.result
-    if not final.success:
-        if on_failure == "error":
-            raise FitError(f"{measurement}: the {result.model} fit cannot be trusted: "
-                           f"{final.message}", fix="see --on-failure write to keep it anyway")
-        log.warn(f"{output}: written with status failed: {final.message}")
-    elif judgement["verdict"] == "poor" and max_error is not None:
-        raise PoorFitError(f"{measurement}: the {result.model} fit is poor: "
-                           f"{'; '.join(judgement['reasons'])}; nothing written",
-                           fix="try --model auto, or raise --max-error")
-    if data.excluded.get("non_positive_values") and residuals == "log":
-        log.warn(f"{measurement}: {data.excluded['non_positive_values']} non-positive values "
-                 "left out of the log-residual fit")
-    material = to_material(result, judgement, extra)
-    parameters = {"model": model, "refine": refine, "step2": step2,
-                  "exclude_theta_i_deg": list(exclude_theta_i),
-                  "exclude_theta_o_deg": list(exclude_theta_o),
-                  "weights": str(weights) if weights is not None else None,
-                  "residuals": residuals, "sweep_gain": sweep_gain,
-                  "std_weights": std_weights, "optimizer": optimizer,
-                  "alpha": alpha, "max_error": max_error, "on_failure": on_failure}
-    inputs = [measurement] + ([weights] if weights is not None else [])
-    write_material(output, material, inputs=inputs, parameters=parameters,
-                   time_s=t["time_s"])
-    if plot is not None:
-        from ..fit.plot import plot_fit
-
-        plot_fit(plot, m, material, title=f"{Path(measurement).name}: {result.model}",
-                 excluded_theta_i_deg=exclude_theta_i, gains=gains)
-    log.info(summary_line(output, result))
-    if model == "auto":
-        log.info(auto_line(extra["auto"]))
-    log.info(verdict_line(output, result, judgement))
-    if judgement["verdict"] == "poor" and model == DEFAULT_MODEL:
-        # the product's own model: say whether another one does better (fits them all)
-        hint = better_model_hint(data, result, judgement, options, gains)
-        if hint:
-            log.info(hint)
+    require_files([weights] if weights is not None else [], missing_fix="check the path")
+    result = stage.run(measurement, options)
+    for line in warning_lines(output, result):
+        log.warn(line)
+    stage.write(result, output, plot=plot)
+    for line in report_lines(output, result, stage.better_model_hint):
+        log.info(line)
 
 
-def _named(fit, measurement: Path):
-    """``fit`` whose errors about the data (no usable readings …) name the measurement."""
-    from ..errors import GonioError
-
-    def run(*args, **kwargs):
-        try:
-            return fit(*args, **kwargs)
-        except GonioError as exc:
-            if exc.path is None and not exc.message.startswith("--"):
-                exc.path = str(measurement)
-            raise
-    return run
+def warning_lines(output: Path, result) -> list[str]:
+    """The warnings of a fit kept with ``--on-failure write`` and of its data."""
+    failed = ([f"{output}: written with status failed: {result.model_fit.result.message}"]
+              if result.failed else [])
+    return failed + result.warnings
 
 
-def read_weights(path: Path, m) -> "np.ndarray":
-    """Per-configuration weights (N,) from a CSV theta_i_deg,theta_o_deg,weight; 1 for the
-    configurations it does not list. Every row must name a measured configuration. Split
-    by ingest's one CSV reader (delimiters, BOM, comments, line numbers)."""
-    import numpy as np
-
-    from ..errors import InputError
-    from ..csvio import read_table
-    from ..schemas import MAX_MAGNITUDE
-    from . import require_files
-
-    require_files([path], missing_fix="check the path")
-    table = read_table(path)
-    if table.header != ["theta_i_deg", "theta_o_deg", "weight"]:
-        raise InputError(f"header is {','.join(table.header) or 'missing'}", path=path,
-                         row=table.header_line,
-                         fix="the header must be theta_i_deg,theta_o_deg,weight")
-    w = np.ones(m.theta_i_deg.shape)
-    for row, line in zip(table.cells, table.lines):
-        try:
-            ti, to, wt = (float(c) for c in row)
-        except ValueError:
-            raise InputError(f"expected three numbers, got {','.join(row)}", path=path,
-                             row=int(line), fix="theta_i_deg,theta_o_deg,weight per line"
-                             ) from None
-        if not (0 <= wt <= MAX_MAGNITUDE):                    # also NaN
-            raise InputError(f"weight {wt:g} is not a finite number in [0, "
-                             f"{MAX_MAGNITUDE:g}]", path=path,
-                             row=int(line), column="weight")
-        hit = (np.abs(m.theta_i_deg - ti) < 1e-6) & (np.abs(m.theta_o_deg - to) < 1e-6)
-        if not hit.any():
-            raise InputError(f"no measured configuration has theta_i_deg={ti:g}, "
-                             f"theta_o_deg={to:g}", path=path, row=int(line),
-                             fix="list only configurations of the measurement")
-        w[hit] = wt
-    return w
+def report_lines(output: Path, result, hint) -> Iterator[str]:
+    """What ``gonio fit`` says of a fit, line by line: each method's figures, ``auto``'s
+    candidates, the verdict, and for a poor fit of the default model whether another does
+    better (``hint(result)``, which fits them all: last, after the others are shown)."""
+    yield summary_line(output, result.model_fit)
+    if result.auto is not None:
+        yield auto_line(result.auto)
+    yield verdict_line(output, result.model_fit, result.judgement)
+    if result.verdict == "poor" and result.options.model == DEFAULT_MODEL:
+        note = hint(result)
+        if note:
+            yield note
 
 
 def summary_line(output: Path, result) -> str:
@@ -290,37 +179,6 @@ def auto_line(auto: dict) -> str:
         v = c["held_out_delta_e2000_mean"]
         parts.append(f"{c['model']} {v:.2f}" if v is not None else f"{c['model']} failed")
     return f"auto: held-out CIEDE2000 mean: {', '.join(parts)}; chose {auto['chosen']}"
-
-
-def better_model_hint(data, result, judgement: dict, options, gains=None) -> str | None:
-    """For a poor fit: the other models' in-sample colour error, if one does better
-    (with the fit's light-source ``gains``, each on the data divided by them)."""
-    import numpy as np
-
-    from ..errors import GonioError
-    from ..fit import FITTERS, judge
-    from ..fit import fit as run_fit
-    from ..fit.gains import scaled
-
-    if "delta_e2000_mean" not in judgement:
-        return None
-    best = (judgement["delta_e2000_mean"], result.model)
-    seen = data if gains is None else scaled(data, gains.per_configuration(data.theta_i_deg))
-    for name in FITTERS:
-        if name == result.model:
-            continue
-        try:
-            other = run_fit(seen, name, options)
-        except GonioError:
-            continue
-        j = judge(data, other, gains=gains)
-        if other.result.success and np.isfinite(j.get("delta_e2000_mean", np.inf)) \
-                and j["delta_e2000_mean"] < best[0]:
-            best = (j["delta_e2000_mean"], name)
-    if best[1] == result.model:
-        return None
-    return (f"gonio: note: --model {best[1]} fits these data better (CIEDE2000 mean "
-            f"{best[0]:.2f} in sample); --model auto chooses by held-out error")
 
 
 EXAMPLE = ("gonio fit red.measurement.json -o red.material.json --exclude-theta-i-deg 70 "

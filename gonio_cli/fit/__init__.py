@@ -29,14 +29,16 @@ from typing import Any, Callable
 
 import numpy as np
 
+from ..brdf import MODELS, evaluate
+from ..errors import FitError
 from ..names import AUTO_MODEL, FIT_MODEL_CHOICES, OPTIMIZER_NAMES, pick
 from ..schemas import Material
-from . import cook_torrance, cook_torrance_lobes, goniochromatic, layered, torrance_sparrow
-from ..errors import FitError
+from . import auto, cook_torrance, cook_torrance_lobes, goniochromatic, layered, torrance_sparrow
 from .alpha import choose_optimizer
 from .common import FitData
-from .results import FitOptions, ModelFit
 from .gains import NOTE_RATIO
+from .results import FitOptions, ModelFit
+from .verdict import THRESHOLDS, fit_colour_errors, reciprocity, verdict
 
 FITTERS: dict[str, Callable[[FitData, FitOptions], ModelFit]] = {
     "goniochromatic": goniochromatic.fit,
@@ -99,8 +101,6 @@ def fit(data: FitData, model: str = "goniochromatic",
 def _require_params(result: ModelFit) -> None:
     """A fit whose final report lacks some of its model's parameters (a step that could not
     run) is refused here, with its own message, before anything evaluates it."""
-    from ..brdf import MODELS
-
     spec = MODELS.get(result.model)
     if spec is None:
         return
@@ -116,9 +116,7 @@ def _require_params(result: ModelFit) -> None:
 def fit_auto(data: FitData, options: FitOptions | None = None, jobs: int = 1):
     """(best ModelFit, candidates) of ``--model auto`` (:func:`.auto.fit_auto`), its
     candidates fitted in ``jobs`` processes."""
-    from .auto import fit_auto as run
-
-    return run(data, options or FitOptions(), fit, jobs=jobs)
+    return auto.fit_auto(data, options or FitOptions(), fit, jobs=jobs)
 
 
 def judge(data: FitData, result: ModelFit, max_mean_delta_e: float | None = None,
@@ -127,9 +125,6 @@ def judge(data: FitData, result: ModelFit, max_mean_delta_e: float | None = None
     ``verdict``, ``reasons`` and the colour figures. With light-source ``gains``
     (:class:`.gains.SweepGains`) the model of the data is g(θi) f, judged so; the BRDF's
     own figures are kept beside (``brdf_alone``)."""
-    from ..brdf import evaluate
-    from .verdict import THRESHOLDS, fit_colour_errors, reciprocity, verdict
-
     f = evaluate(result.model, data.cos, result.params)
     y = data.y
     if gains is not None:

@@ -11,6 +11,7 @@ from typing import Any, Callable
 import numpy as np
 
 from ..errors import InputError
+from ..names import OPTIMIZER_NAMES, choices_fix
 from .common import ALPHA_MAX, ALPHA_MIN, ALPHA_SCAN_POINTS, FD_STEP_LOG_ALPHA, LOG_ALPHA_XTOL
 
 #: The nlopt algorithm of :func:`minimize_log_alpha`, by ``--optimizer`` name. The nlopt
@@ -34,8 +35,6 @@ def choose_optimizer(model: str, optimizers: dict[str, Any], name: str | None):
     """``(name, optimizers[name])`` for ``--optimizer name`` of ``--model model``; ``None``
     is the fitter's default (its first key). A name the fitter lacks is an
     :class:`~gonio_cli.errors.InputError` listing the ones it has."""
-    from ..names import OPTIMIZER_NAMES, choices_fix
-
     if name is None:
         name = next(iter(optimizers))
     if name not in optimizers:

@@ -25,6 +25,7 @@ from typing import Any, Callable
 
 import numpy as np
 
+from ..brdf import evaluate
 from ..errors import GonioError
 from .common import FitData, compressive_floor
 from .results import FitOptions, ModelFit, Stopwatch
@@ -128,8 +129,6 @@ def _score(data: FitData, rows: np.ndarray, f: np.ndarray) -> np.ndarray:
 def _candidate(model: str, data: FitData, options: FitOptions, fit_one, scheme: str,
                held_out) -> Candidate:
     """One candidate: its fit to all the data and its held-out error."""
-    from ..brdf import evaluate
-
     sw = Stopwatch()
     try:
         full = fit_one(data, model, options)

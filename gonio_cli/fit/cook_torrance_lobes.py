@@ -41,7 +41,7 @@ import itertools
 
 import numpy as np
 
-from ..brdf import cook_torrance_specular_geometry, schlick_fresnel
+from ..brdf import cook_torrance_specular_geometry, evaluate, schlick_fresnel
 from ..errors import InputError
 from .alpha import choose_optimizer
 from .common import BestPoint, FitData
@@ -252,8 +252,6 @@ def fit_lobes(data: FitData, options: FitOptions, n_lobes: int) -> ModelFit:
         notes.insert(0, f"no usable signal at {len(failed)} wavelength(s) "
                         f"({nm_list(failed)}); kd = f0 = 0 there")
     message = "; ".join(notes + [message])
-    from ..brdf import evaluate
-
     f = evaluate(model, data.cos, params)
     report = FitReport("refined", status, message, params, error_figures(data, f),
                        optimizer, evaluations, sw.lap(), failed,

@@ -36,6 +36,7 @@ from typing import Any, Callable
 
 import numpy as np
 
+from ..brdf import evaluate
 from ..errors import GonioError, InputError
 from ..names import SWEEP_GAIN_NAMES
 from .common import FitData
@@ -192,8 +193,6 @@ def fit_with_gains(data: FitData, model: str, options: FitOptions,
 
     Returns the fit made with the final gains (its figures are those of the data divided
     by them) and the gains."""
-    from ..brdf import evaluate
-
     angles = np.array([t for t, _ in data.theta_i_groups()])
     g = np.ones(angles.size) if start is None else np.asarray(start, dtype=float)
 

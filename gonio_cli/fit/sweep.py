@@ -18,6 +18,7 @@ import numpy as np
 from ..synthetic import ink_spectra, paper_geometry, synthetic_measurement
 from . import fit
 from ..names import OPTIMIZERS_BY_MODEL
+from ..spectra import parse_grid
 from .common import prepare
 from .results import FitOptions
 
@@ -147,8 +148,6 @@ def comparison_sweep(noise: float = 0.02, repeats: int = 5,
     """Each comparison model on data made from itself: relative RMSE of each parameter
     against the truth (%), the data's relative RMSE (seed 004 eq. 14) and median time.
     Each model runs with each of ``optimizers`` it takes (default: all it takes)."""
-    from ..spectra import parse_grid
-
     wl = parse_grid()
     ti, to = paper_geometry(5.0, theta_i_deg=(20.0, 30.0, 40.0, 50.0, 60.0, 70.0))
     rows = []
