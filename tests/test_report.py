@@ -14,7 +14,7 @@ import pytest
 from gonio_cli import cli, log
 from gonio_cli.errors import InputError
 from gonio_cli.report import SECTION_NAMES, parse_sections
-from gonio_cli.report import sections as S
+from gonio_cli.report import scatter as SC
 from gonio_cli.report import sheets as SH
 from gonio_cli.report import table1 as T1
 
@@ -76,7 +76,7 @@ def test_table1_has_the_papers_numbers_and_ours(quick_report):
     _, md, doc = quick_report
     t1 = doc["sections"]["table1"]
     body = md.split('<a id="table1"></a>')[1]
-    for model, per_ink in S.PAPER_TABLE1.items():
+    for model, per_ink in T1.PAPER_TABLE1.items():
         for ink in ("red", "green", "blue"):
             rmse, ssim = per_ink[ink]
             assert f"{rmse:.4f}" in body and f"{ssim:.4f}" in body
@@ -196,7 +196,7 @@ def test_no_time_is_printed_as_zero(quick_report):
     assert not re.search(r"(?<![\d.])0\.0+ ?(s|ms)\b", md)
     head = md.split('<a id="fit"></a>')[0]
     assert re.search(r"\| \[.*\]\(#sheets\) \| (<1 ms|[\d.]+ m?s) \|", head)
-    from gonio_cli.report import format_seconds
+    from gonio_cli.report.section import format_seconds
 
     assert [format_seconds(t) for t in (0.0, 4e-4, 0.0123, 0.5, 2.345, 61.0)] == \
         ["<1 ms", "<1 ms", "12.3 ms", "500 ms", "2.35 s", "61 s"]
@@ -215,15 +215,15 @@ def test_plots_say_what_they_show(monkeypatch, tmp_path):
                       [t.get_text() for t in ax.get_legend().get_texts()])
 
     monkeypatch.setattr(Figure, "savefig", record)
-    S.scatter(tmp_path / "t1.png", {"eq. 5": ([10, 20], [0.1, 0.2])}, "x", "y", "t",
+    SC.scatter(tmp_path / "t1.png", {"eq. 5": ([10, 20], [0.1, 0.2])}, "x", "y", "t",
                point_labels={"eq. 5": ["red ink", "green ink"]})
     assert seen[tmp_path / "t1.png"][0] == ["red ink", "green ink"]
-    S.scatter(tmp_path / "p.png", {"ring": ([0.1, 0.2, 0.3], [0.0, 1e-12, 1e-4])}, "x", "y",
-               "t", floor=S.ERROR_FLOOR)
+    SC.scatter(tmp_path / "p.png", {"ring": ([0.1, 0.2, 0.3], [0.0, 1e-12, 1e-4])}, "x", "y",
+               "t", floor=SC.ERROR_FLOOR)
     legend = seen[tmp_path / "p.png"][1]
     assert legend[0] == "ring" and "≤1e-09 (exact)" in legend[1]
-    S.scatter(tmp_path / "q.png", {"ring": ([0.1], [1e-4])}, "x", "y", "t",
-               floor=S.ERROR_FLOOR)
+    SC.scatter(tmp_path / "q.png", {"ring": ([0.1], [1e-4])}, "x", "y", "t",
+               floor=SC.ERROR_FLOOR)
     assert seen[tmp_path / "q.png"][1] == ["ring"]          # nothing floored: no such entry
 
 

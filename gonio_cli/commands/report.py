@@ -8,12 +8,16 @@ was.
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 from typing import List, Optional
 
 import typer
 
+from .. import log
+from ..errors import InputError
 from ..names import REPORT_SECTION_NAMES as SECTION_NAMES
+from ..outputs import declare, folder_output
 
 
 def report(
@@ -39,17 +43,9 @@ def report(
       gonio report --quick -o report/
       gonio report out/rgbink/*.measurement.json out/rgbink/*.material.json -o report/
     """
-    import tempfile
-    import time
-
-    from .. import log
-    from ..artifact import atomic_path, make_document, write_json
-    from ..errors import InputError
-    from ..outputs import declare, folder_output
-    from ..report import SCHEMA, SCHEMA_VERSION, parse_sections, run_report
-
+    from .. import report as stage  # lazy: gonio --help skips the report core (bench_startup.py)
     start = time.perf_counter()
-    names = parse_sections(sections)  # before anything is written
+    names = stage.parse_sections(sections)  # before anything is written
     paths = list(inputs or [])
     for p in paths:
         if not p.is_file():
@@ -59,22 +55,10 @@ def report(
         raise InputError(f"-o {output} is a file", fix="name a folder")
     declare({"-o": output}, paths, replaced=["-o"])
     # REPORT_DIR is staged whole and replaces the old one when the command succeeds
-    with folder_output(output) as stage:
-        with tempfile.TemporaryDirectory(prefix="gonio-report-") as work:
-            result = run_report(names, Path(work), paths=paths, quick=quick,
-                                progress=lambda it: log.progress(it, "report sections",
-                                                                 expected_s=10.0))
-            for section in result.sections:
-                for name, draw in section.plots.items():
-                    with atomic_path(stage / name) as tmp:
-                        draw(tmp)
-        result.time_s = time.perf_counter() - start
-        doc = make_document(SCHEMA, SCHEMA_VERSION, result.payload(), inputs=paths,
-                            parameters={"sections": names, "quick": quick},
-                            time_s=result.time_s)
-        write_json(stage / "report.json", doc)
-        with atomic_path(stage / "report.md") as tmp:  # last
-            tmp.write_text(result.markdown(), encoding="utf-8")
+    with folder_output(output) as folder:
+        result = stage.write_report(folder, names, paths=paths, quick=quick, start=start,
+                                    progress=lambda it: log.progress(it, "report sections",
+                                                                     expected_s=10.0))
     log.info(f"{output / 'report.md'}: {len(result.sections)} sections "
              f"({', '.join(names)}), {result.time_s:.1f} s")
 

@@ -1,35 +1,31 @@
 """``gonio report``: error against run time for every setting a user chooses, seed 000
 Table 1 reproduced, and material sheets.
 
-Pure core (STYLE 1): :func:`run_report` runs the chosen sections of
-:data:`~gonio_cli.report.sections.SECTIONS` in this process and returns a
-:class:`Report` (numbers, Markdown, plot makers); the shell (:mod:`gonio_cli.commands.report`)
-writes ``report.md``, ``report.json`` and the PNGs. The renderer reads materials from
-files, so the core is given a scratch ``workdir`` for them (the shell's temporary folder).
+:func:`run_report` runs the chosen sections of :data:`~gonio_cli.report.sections.SECTIONS`
+in this process and returns a :class:`Report` (numbers, Markdown, plot makers); the
+renderer reads materials from files, so it is given a scratch ``workdir`` for them.
+:func:`write_report`, the stage's one call from the shell (:mod:`gonio_cli.commands.report`),
+runs it in a temporary folder and writes ``report.md``, ``report.json`` and the PNGs into
+the folder the shell stages.
 """
 
 from __future__ import annotations
 
+import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any, Callable, Iterable
 
+from ..artifact import atomic_path, make_document, write_json
 from ..errors import InputError
+from ..names import REPORT_SECTION_NAMES as SECTION_NAMES
+from .inputs import default_inputs, inputs_from_files, write_scratch
+from .section import format_seconds
+from .sections import SECTIONS
 
 SCHEMA = "gonio.report"
 SCHEMA_VERSION = 1
-#: Section names in report order (the registry lives in :mod:`.sections`, imported lazily).
-from ..names import REPORT_SECTION_NAMES as SECTION_NAMES  # noqa: E402
-
-
-def format_seconds(t: float) -> str:
-    """A run time for the report: three significant digits with its unit, never "0.0"
-    (below a millisecond the timer's resolution and the noise of a busy machine make more
-    digits meaningless: "<1 ms")."""
-    if t < 1e-3:
-        return "<1 ms"
-    return f"{1e3 * t:.3g} ms" if t < 1.0 else f"{t:.3g} s"
 
 
 def parse_sections(spec: str | None) -> list[str]:
@@ -82,23 +78,45 @@ def run_report(sections: Iterable[str], workdir: Path, *, paths: Iterable[Path] 
     ``workdir``: an existing scratch folder for the files the renderer reads.
     ``progress``: wraps the section loop (e.g. :func:`gonio_cli.log.progress`).
     """
-    from . import sections as S
-
     start = time.perf_counter()
     paths = [Path(p) for p in paths]
     names = list(sections)
-    inputs = S.inputs_from_files(paths) if paths else S.default_inputs()
+    inputs = inputs_from_files(paths) if paths else default_inputs()
     if any(n in ("render", "table1") for n in names):
         if not inputs.inks:
             raise InputError("render and table1 need a measurement (*.measurement.json)",
                              fix="give one, or leave those out with --sections")
-        S.write_scratch(inputs, Path(workdir))
+        write_scratch(inputs, Path(workdir))
     loop = progress(names) if progress is not None else names
     done = []
     for name in loop:
         t = time.perf_counter()
-        section = S.SECTIONS[name](inputs, Path(workdir), quick)
+        section = SECTIONS[name](inputs, Path(workdir), quick)
         section.time_s = time.perf_counter() - t
         done.append(section)
     return Report(done, inputs.sources, quick, time.perf_counter() - start,
                   {"sections": names, "quick": quick})
+
+
+def write_report(folder: Path, sections: Iterable[str], *, paths: Iterable[Path] = (),
+                 quick: bool = False, start: float | None = None,
+                 progress: Callable | None = None) -> Report:
+    """Run ``sections`` (:func:`run_report`, in a scratch folder of its own) and write the
+    report into ``folder``: one PNG per plot, ``report.json`` (schema ``gonio.report``) and
+    ``report.md``, last. ``start``: the ``time.perf_counter()`` the run's time counts from
+    (default: now). Returns the :class:`Report`."""
+    start = time.perf_counter() if start is None else start
+    names, paths = list(sections), list(paths)
+    with tempfile.TemporaryDirectory(prefix="gonio-report-") as work:
+        result = run_report(names, Path(work), paths=paths, quick=quick, progress=progress)
+        for section in result.sections:
+            for name, draw in section.plots.items():
+                with atomic_path(folder / name) as tmp:
+                    draw(tmp)
+    result.time_s = time.perf_counter() - start
+    doc = make_document(SCHEMA, SCHEMA_VERSION, result.payload(), inputs=paths,
+                        parameters={"sections": names, "quick": quick}, time_s=result.time_s)
+    write_json(folder / "report.json", doc)
+    with atomic_path(folder / "report.md") as tmp:  # last
+        tmp.write_text(result.markdown(), encoding="utf-8")
+    return result

@@ -7,7 +7,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .sections import Inputs, Section
+from ..geometry import in_plane_cosines
+from ..spectra import illuminant, spectrum_to_xyz, srgb_encode, xyz_to_linear_srgb
+from .section import Inputs, Section
 
 #: Angles of incidence of the sheets' lobe plots (deg).
 SHEET_THETA_I_DEG = (15.0, 30.0, 45.0, 60.0, 75.0)
@@ -25,9 +27,6 @@ def direction_colours(material, theta_i_deg, theta_o_deg) -> tuple[np.ndarray, n
     lobe plot's radius carries the magnitude), then sRGB-encoded.
     Returns (rgb (n_i, n_o, 3) in [0, 1], Y of f under D65 (n_i, n_o), sr⁻¹).
     """
-    from ..geometry import in_plane_cosines
-    from ..spectra import illuminant, spectrum_to_xyz, srgb_encode, xyz_to_linear_srgb
-
     ti, to = np.meshgrid(np.asarray(theta_i_deg, float), np.asarray(theta_o_deg, float),
                          indexing="ij")
     f = material.evaluate(in_plane_cosines(ti.ravel(), to.ravel()))

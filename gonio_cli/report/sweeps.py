@@ -14,6 +14,16 @@ from typing import Callable, Iterable
 
 import numpy as np
 
+from .. import lobes as L
+from ..prefilter import brute, inputs as prefilter_inputs, methods as prefilter_methods, \
+    prefilter, ring
+from ..render import Stats
+from ..render.environment import Environment, environment_xyz
+from ..render.pipeline import frame_time, render_scene
+from ..render.scene import load_scene
+from ..schemas import Lobes, Material
+from ..synthetic import ink_spectra
+
 #: The working grid of the comparison materials (nm), seed 000's 380–780 nm in 10 nm steps.
 WL = np.arange(380.0, 781.0, 10.0)
 
@@ -43,9 +53,6 @@ def lobe_test_materials() -> dict:
     """The lobe benchmark's materials (seed 001): the three structural-colour inks of seed
     000 (synthetic, as the demo's) and comparison materials (Torrance–Sparrow glossy and
     rough, a Cook–Torrance metallic paint, a Lambertian white), on :data:`WL`."""
-    from ..schemas import Material
-    from ..synthetic import ink_spectra
-
     out = {}
     for ink in ("red", "green", "blue"):
         rho, c = ink_spectra(ink, WL)
@@ -77,8 +84,6 @@ def lobe_sweep(max_lobes: int = 6, repeats: int = 5, materials: dict | None = No
     are fitted: relative RMS error (worst material), L1 summed, median fit time (ms).
     Returns ``{"basis": [...], "rows": [...], "basis_time_s": float}``.
     """
-    from .. import lobes as L
-
     mats = materials if materials is not None else lobe_test_materials()
     s = L.sample_set("seed001")
     targets = [L.target_values(m, s, "xyz")[0] for m in mats.values()]
@@ -112,11 +117,6 @@ def lobe_render_times(basis: list[dict], material, sky: np.ndarray, size: int = 
     the environment term over the ``size`` × ``size`` pixels of an orthographic sphere
     (``gonio_cli.render.environment.environment_xyz``, what ``gonio render`` runs).
     """
-    from .. import lobes as L
-    from ..prefilter import prefilter
-    from ..render.environment import Environment, environment_xyz
-    from ..schemas import Lobes
-
     y, x = np.mgrid[1:-1:size * 1j, -1:1:size * 1j]
     inside = x * x + y * y < 1.0
     normals = np.stack([x[inside], y[inside], np.sqrt(1.0 - x[inside] ** 2 - y[inside] ** 2)],
@@ -146,24 +146,20 @@ def lobe_render_times(basis: list[dict], material, sky: np.ndarray, size: int = 
 
 def prefilter_errors(out, truth) -> tuple[float, float]:
     """(99th percentile, maximum) of the relative error of a prefiltered map."""
-    from .. import prefilter as pf
-
-    e = pf.methods.relative_errors(np.asarray(out, float), truth)
+    e = prefilter_methods.relative_errors(np.asarray(out, float), truth)
     return float(np.percentile(e, 99)), float(e.max())
 
 
 def prefilter_brute_rows(small: np.ndarray, exponents: Iterable[float]) -> list[dict]:
     """``auto`` (ring) beside ``brute`` on a small map, per exponent: both times and the
     relative error of ring against brute (p99, max)."""
-    from .. import prefilter as pf
-
     h, w = small.shape[:2]
-    prepared = pf.ring.RingInputs(small)
+    prepared = ring.RingInputs(small)
     rows = []
     for e in exponents:
-        levels = pf.inputs.output_levels(h, w, e)
-        (fast, _), t_fast = timed(pf.ring.prefilter_ring, small, e, levels, prepared)
-        (truth, _), t_brute = timed(pf.brute.prefilter_brute, small, e, levels)
+        levels = prefilter_inputs.output_levels(h, w, e)
+        (fast, _), t_fast = timed(ring.prefilter_ring, small, e, levels, prepared)
+        (truth, _), t_brute = timed(brute.prefilter_brute, small, e, levels)
         p99, mx = prefilter_errors(fast, truth)
         rows.append({"exponent": float(e), "output": f"{w >> levels}×{h >> levels}",
                      "ring_s": t_fast, "brute_s": t_brute, "p99_error": p99,
@@ -175,21 +171,19 @@ def prefilter_ring_rows(m: np.ndarray, exponent: float, prepared=None) -> list[d
     """Error against time of ``ring`` for one exponent on map ``m``: the auto output level
     and one finer, each with working maps 0–3 octaves finer than the output; the reference
     is ring on the full input (equal to brute to float32 round-off)."""
-    from .. import prefilter as pf
-
-    prepared = prepared if prepared is not None else pf.ring.RingInputs(m)
+    prepared = prepared if prepared is not None else ring.RingInputs(m)
     h, w = m.shape[:2]
-    auto = pf.inputs.output_levels(h, w, exponent)
+    auto = prefilter_inputs.output_levels(h, w, exponent)
     rows = []
     for levels in sorted({auto, max(0, auto - 1)}, reverse=True):
-        ref, _ = pf.ring.prefilter_ring(m, exponent, levels, prepared, working_levels=99)
+        ref, _ = ring.prefilter_ring(m, exponent, levels, prepared, working_levels=99)
         for wl in range(0, min(levels, 3) + 1):
-            (out, ws), dt = timed(pf.ring.prefilter_ring, m, exponent, levels, prepared,
+            (out, ws), dt = timed(ring.prefilter_ring, m, exponent, levels, prepared,
                                   working_levels=wl)
             p99, mx = prefilter_errors(out, ref)
             rows.append({"exponent": float(exponent), "output": f"{w >> levels}×{h >> levels}",
                          "working": f"{ws[1]}×{ws[0]}",
-                         "auto": bool(levels == auto and wl == min(levels, pf.ring.WORKING_LEVELS)),
+                         "auto": bool(levels == auto and wl == min(levels, ring.WORKING_LEVELS)),
                          "time_s": dt, "p99_error": p99, "max_error": mx})
     return rows
 
@@ -211,10 +205,6 @@ def render_scene_file(path: Path, variables: dict | None = None, *, doc: dict | 
     """Load and render one scene file (a template; ``overrides`` as ``gonio render``'s
     width, height, ssaa, spectral; ``doc``: the scene as data, ``path`` then only anchors
     its relative paths). Returns (Frame, Stats, frame time s)."""
-    from ..render import Stats
-    from ..render.pipeline import frame_time, render_scene
-    from ..render.scene import load_scene
-
     stats = Stats()
     scene = load_scene(path, variables=variables or {}, doc=doc,
                        overrides={k: overrides.get(k) for k in
