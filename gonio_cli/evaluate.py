@@ -12,18 +12,28 @@ incidence of a multi-angle instrument) models its measurement as g(θi) f: ``swe
 ``auto`` applies them where the measurement's angles of incidence all have one (the
 output then compares with the instrument's readings), ``on`` requires that, ``off`` gives
 the BRDF f alone.
+
+:func:`run` is the stage as one call (``gonio eval``'s): the gains chosen, the model
+evaluated, its record made; :func:`write` writes the measurement and the plot.
 """
 
 from __future__ import annotations
 
 import os
+from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from . import log
+from .brdf import MODELS
 from .errors import InputError
+from .fit.gains import SweepGains
+from .fit.plot import plot_fit
 from .geometry import in_plane_cosines
-from .schemas import Material, Measurement
+from .names import SWEEP_GAIN_NAMES, pick
+from .schemas import Material, Measurement, write_measurement
 from .spectra import grid_spec, same_grid
 
 
@@ -52,8 +62,6 @@ def gains_for(material: Material, measurement: Measurement, sweep_gain: str = "a
               material_path=None, measurement_path=None):
     """The material's light-source gains to apply at ``measurement`` (a
     :class:`~gonio_cli.fit.gains.SweepGains`), or None (``sweep_gain`` as the module doc)."""
-    from .fit.gains import SweepGains
-
     stored = (material.fit or {}).get("sweep_gain")
     if sweep_gain == "off" or (stored is None and sweep_gain == "auto"):
         return None
@@ -110,9 +118,73 @@ def evaluate_at(material: Material, measurement: Measurement, *, material_path=N
 def model_parameters(material: Material) -> dict[str, Any]:
     """The model as the ``parameters`` of an evaluated measurement: its name, its
     citation and every parameter (scalars as numbers, spectra as lists)."""
-    from .brdf import MODELS
-
     return {"model": material.model, "citation": MODELS[material.model].citation,
             "status": material.status,
             "params": {k: (np.asarray(v, dtype=float) if np.ndim(v) else float(v))
                        for k, v in material.params.items()}}
+
+
+@dataclass
+class Evaluation:
+    """What ``gonio eval`` computed: the ``model`` (a measurement, :func:`evaluate_at`) of
+    ``material`` at ``measurement``, the light-source ``gains`` applied (or None), the
+    output's ``parameters`` and the time it took; the two paths (or None) it came from."""
+
+    material: Material
+    measurement: Measurement
+    model: Measurement
+    gains: SweepGains | None
+    sweep_gain: str
+    parameters: dict[str, Any]
+    material_path: Path | None = None
+    measurement_path: Path | None = None
+    time_s: float = 0.0
+
+    def gains_text(self) -> str:
+        """How the gains were applied, for the summary line ("" when there were none)."""
+        if self.gains is not None:
+            return (f", times the material's light-source gains ({self.gains.text()}; "
+                    f"--sweep-gain off for the BRDF alone)")
+        if self.sweep_gain == "auto" and (self.material.fit or {}).get("sweep_gain"):
+            return (", the BRDF alone: the material's light-source gains are for other "
+                    "angles of incidence")
+        return ""
+
+
+def run(material: Material, measurement: Measurement, sweep_gain: str = "auto", *,
+        material_path=None, measurement_path=None) -> Evaluation:
+    """``material`` evaluated at ``measurement`` (the paths name them in errors and in the
+    output's ``parameters``), with its light-source gains as ``sweep_gain`` says.
+
+    Raises
+    ------
+    InputError
+        An unknown ``sweep_gain``, gains required but missing (:func:`gains_for`), or the
+        two spectral grids differ (:func:`check_same_grid`).
+    """
+    pick(SWEEP_GAIN_NAMES, sweep_gain, "--sweep-gain")
+    with log.timer() as t:
+        gains = gains_for(material, measurement, sweep_gain, material_path=material_path,
+                          measurement_path=measurement_path)
+        model = evaluate_at(material, measurement, material_path=material_path,
+                            measurement_path=measurement_path, gains=gains)
+    parameters = {"material": str(material_path), "at": str(measurement_path),
+                  "sweep_gain": sweep_gain, **model_parameters(material)}
+    return Evaluation(material, measurement, model, gains, sweep_gain, parameters,
+                      None if material_path is None else Path(material_path),
+                      None if measurement_path is None else Path(measurement_path),
+                      t["time_s"])
+
+
+def write(evaluation: Evaluation, output, *, plot=None) -> None:
+    """Write the evaluated measurement (``gonio.measurement``, its inputs the material and
+    the measurement) and, with ``plot``, data against model (seed 000 Figure 4, PNG)."""
+    e = evaluation
+    inputs = [p for p in (e.material_path, e.measurement_path) if p is not None]
+    write_measurement(output, e.model, inputs=inputs, parameters=e.parameters,
+                      time_s=e.time_s)
+    if plot is not None:
+        at = e.measurement_path.name if e.measurement_path is not None else "measurement"
+        name = e.material_path.name if e.material_path is not None else "material"
+        plot_fit(plot, e.measurement, e.material,
+                 title=f"{at} against {name} ({e.material.model})", gains=e.gains)

@@ -7,7 +7,11 @@ from typing import Optional
 
 import typer
 
-from ..names import SWEEP_GAIN_NAMES, metavar
+from .. import log
+from ..errors import InputError
+from ..names import SWEEP_GAIN_NAMES, metavar, pick
+from ..outputs import declare, same_file
+from . import read_as, require_files
 
 
 def evaluate(
@@ -36,13 +40,8 @@ def evaluate(
     Example:
       gonio eval red.material.json --at red.measurement.json -o red.model.json --plot red.png
     """
-    from .. import log
-    from ..errors import InputError
-    from ..evaluate import evaluate_at, gains_for, model_parameters
-    from ..names import pick
-    from ..schemas import read_material, read_measurement, write_measurement
-    from . import read_as, require_files
-
+    # lazy: gonio --help and the other commands skip the eval core (bench_startup.py)
+    from .. import evaluate as stage, schemas
     pick(SWEEP_GAIN_NAMES, sweep_gain, "--sweep-gain")
     require_files([material], schema="gonio.material")
     require_files([at], schema="gonio.measurement")
@@ -50,46 +49,22 @@ def evaluate(
         if path is None:
             continue
         for name, given in (("the material", material), ("--at", at)):
-            if _same_file(path, given):
+            if same_file(path, given):
                 raise InputError(f"{flag} {path} is {name} ({given}): it would be overwritten",
                                  fix=f"choose another {flag}")
-    if plot is not None and _same_file(plot, output):
+    if plot is not None and same_file(plot, output):
         raise InputError(f"--plot {plot} is also -o", fix="choose another --plot")
     if plot is not None and plot.suffix.lower() != ".png":
         raise InputError(f"--plot {plot}: the plot is written as PNG", fix="name it *.png")
-    from ..outputs import declare
     declare({"-o": output, "--plot": plot}, [material, at])
-    mat = read_material(material)
-    data = read_as("--at", read_measurement, at)
+    mat = schemas.read_material(material)
+    data = read_as("--at", schemas.read_measurement, at)
     if mat.status == "failed":  # a poor fit is what eval is for: comparing it with data
         log.warn(f"{material}: a fit with status {mat.status!r} is evaluated")
-    with log.timer() as t:
-        gains = gains_for(mat, data, sweep_gain, material_path=material, measurement_path=at)
-        model = evaluate_at(mat, data, material_path=material, measurement_path=at,
-                            gains=gains)
-    parameters = {"material": str(material), "at": str(at), "sweep_gain": sweep_gain,
-                  **model_parameters(mat)}
-    write_measurement(output, model, inputs=[material, at], parameters=parameters,
-                      time_s=t["time_s"])
-    if plot is not None:
-        from ..fit.plot import plot_fit
-
-        plot_fit(plot, data, mat, title=f"{at.name} against {material.name} ({mat.model})",
-                 gains=gains)
-    applied = (f", times the material's light-source gains ({gains.text()}; --sweep-gain "
-               f"off for the BRDF alone)" if gains is not None else "")
-    if gains is None and sweep_gain == "auto" and (mat.fit or {}).get("sweep_gain"):
-        applied = (", the BRDF alone: the material's light-source gains are for other "
-                   "angles of incidence")
+    result = stage.run(mat, data, sweep_gain, material_path=material, measurement_path=at)
+    stage.write(result, output, plot=plot)
     log.info(f"{output}: {mat.model} at {data.n_configurations} configurations x "
-             f"{data.wavelength_nm.size} wavelengths of {at}{applied}")
-
-
-def _same_file(a: Path, b: Path) -> bool:
-    """Do two paths name the same file (the same path, or a link to it)?"""
-    from ..outputs import same_file
-
-    return same_file(a, b)
+             f"{data.wavelength_nm.size} wavelengths of {at}{result.gains_text()}")
 
 
 EXAMPLE = ("gonio eval red.material.json --at red.measurement.json -o red.model.json "
