@@ -50,7 +50,7 @@ def test_ranges_agree_with_the_stages_own_bounds():
     """The read side accepts everything the writers may produce."""
     from gonio_cli.fit.common import ALPHA_MAX, ALPHA_MIN
     from gonio_cli.fit.separable import C_LIMIT
-    from gonio_cli.fit.cook_torrance import M_MAX, M_MIN
+    from gonio_cli.fit.cook_torrance_profile import M_MAX, M_MIN
     from gonio_cli.prefilter.inputs import MAX_EXPONENT
 
     alpha, m, c = (schemas.PARAM_RANGES[k] for k in ("alpha", "m", "c"))

@@ -10,13 +10,13 @@ For a fixed m it is **linear and non-negative** in (kd, a, b) with a = ks F0 and
 b = ks (1 − F0):  f = kd/π + a S + b q S. So per wavelength:
 
 1. ``profile`` (always; final with the nlopt optimisers): for any trial m, (kd, a, b) ≥ 0
-   by a 3-column non-negative least squares (:func:`nnls3`, exact, all wavelengths and
-   trial m at once); with log residuals (default) from the closed form for relative
-   residuals (log y − log f ≈ (y − f)/y) plus Gauss–Newton steps, each the same NNLS
-   with reweighted targets. m(λ) by a 49-point scan over log m in [:data:`M_MIN`,
-   :data:`M_MAX`] and a golden section (:func:`~.common.golden_section`) inside the best
-   cell, for all wavelengths at once. ks = a + b, F0 = a/(a + b). Golden section, not
-   nlopt: each wavelength has its own m, and :func:`~.alpha.minimize_log_alpha` is a
+   by a 3-column non-negative least squares (:func:`~.cook_torrance_profile.nnls3`,
+   exact, all wavelengths and trial m at once); with log residuals (default) from the
+   closed form for relative residuals (log y − log f ≈ (y − f)/y) plus Gauss–Newton
+   steps, each the same NNLS with reweighted targets. m(λ) by a 49-point scan over log m
+   in [``M_MIN``, ``M_MAX``] and a golden section (:func:`~.common.golden_section`)
+   inside the best cell, for all wavelengths at once. ks = a + b, F0 = a/(a + b). Golden
+   section, not nlopt: each wavelength has its own m, and :func:`~.alpha.minimize_log_alpha` is a
    scalar search (41 of them would cost 41 × ~65 profile calls instead of ~100).
 2. ``levenberg_marquardt`` (``--optimizer scipy-least-squares``): seed 004 §5.2's own
    method, ``scipy.optimize.least_squares(method="lm")`` (MINPACK) per wavelength on all
@@ -45,9 +45,9 @@ Failure is a value: a wavelength with fewer than :data:`MIN_CONFIGURATIONS` usab
 readings is named in ``failed_wavelength_nm`` with kd = ks = 0 (f = 0), m = M_MAX, F0 = 1.
 Relative RMSE (seed 004 eq. 14) is among the error figures of every report.
 
-Why one module: the fit with its analytic derivatives, the F0 separability test and the
-standard errors belong to one model's equations (seed 004 eq. 11); split, the
-derivatives would sit away from the function they differentiate.
+The profile over m (``nnls3``, the m search) is :mod:`.cook_torrance_profile`; here
+Levenberg–Marquardt with its analytic derivatives, the F0 separability test and its
+standard errors, and the reports.
 """
 
 from __future__ import annotations
@@ -56,54 +56,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..brdf import (LOG_MAX, cook_torrance, cook_torrance_specular_geometry,
-                    dlog_beckmann_dlog_m, schlick_fresnel)
+from ..brdf import LOG_MAX, cook_torrance, cook_torrance_specular_geometry, dlog_beckmann_dlog_m
 from ..errors import FitError, InputError
 from .alpha import choose_optimizer
-from .common import FitData, SINGULAR_TOL, golden_section
+from .common import FitData
+from .cook_torrance_profile import (F_FLOOR, M_MAX, M_MIN, MIN_CONFIGURATIONS, Linear,
+                                    Profile, search_m)
 from .results import FitOptions, FitReport, ModelFit, Stopwatch, error_figures, nm_list
 
 MODEL = "cook-torrance"
-
-#: Bounds of the Beckmann RMS slope m (seed 004 eq. 9). Below 1e-3 the lobe is ~0.06°
-#: wide, narrower than any goniometer's aperture (as for GGX's α, common.ALPHA_MIN).
-#: Above 1 (45° RMS facet slope) D is no longer peaked at the normal (that already
-#: happens for m² > ½) and is nearly flat over the measured θh: the lobe cannot be told
-#: from kd/π. A wavelength whose m reaches a bound is named in the report.
-M_MIN, M_MAX = 1e-3, 1.0
-
-#: Scan points over log m (every 15 % in m, as the α scan of common): the profile cost is
-#: smooth in log m, so its minimum lies between the best point's neighbours.
-M_SCAN_POINTS = 49
-
-#: m counts as at a bound when log m is this close to log M_MIN or log M_MAX (the golden
-#: section's final bracket is ~1e-11 wide).
-M_AT_BOUND_TOL = 1e-6
-
-#: Golden-section steps inside the two scan cells around the best point (width 0.29 in
-#: log m): 0.618^50 · 0.29 ≈ 1e-11, below the float64 resolution of the cost's minimum.
-M_GOLDEN_ITERATIONS = 50
-
-#: Gauss–Newton steps on (kd, a, b) for log residuals after the relative-residual start
-#: (log y − log f ≈ (y − f)/y). Each step multiplies the error by ~ the residual size
-#: (0.02 at 2 % noise; quadratic on exact data), and the profile's value is off by the
-#: square of that error: 1 step inside the m search (3 gave the same m to 1e-12 on the
-#: tests' synthetic cases, at 3× the time); :data:`FINAL_GN_STEPS` at the chosen m.
-SEARCH_GN_STEPS = 1
-FINAL_GN_STEPS = 12
-
-#: Gauss–Newton linearises log f at f; where the current model is off by more than this
-#: factor (e^6 ≈ 400) the linearisation point is clamped to it, so a far-off trial m
-#: cannot give an absurd weight w/f². It only matters in the scan's far tails.
-LOG_LINEARISE_LIMIT = 6.0
-
-#: Model values are floored here inside logs (f = 0 needs kd = 0 and a lobe underflowing
-#: to 0); log(tiny) ≈ −708 keeps the cost finite and huge.
-F_FLOOR = np.finfo(float).tiny
-
-#: Four parameters per wavelength, plus one degree of freedom to estimate the noise that
-#: decides whether ks and F0 separate.
-MIN_CONFIGURATIONS = 5
 
 #: F0 counts as separable from ks when its standard error is below this. ±0.1 is what it
 #: takes to tell a dielectric coat (F0 ≈ 0.04) from a metal (0.5–0.95).
@@ -126,184 +87,6 @@ LM_START_EPS = 1e-9
 #: MINPACK tolerances (relative change of cost, step; gradient) and evaluation cap.
 LM_TOL = 1e-12
 LM_MAX_NFEV = 400
-
-#: Schlick's F at F0 = 0 is q = (1 − cos θd)⁵ (seed 004 eq. 12): q taken from brdf.
-_ZERO = np.zeros(1)
-
-
-# ------------------------------------------------------------------ model pieces --
-
-def nnls3(S: np.ndarray, q: np.ndarray, z: np.ndarray, W: np.ndarray,
-          free_b: np.ndarray | None = None) -> np.ndarray:
-    """Non-negative least squares of f = kd/π + a S + b q S for every column at once.
-
-    Minimises Σn W (z − f)² over kd, a, b ≥ 0, per column. ``S``, ``z``, ``W``: (N, C);
-    ``q``: (N,); ``free_b``: (C,) bool, False forces b = 0 (F0 = 1). Exact: the
-    constrained minimum is the unconstrained minimum on its support, so every subset of
-    the three columns is solved in closed form (equilibrated normal equations, so each
-    singularity test is scale-free), the feasible solutions (non-singular, ≥ 0) are
-    compared by their cost Σ W z² − βᵀb, and the cheapest is kept; the empty subset
-    (β = 0) is always feasible. Explicit 1×1, 2×2 and 3×3 formulas on (C,) arrays keep a
-    call at ~40 numpy operations however many columns there are.
-    Returns (3, C) = (kd, a, b).
-    """
-    qc = q[:, None]
-    WS = W * S
-    qWS = qc * WS
-    p = 1.0 / np.pi
-    A = np.empty((3, 3, S.shape[1]))
-    A[0, 0] = W.sum(axis=0) * p * p
-    A[0, 1] = A[1, 0] = WS.sum(axis=0) * p
-    A[0, 2] = A[2, 0] = qWS.sum(axis=0) * p
-    A[1, 1] = np.einsum("nc,nc->c", WS, S)
-    A[1, 2] = A[2, 1] = np.einsum("nc,nc->c", qWS, S)
-    A[2, 2] = np.einsum("nc,nc->c", qWS * qc, S)
-    b = np.stack([np.einsum("nc,nc->c", W, z) * p, np.einsum("nc,nc->c", WS, z),
-                  np.einsum("nc,nc->c", qWS, z)])                           # (3, C)
-    d = np.sqrt(np.maximum(np.diagonal(A).T, 0.0))                           # (3, C)
-    live = d > 0
-    d = np.where(live, d, 1.0)
-    R = A / (d[:, None] * d[None, :])                                        # unit diagonal
-    bn = b / d
-    best = np.zeros_like(b)
-    gain = np.zeros(S.shape[1])                 # βᵀb of the best subset so far (empty: 0)
-    allow_b = np.ones(S.shape[1], bool) if free_b is None else free_b
-
-    def consider(beta_n, ok, members):
-        nonlocal best, gain
-        beta = np.zeros_like(b)
-        for k, j in enumerate(members):
-            beta[j] = beta_n[k] / d[j]
-        ok = ok & np.all(beta >= 0.0, axis=0) & np.all(live[list(members)], axis=0)
-        if 2 in members:
-            ok &= allow_b
-        g = np.einsum("kc,kc->c", beta, b)
-        take = ok & (g > gain)
-        best = np.where(take, beta, best)
-        gain = np.where(take, g, gain)
-
-    for j in range(3):                                                       # one column
-        consider([bn[j]], np.ones_like(gain, bool), (j,))
-    for i, j in ((0, 1), (0, 2), (1, 2)):                                    # two columns
-        r = R[i, j]
-        det = 1.0 - r * r
-        ok = det > SINGULAR_TOL
-        det = np.where(ok, det, 1.0)
-        consider([(bn[i] - r * bn[j]) / det, (bn[j] - r * bn[i]) / det], ok, (i, j))
-    r01, r02, r12 = R[0, 1], R[0, 2], R[1, 2]                                # all three
-    c00, c11, c22 = 1.0 - r12 * r12, 1.0 - r02 * r02, 1.0 - r01 * r01
-    c01, c02, c12 = r02 * r12 - r01, r01 * r12 - r02, r01 * r02 - r12
-    det = c00 + r01 * c01 + r02 * c02
-    ok = det > SINGULAR_TOL
-    det = np.where(ok, det, 1.0)
-    consider([(c00 * bn[0] + c01 * bn[1] + c02 * bn[2]) / det,
-              (c01 * bn[0] + c11 * bn[1] + c12 * bn[2]) / det,
-              (c02 * bn[0] + c12 * bn[1] + c22 * bn[2]) / det], ok, (0, 1, 2))
-    return best
-
-
-# --------------------------------------------------------------- profile over m --
-
-@dataclass
-class Linear:
-    """(kd, a, b) per column and the column's cost in the fit's residuals; (C,) each."""
-
-    kd: np.ndarray
-    a: np.ndarray
-    b: np.ndarray
-    cost: np.ndarray
-
-
-class Profile:
-    """(kd, a, b) optimal for any trial m, and the cost they leave, per wavelength.
-
-    Columns are (trial m, wavelength) pairs: ``solve(log_m, cols)`` takes (C,) log m and
-    the wavelength index of each column, so a whole scan is one call.
-    """
-
-    def __init__(self, data: FitData):
-        self.data = data
-        self.q = schlick_fresnel(data.cos.cos_theta_d, _ZERO)[:, 0]          # (N,)
-        self.log = data.residuals == "log"
-        usable = data.w > 0
-        self.n_used = usable.sum(axis=0)
-        self.ok = np.any(usable & (data.y > 0), axis=0) & (self.n_used >= MIN_CONFIGURATIONS)
-        self.w = data.w * self.ok
-        self.y_safe = np.where(data.positive, data.y, 1.0)
-        self.log_y = np.log(self.y_safe)
-
-    def specular(self, log_m: np.ndarray) -> np.ndarray:
-        """S = D G / (π cos θi cos θo) of eq. 11 for each column's m: (N, C)."""
-        return cook_torrance_specular_geometry(self.data.cos, np.exp(log_m))
-
-    def model(self, lin: Linear, S: np.ndarray) -> np.ndarray:
-        return lin.kd / np.pi + (lin.a + lin.b * self.q[:, None]) * S
-
-    def cost_of(self, f: np.ndarray, cols: np.ndarray) -> np.ndarray:
-        w = self.w[:, cols]
-        if self.log:
-            r = self.log_y[:, cols] - np.log(np.maximum(f, F_FLOOR))
-        else:
-            r = self.data.y[:, cols] - f
-        return np.einsum("nc,nc->c", w * r, r)
-
-    def solve(self, log_m, cols, free_b=None, steps: int = SEARCH_GN_STEPS) -> Linear:
-        """(kd, a, b) ≥ 0 minimising each column's cost for its m; (C,) each.
-
-        ``log_m``, ``cols`` (wavelength index), ``free_b`` (False: F0 = 1): (C,) each.
-        Log residuals: relative-residual start, then ``steps`` Gauss–Newton steps; each
-        column keeps its cheapest iterate.
-        """
-        S = self.specular(np.asarray(log_m, dtype=float))
-        w, q, fb = self.w[:, cols], self.q, free_b
-        if not self.log:
-            beta = nnls3(S, q, self.data.y[:, cols], w, fb)
-            lin = Linear(*beta, cost=np.zeros(len(cols)))
-            lin.cost = self.cost_of(self.model(lin, S), cols)
-            return lin
-        y, log_y = self.y_safe[:, cols], self.log_y[:, cols]
-        beta = nnls3(S, q, y, w / (y * y), fb)                    # relative residuals
-        best = Linear(*beta, cost=np.zeros(len(cols)))
-        f = self.model(best, S)
-        best.cost = self.cost_of(f, cols)
-        for _ in range(steps):
-            # Gauss–Newton on log residuals: log f(β') ≈ log f + (f(β') − f)/f, i.e. a
-            # weighted NNLS with weights w/f² and targets f (1 + log y − log f)
-            fl = np.clip(f, y * np.exp(-LOG_LINEARISE_LIMIT), y * np.exp(LOG_LINEARISE_LIMIT))
-            beta = nnls3(S, q, fl * (1.0 + log_y - np.log(fl)), w / (fl * fl), fb)
-            trial = Linear(*beta, cost=np.zeros(len(cols)))
-            f = self.model(trial, S)
-            trial.cost = self.cost_of(f, cols)
-            better = trial.cost < best.cost
-            best = Linear(*(np.where(better, getattr(trial, k), getattr(best, k))
-                            for k in ("kd", "a", "b", "cost")))
-        return best
-
-
-def search_m(profile: Profile, cols: np.ndarray, free_b: np.ndarray):
-    """m for each wavelength in ``cols`` by scan + golden section over log m.
-
-    Returns (log m (C,), :class:`Linear` at it, evaluations, at_bound (C,) bool).
-    """
-    grid = np.linspace(np.log(M_MIN), np.log(M_MAX), M_SCAN_POINTS)
-    n = len(cols)
-    g_all = np.repeat(grid, n)
-    c_all = np.tile(cols, M_SCAN_POINTS)
-    scan = profile.solve(g_all, c_all, np.tile(free_b, M_SCAN_POINTS)).cost
-    scan = np.where(np.isfinite(scan), scan, np.inf).reshape(M_SCAN_POINTS, n)
-    i = np.argmin(scan, axis=0)
-    lo, hi = grid[np.maximum(i - 1, 0)], grid[np.minimum(i + 1, M_SCAN_POINTS - 1)]
-
-    def cost(log_m):
-        return profile.solve(log_m, cols, free_b).cost
-
-    log_m, best = golden_section(cost, lo, hi, M_GOLDEN_ITERATIONS)
-    scan_best = scan[i, np.arange(n)]
-    log_m = np.where(best <= scan_best, log_m, grid[i])         # never worse than the scan
-    lin = profile.solve(log_m, cols, free_b, steps=FINAL_GN_STEPS)
-    at_bound = np.minimum(np.abs(log_m - grid[0]), np.abs(log_m - grid[-1])) < M_AT_BOUND_TOL
-    # profile evaluations per wavelength: the scan, golden's 2 + 1 per step, the final one
-    return log_m, lin, M_SCAN_POINTS + M_GOLDEN_ITERATIONS + 3, at_bound
 
 
 # ------------------------------------------------------- Levenberg–Marquardt (scipy) --
@@ -538,90 +321,105 @@ def fit(data: FitData, options: FitOptions) -> ModelFit:
         raise FitError(f"no wavelength has {MIN_CONFIGURATIONS} or more usable readings "
                        "(positive, with weight)", fix="check the measurement")
     _, polish = choose_optimizer(MODEL, OPTIMIZERS, options.optimizer)
-
-    # ---- all four parameters free
-    free = _run(profile, cols, True, polish)
+    free = _run(profile, cols, True, polish)              # all four parameters free
     fin = free.final
     a, b = fin.ks[cols] * fin.f0[cols], fin.ks[cols] * (1.0 - fin.f0[cols])
     se = f0_standard_error(profile, fin.kd[cols], a, b, fin.m[cols], cols)
+    vague, fixed = _stable_f0(profile, free, cols, se, polish)
+    failed = [float(x) for x in nm[~profile.ok]]
+    notes = _notes(nm, free.final, cols, se, vague, fixed, free.at_bound)
+    reports = {"profile": _report(
+        data, "profile", free.profile, "scan+golden-section", free.evaluations,
+        free.time_profile_s,
+        "per wavelength: NNLS for (kd, ks*F0, ks*(1-F0)) and a scan + golden section over "
+        f"log m in [{M_MIN:g}, {M_MAX:g}]", failed, notes)}
+    final = "profile"
+    if free.lm is not None:
+        reports["levenberg_marquardt"] = _report(
+            data, "levenberg_marquardt", free.lm, "scipy-least-squares",
+            free.evaluations + free.lm_nfev, free.time_profile_s + free.time_lm_s,
+            "seed 004 sec. 5.2: Levenberg-Marquardt (MINPACK) per wavelength on "
+            "(kd, ks, m, F0), reparametrised to stay in bounds, from the profile solution",
+            failed, notes, free.lm_failed)
+        final = "levenberg_marquardt"
+    return ModelFit(MODEL, nm, reports, final, data.excluded)
 
-    # ---- where F0 is poorly determined, the stable choice F0 = 1 (b = 0) if the data
-    #      do not reject it (likelihood ratio, 1 degree of freedom)
-    vague = cols[(se > F0_SE_MAX) & (fin.ks[cols] > 0) & (fin.f0[cols] < 1.0)]
-    fixed_cols = np.array([], dtype=int)
-    evaluations, lm_nfev, lm_failed = free.evaluations, free.lm_nfev, list(free.lm_failed)
-    t_profile, t_lm = free.time_profile_s, free.time_lm_s
+
+def _stable_f0(profile: Profile, free: Run, cols: np.ndarray, se: np.ndarray, polish):
+    """Where F0 is poorly determined (standard error ``se`` > :data:`F0_SE_MAX`), the stable
+    choice F0 = 1 (b = 0) if the data do not reject it (likelihood ratio, 1 degree of
+    freedom): those wavelengths of the F0 = 1 pass replace ``free``'s, whose counts and
+    times then cover both passes and whose ``at_bound`` becomes (L,).
+
+    Returns (the poorly determined columns, those given F0 = 1)."""
+    nm = profile.data.wavelength_nm
+    fin = free.final
     at_bound = np.zeros(nm.size, bool)
     at_bound[cols] = free.at_bound
-    if vague.size:
-        one = _run(profile, vague, False, polish)
-        sigma2 = fin.cost[vague] / np.maximum(profile.n_used[vague] - 4, 1)
-        accept = one.final.cost[vague] - fin.cost[vague] <= CHI2_1DOF_95 * sigma2
-        fixed_cols = vague[accept]
-        free.profile.take(one.profile, fixed_cols)
-        if free.lm is not None:
-            free.lm.take(one.lm, fixed_cols)
-        at_bound[fixed_cols] = one.at_bound[accept]
-        evaluations += one.evaluations
-        lm_nfev += one.lm_nfev
-        fixed_nm = set(nm[fixed_cols].tolist())
-        lm_failed = ([x for x in lm_failed if x not in fixed_nm]
-                     + [x for x in one.lm_failed if x in fixed_nm])
-        t_profile, t_lm = t_profile + one.time_profile_s, t_lm + one.time_lm_s
-    fin = free.final
+    free.at_bound = at_bound
+    vague = cols[(se > F0_SE_MAX) & (fin.ks[cols] > 0) & (fin.f0[cols] < 1.0)]
+    if not vague.size:
+        return vague, np.array([], dtype=int)
+    one = _run(profile, vague, False, polish)
+    sigma2 = fin.cost[vague] / np.maximum(profile.n_used[vague] - 4, 1)
+    accept = one.final.cost[vague] - fin.cost[vague] <= CHI2_1DOF_95 * sigma2
+    fixed = vague[accept]
+    free.profile.take(one.profile, fixed)
+    if free.lm is not None:
+        free.lm.take(one.lm, fixed)
+    at_bound[fixed] = one.at_bound[accept]
+    free.evaluations += one.evaluations
+    free.lm_nfev += one.lm_nfev
+    fixed_nm = set(nm[fixed].tolist())
+    free.lm_failed = ([x for x in free.lm_failed if x not in fixed_nm]
+                      + [x for x in one.lm_failed if x in fixed_nm])
+    free.time_profile_s += one.time_profile_s
+    free.time_lm_s += one.time_lm_s
+    return vague, fixed
 
-    failed = [float(x) for x in nm[~profile.ok]]
+
+def _notes(nm: np.ndarray, fin: Spectra, cols: np.ndarray, se: np.ndarray,
+           vague: np.ndarray, fixed: np.ndarray, at_bound: np.ndarray) -> dict:
+    """The identifiability notes every report carries (wavelength lists, F0's errors)."""
     se_all = np.full(nm.size, np.inf)
     se_all[cols] = se
-    vague_kept = np.setdiff1d(vague, fixed_cols)
-    notes = {
-        "f0_not_separable_nm": [float(x) for x in nm[fixed_cols]],
-        "f0_poorly_determined_nm": [float(x) for x in nm[vague_kept]],
+    return {
+        "f0_not_separable_nm": [float(x) for x in nm[fixed]],
+        "f0_poorly_determined_nm": [float(x) for x in nm[np.setdiff1d(vague, fixed)]],
         "no_specular_lobe_nm": [float(x) for x in nm[cols[fin.ks[cols] <= 0]]],
         "m_at_bound_nm": [float(x) for x in nm[at_bound]],
         "f0_standard_error": [float(x) if np.isfinite(x) else None for x in se_all],
     }
 
-    def report(method, s: Spectra, optimizer, evals, time_s, message, lm_fail=()):
-        msg = [message]
-        if failed:
-            msg.insert(0, f"fewer than {MIN_CONFIGURATIONS} usable readings at "
-                          f"{len(failed)} wavelength(s) ({nm_list(failed)}); kd = ks = 0 there")
-        if notes["f0_not_separable_nm"]:
-            msg.append(f"ks and F0 not separable at {nm_list(notes['f0_not_separable_nm'])} "
-                       f"(standard error of F0 > {F0_SE_MAX:g}: Schlick's change over the "
-                       "measured angles is within the noise); kept the stable choice F0 = 1 "
-                       "there, so ks is the product ks*F0")
-        if notes["f0_poorly_determined_nm"]:
-            msg.append(f"F0 poorly determined (standard error > {F0_SE_MAX:g}) at "
-                       f"{nm_list(notes['f0_poorly_determined_nm'])}, but the data reject "
-                       "F0 = 1 there: fitted values kept")
-        if notes["no_specular_lobe_nm"]:
-            msg.append(f"no specular lobe (ks = 0) at {nm_list(notes['no_specular_lobe_nm'])}"
-                       "; m and F0 have no effect there")
-        if notes["m_at_bound_nm"]:
-            msg.append(f"m at a bound of [{M_MIN:g}, {M_MAX:g}] at "
-                       f"{nm_list(notes['m_at_bound_nm'])}")
-        if lm_fail:
-            msg.append(f"Levenberg-Marquardt stopped before converging at "
-                       f"{nm_list(list(lm_fail))}; kept the better of it and the profile "
-                       "solution (the profile solution is a minimum on its own)")
-        status = "failed" if failed else "success"
-        f = cook_torrance(data.cos, s.kd, s.ks, s.m, s.f0)
-        return FitReport(method, status, "; ".join(msg), s.params(), error_figures(data, f),
-                         optimizer, int(evals), time_s, list(failed), dict(notes))
 
-    reports = {"profile": report(
-        "profile", free.profile, "scan+golden-section", evaluations, t_profile,
-        "per wavelength: NNLS for (kd, ks*F0, ks*(1-F0)) and a scan + golden section over "
-        f"log m in [{M_MIN:g}, {M_MAX:g}]")}
-    final = "profile"
-    if free.lm is not None:
-        reports["levenberg_marquardt"] = report(
-            "levenberg_marquardt", free.lm, "scipy-least-squares", evaluations + lm_nfev,
-            t_profile + t_lm,
-            "seed 004 sec. 5.2: Levenberg-Marquardt (MINPACK) per wavelength on "
-            "(kd, ks, m, F0), reparametrised to stay in bounds, from the profile solution",
-            lm_failed)
-        final = "levenberg_marquardt"
-    return ModelFit(MODEL, nm, reports, final, data.excluded)
+def _report(data: FitData, method: str, s: Spectra, optimizer: str, evals: int,
+            time_s: float, message: str, failed: list, notes: dict, lm_fail=()) -> FitReport:
+    """One method's report: its spectra, error figures and a message naming every
+    wavelength the notes single out."""
+    msg = [message]
+    if failed:
+        msg.insert(0, f"fewer than {MIN_CONFIGURATIONS} usable readings at "
+                      f"{len(failed)} wavelength(s) ({nm_list(failed)}); kd = ks = 0 there")
+    if notes["f0_not_separable_nm"]:
+        msg.append(f"ks and F0 not separable at {nm_list(notes['f0_not_separable_nm'])} "
+                   f"(standard error of F0 > {F0_SE_MAX:g}: Schlick's change over the "
+                   "measured angles is within the noise); kept the stable choice F0 = 1 "
+                   "there, so ks is the product ks*F0")
+    if notes["f0_poorly_determined_nm"]:
+        msg.append(f"F0 poorly determined (standard error > {F0_SE_MAX:g}) at "
+                   f"{nm_list(notes['f0_poorly_determined_nm'])}, but the data reject "
+                   "F0 = 1 there: fitted values kept")
+    if notes["no_specular_lobe_nm"]:
+        msg.append(f"no specular lobe (ks = 0) at {nm_list(notes['no_specular_lobe_nm'])}"
+                   "; m and F0 have no effect there")
+    if notes["m_at_bound_nm"]:
+        msg.append(f"m at a bound of [{M_MIN:g}, {M_MAX:g}] at "
+                   f"{nm_list(notes['m_at_bound_nm'])}")
+    if lm_fail:
+        msg.append(f"Levenberg-Marquardt stopped before converging at "
+                   f"{nm_list(list(lm_fail))}; kept the better of it and the profile "
+                   "solution (the profile solution is a minimum on its own)")
+    status = "failed" if failed else "success"
+    f = cook_torrance(data.cos, s.kd, s.ks, s.m, s.f0)
+    return FitReport(method, status, "; ".join(msg), s.params(), error_figures(data, f),
+                     optimizer, int(evals), time_s, list(failed), dict(notes))

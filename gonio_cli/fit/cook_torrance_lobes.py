@@ -47,7 +47,7 @@ from .alpha import choose_optimizer
 from .common import BestPoint, FitData
 from .results import FitOptions, FitReport, ModelFit, Stopwatch, error_figures, nm_list
 from .separable import nnls2
-from .cook_torrance import M_MAX, M_MIN
+from .cook_torrance_profile import M_MAX, M_MIN
 from .warm import WARM_STEP, near
 
 #: Model name by number of lobes.
