@@ -16,8 +16,9 @@ b = ks (1 − F0):  f = kd/π + a S + b q S. So per wavelength:
    steps, each the same NNLS with reweighted targets. m(λ) by a 49-point scan over log m
    in [``M_MIN``, ``M_MAX``] and a golden section (:func:`~.common.golden_section`)
    inside the best cell, for all wavelengths at once. ks = a + b, F0 = a/(a + b). Golden
-   section, not nlopt: each wavelength has its own m, and :func:`~.alpha.minimize_log_alpha` is a
-   scalar search (41 of them would cost 41 × ~65 profile calls instead of ~100).
+   section, not nlopt: each wavelength has its own m, and
+   :func:`~.alpha.minimize_log_alpha` is a scalar search (41 of them would cost 41 × ~65
+   profile calls instead of ~100).
 2. ``levenberg_marquardt`` (``--optimizer scipy-least-squares``): seed 004 §5.2's own
    method, ``scipy.optimize.least_squares(method="lm")`` (MINPACK) per wavelength on all
    four parameters, reparametrised so kd, ks > 0, F0 ∈ (0, 1) and m ∈ (M_MIN, M_MAX)
