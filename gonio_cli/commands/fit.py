@@ -1,4 +1,5 @@
-"""``gonio fit``: the thin shell over :mod:`gonio_cli.fit`."""
+"""``gonio fit``: the thin shell over :func:`gonio_cli.fit.run.run` (options → run → write
+and the console lines)."""
 
 from __future__ import annotations
 

@@ -20,7 +20,8 @@ The registry :data:`FITTERS` maps a model name (``--model``) to its fitter; each
 
 ``auto`` (:data:`AUTO`) fits the candidates and keeps the best on held-out angles
 (:mod:`.auto`); every fit is judged by :mod:`.verdict`. A multi-angle instrument's lamps
-get one gain each, fitted with the model (:mod:`.gains`).
+get one gain each, fitted with the model (:mod:`.gains`). The whole stage, as ``gonio fit``
+runs it (data, gains, model, verdict, failure policy), is one call: :func:`.run.run`.
 """
 
 from __future__ import annotations

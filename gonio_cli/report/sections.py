@@ -5,8 +5,8 @@ nothing but the scratch scenes and materials the renderer reads, into the caller
 
 Here the fit, lobes, prefilter and render sections and the registry of all of them in
 report order, :data:`SECTIONS`; seed 000's Table 1 is :mod:`.table1`, the colour sheets
-:mod:`.sheets`, what a section returns and runs on :mod:`.section`, what it runs on is
-read by :mod:`.inputs`, the plots drawn by :mod:`.scatter`.
+:mod:`.sheets`. What a section returns and runs on is :mod:`.section`, how the inputs are
+read and fitted :mod:`.inputs`, the scatter plots :mod:`.scatter`.
 """
 
 from __future__ import annotations
