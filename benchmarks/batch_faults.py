@@ -10,7 +10,6 @@ the driver's CPU time and wall time per job.
 from __future__ import annotations
 
 import os
-import re
 import signal
 import subprocess
 import sys
@@ -25,13 +24,6 @@ import process  # noqa: E402
 
 #: Share of the jobs recorded when a fault is sent (the run is then well under way).
 FAULT_AT = 1 / 3
-
-
-def _plan(plan: Path, frames: int) -> Path:
-    """The sample plan (already copied, renders sized) with ``frames`` frames a turntable."""
-    text = re.sub(r"(?m)^frames = \d+", f"frames = {frames}", plan.read_text())
-    plan.write_text(text)
-    return plan
 
 
 def _journal(out: Path) -> dict[str, dict]:
@@ -57,13 +49,14 @@ def _mismatches(out: Path) -> int:
                or sha256_file(o["path"]) != o["sha256"])
 
 
-def run_batch(gonio: str, plan: Path, out: Path, sched: str, fault=None):
-    """Run the batch; ``fault(proc)`` once FAULT_AT of the jobs are recorded. Returns
+def run_batch(gonio: str, plan: Path, out: Path, sched: str, fault=None, extra=()):
+    """Run the batch (``extra``: more options); ``fault(proc)`` once FAULT_AT of the jobs
+    are recorded. Returns
     (exit status, wall s, driver CPU s, keys recorded at the fault)."""
     env = process.user_environment()
     start = time.perf_counter()
     proc = subprocess.Popen([gonio, "-q", "batch", str(plan), "-o", str(out), "--scheduler",
-                             sched, "--retries", "1"], env=env,
+                             sched, "--retries", "1", *extra], env=env,
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     at_fault: set[str] = set()
     if fault is not None:
@@ -111,16 +104,23 @@ def _kill_a_worker(sched: str):
     return fault
 
 
-def run_faults(gonio: str, tmp: Path, plan: Path, frames: int) -> None:
-    """Print the clean run's driver time per job, then each fault's cost."""
-    plan = _plan(plan, frames)
+def run_faults(gonio: str, tmp: Path, jobs: int = 280, size: int = 64) -> None:
+    """Print the clean run's driver time per job, then each fault's cost, on a plan of
+    about ``jobs`` jobs (:func:`batch_scale.scale_plan`) rendering at ``size``²."""
+    from batch_scale import scale_plan, shape_for
+
     from gonio_cli.batch.plan import read_plan
+
+    materials, frames = shape_for(jobs)
+    plan = scale_plan(tmp / "data", materials, frames,
+                      render=f"width = {size}, height = {size}, ssaa = 2")
 
     n = len(read_plan(plan, tmp / "x").jobs)
     procs, sched = start_cluster(tmp)
     try:
-        print(f"gonio batch under faults: {n} jobs (the sample plan, {frames} frames a "
-              f"turntable), external scheduler, 2 workers; load {process.load_average()}")
+        print(f"gonio batch under faults: {n} jobs ({materials} materials x 2 scenes x "
+              f"{frames} frames at {size}², previews), external scheduler, 2 workers; load "
+              f"{process.load_average()}")
         code, wall, cpu, _ = run_batch(gonio, plan, tmp / "clean", sched)
         print(f"  clean run: exit {code}, {wall:.1f} s; driver {cpu / n * 1e3:.1f} ms CPU and "
               f"{wall / n * 1e3:.0f} ms wall per job")

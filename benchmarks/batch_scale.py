@@ -141,11 +141,12 @@ def worker_costs(sched: str, since: float) -> dict[str, float]:
 
 
 def measure_driver(gonio: str, tmp: Path, jobs: int, workers: int, repeats: int,
-                   profile: bool = False) -> dict[str, float]:
+                   profile: bool = False, extra: tuple[str, ...] = ()) -> dict[str, float]:
     """Run a no-op plan of ``jobs`` jobs on ``workers`` no-op workers (external
-    scheduler): the driver's CPU per job for a full run and for a rerun with everything
-    up to date, its fixed cost (a 4-job plan), the scheduler's CPU per task and the
-    workers' per-task costs; best of ``repeats``. Prints a line each."""
+    scheduler), with ``extra`` options of gonio batch: the driver's CPU per job for a full
+    run and for a rerun with everything up to date, its fixed cost (a 4-job plan), the
+    scheduler's CPU per job and the workers' per-task costs; best of ``repeats``. Prints
+    a line each."""
     from distributed import Client
 
     materials, frames = shape_for(jobs)
@@ -160,25 +161,26 @@ def measure_driver(gonio: str, tmp: Path, jobs: int, workers: int, repeats: int,
                                         "scheduler": []}
         for k in range(repeats):
             out = tmp / f"out{k}"
-            code, _, cpu, _ = run_batch(gonio, tiny, tmp / f"tiny{k}", sched)
+            code, _, cpu, _ = run_batch(gonio, tiny, tmp / f"tiny{k}", sched, extra=extra)
             rows["fixed"].append(cpu)
             since, sched_cpu = time.time(), cpu_s(procs[0].pid)
-            code, wall, cpu, _ = run_batch(gonio, plan, out, sched)
+            code, wall, cpu, _ = run_batch(gonio, plan, out, sched, extra=extra)
             if code != 0:
                 raise SystemExit(f"gonio batch on the no-op plan exited {code}")
             rows["scheduler"].append(cpu_s(procs[0].pid) - sched_cpu)
             rows["run"].append(cpu)
             rows["wall"].append(wall)
             costs = worker_costs(sched, since)
-            rows["rerun"].append(run_batch(gonio, plan, out, sched)[2])
+            rows["rerun"].append(run_batch(gonio, plan, out, sched, extra=extra)[2])
         phases = in_process_phases(plan, tmp / "out0", profile)
     finally:
         stop_cluster(procs)
     best = {k: min(v) for k, v in rows.items()}
     fixed = best["fixed"]
     print(f"\nthe driver on {n} no-op jobs ({materials} materials x {len(SCENES)} scenes x "
-          f"{frames} frames + previews), external scheduler, {workers} no-op workers; best of "
-          f"{repeats}; load {process.load_average()}")
+          f"{frames} frames + previews), external scheduler, {workers} no-op workers, "
+          f"{' '.join(extra) or 'default options'}; best of {repeats}; load "
+          f"{process.load_average()}")
     print(f"  fixed cost (Python, gonio and Dask imports, connecting; a 4-job plan): "
           f"{fixed:.2f} s CPU")
     for name, label in (("run", "every job runs"), ("rerun", "all up to date (no cluster)")):
@@ -186,9 +188,9 @@ def measure_driver(gonio: str, tmp: Path, jobs: int, workers: int, repeats: int,
               f"{(best[name] - fixed) / n * 1e3:.2f} ms/job without the fixed cost")
     print(f"  wall time of the run {best['wall']:.1f} s ({best['wall'] / n * 1e3:.1f} ms/job "
           f"with {workers} workers and the driver on this machine's cores); the scheduler "
-          f"{best['scheduler'] / n * 1e3:.2f} ms CPU per task")
-    print(f"  in a worker: gonio's execute of a no-op job {costs['execute_s'] * 1e3:.1f} ms "
-          f"(median), a worker busy {costs['busy_per_task_s'] * 1e3:.1f} ms per task")
+          f"{best['scheduler'] / n * 1e3:.2f} ms CPU per job; {costs['tasks']} Dask tasks")
+    print(f"  in a worker: a task (gonio's execute of its no-op jobs) {costs['execute_s'] * 1e3:.1f}"
+          f" ms (median), a worker busy {costs['busy_per_task_s'] * 1e3:.1f} ms per task")
     for name, value in phases.items():
         if name != "jobs up to date":
             print(f"  in-process: {name:29s} {value:6.2f} s CPU ({value / n * 1e3:.2f} ms/job)")

@@ -1,8 +1,13 @@
 """Benchmark of ``gonio batch``: the sample turntable plan on 2 workers, on 1, and as
 separate ``gonio`` processes.
 
-    .venv/bin/python benchmarks/bench_batch.py [--sizes 384,1024] [--repeats 2]
-    .venv/bin/python benchmarks/bench_batch.py --faults [--fault-frames 16 --fault-size 64]
+    .venv/bin/python benchmarks/bench_batch.py [--sizes 384,1024] [--repeats 2] [--no-faults]
+    .venv/bin/python benchmarks/bench_batch.py --faults [--fault-jobs 280 --fault-size 64]
+
+After the timings (or alone, with ``--faults``) the fault benchmark runs: a 280-job plan
+(the sample's inks, 4 materials × 2 scenes × 33-frame turntables at 64², with previews;
+benchmarks/batch_faults.py) with a worker SIGKILLed, then the driver SIGKILLed, then
+SIGTERMed, mid-run.
 
 The plan is ``sample_data/batch/turntable.toml`` (3 inks ingested and fitted, 2 scenes ×
 4 frames each: 24 renders, 6 previews) with its renders at each of ``--sizes`` pixels
@@ -153,18 +158,25 @@ def main() -> None:
                         help="render widths and heights (px), comma-separated")
     parser.add_argument("--repeats", type=int, default=2, help="timed runs per worker count")
     parser.add_argument("--faults", action="store_true",
-                        help="the fault benchmark (workers and the driver killed mid-run)")
-    parser.add_argument("--fault-frames", type=int, default=16, help="frames per turntable")
+                        help="only the fault benchmark (workers and the driver killed mid-run)")
+    parser.add_argument("--no-faults", action="store_true",
+                        help="leave the fault benchmark out (it runs after the timings)")
+    parser.add_argument("--fault-jobs", type=int, default=280,
+                        help="jobs of the fault plan (4 materials x 2 scenes x 33 frames: 280)")
     parser.add_argument("--fault-size", type=int, default=64, help="render size (px)")
     args = parser.parse_args()
     gonio = process.gonio_command()
-    if args.faults:
+    if not args.faults:
+        timings(gonio, args)
+    if not args.no_faults:
         from batch_faults import run_faults
 
         with tempfile.TemporaryDirectory(prefix="gonio-bench-faults-") as tmp:
-            run_faults(gonio, Path(tmp), copy_plan(Path(tmp) / "data", args.fault_size),
-                       args.fault_frames)
-        return
+            run_faults(gonio, Path(tmp), args.fault_jobs, args.fault_size)
+
+
+def timings(gonio: str, args) -> None:
+    """The sample plan's wall time per worker count and render size."""
     print("gonio batch, the sample turntable plan (sample_data/batch/turntable.toml), whole "
           "processes; the fixed cost of a run (Dask's local cluster ~0.6 s to start and "
           "0.2 s to stop, its import 0.4 s, each worker's first gonio import) weighs on "

@@ -324,6 +324,37 @@ def test_task_keys_group_jobs_by_command_for_dask():
     assert all(key_split(k) == j.command.split()[0] for k, j in zip(keys, plan.jobs))
 
 
+def test_task_keys_of_grouped_jobs_stay_unique_and_keep_the_command():
+    from dask.utils import key_split
+
+    from gonio_cli.batch.engine import task_key
+    from gonio_cli.batch.plan import read_plan
+
+    plan = read_plan(ROOT / "sample_data" / "batch" / "turntable.toml", ROOT / "try" / "k")
+    job = plan.jobs[-1]
+    one, four = task_key(job, "0badcafe1"), task_key(job, "0badcafe1", 4)
+    assert one != four and four.endswith("+3")
+    assert key_split(four) == key_split(one) == job.command.split()[0]
+
+
+def test_jobs_ready_together_share_tasks_while_every_worker_gets_two():
+    """engine.chunks: a group of ready jobs of ``len / (2 slots)`` (at most the option's N)
+    per task, one command per task; a job submitted again (its task was lost) alone."""
+    from gonio_cli.batch.engine import chunks
+
+    go = [(f"r{k}", 1) for k in range(100)]
+    groups = chunks(go, ["render"] * 100, slots=2)
+    assert [len(g) for g in groups] == [25] * 4
+    assert [item for g in groups for item in g] == go  # every job once, in order
+    assert [len(g) for g in chunks(go, ["render"] * 100, slots=1)] == [32] * 3 + [4]
+    assert [len(g) for g in chunks(go, ["render"] * 100, slots=1, most=1)] == [1] * 100
+    # 64 workers: a fit of the 1 150-job plan makes 42 renders ready: one task each
+    assert [len(g) for g in chunks(go[:42], ["render"] * 42, slots=64)] == [1] * 42
+    mixed = [(f"f{k}", 1) for k in range(8)] + [("again", 2)] + [(f"r{k}", 1) for k in range(8)]
+    groups = chunks(mixed, ["fit"] * 8 + ["render"] * 9, slots=1)
+    assert [[key[0] for key, _ in g] for g in groups] == [["f"] * 4] * 2 + [["r"] * 4] * 2 + [["a"]]
+
+
 def test_local_workers_fork_from_a_preloaded_server_where_the_os_has_one():
     """Where the OS has a fork server (Linux, macOS) the local cluster's workers start
     from it, with gonio's job runner and CLI imported there once; elsewhere Dask's

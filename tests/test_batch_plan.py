@@ -102,6 +102,19 @@ def test_bad_plans_are_one_line(run_gonio, tmp_path, text, words):
     _refused(run_gonio, _write(tmp_path / "plan.toml", text), tmp_path / "out", *words)
 
 
+@pytest.mark.parametrize("option, words", [
+    (["--jobs-per-task", "0"], "--jobs-per-task 0 is not a number of jobs; give N >= 1"),
+    (["--retries", "-1"], "--retries -1 is negative; give N >= 0"),
+    (["--workers", "2", "--scheduler", "tcp://x:1"], "--workers and --scheduler exclude"),
+])
+def test_bad_batch_options_are_one_line_before_the_plan_is_read(run_gonio, tmp_path, option,
+                                                                words):
+    r = run_gonio("batch", tmp_path / "no-plan.toml", "-o", tmp_path / "out", *option)
+    assert r.exit_code == 2 and r.stderr.count("\n") == 1, r.stderr
+    assert r.stderr.startswith("gonio: error: ") and words in r.stderr, r.stderr
+    assert not (tmp_path / "out").exists()
+
+
 # ------------------------------------------------------------------- orbit maths --
 
 def test_camera_orbit_turns_the_eye_about_up_through_the_target():

@@ -2,7 +2,8 @@
 
 Jobs whose earlier records still stand are settled here, before any cluster starts (a
 rerun with nothing to do starts none). The driver then submits, in bulk, every job whose
-inputs are made, and as each result arrives it appends the record to the journal
+inputs are made (jobs made ready together share a task while every worker still gets two
+or more: :func:`chunks`), and as each result arrives it appends the record to the journal
 (:mod:`.journal`, fsync'ed), releases the result and submits the jobs it made ready. A
 job's upstream records go to it as plain values, never as Dask futures: a worker that
 dies holds nothing another job needs, so Dask never runs a finished job again, and a kill
@@ -27,7 +28,7 @@ from typing import Any, Callable, Mapping
 
 from .. import __version__
 from ..machine import cpu_count
-from .jobs import attempt_log, execute_pickled, failed_roots, files, record, timed_out, \
+from .jobs import attempt_log, execute_chunk, failed_roots, files, record, timed_out, \
     why_stale
 from .journal import Journal, clear_run_state, compact, lock_folder, read_journal, \
     recover_receipts
@@ -197,6 +198,7 @@ def check_versions(client, scheduler: str) -> None:
 
 def run_plan(plan: Plan, *, workers: int | None = None, scheduler: str | None = None,
              retries: int = 2, timeout_s: float | None = None, dashboard: bool = False,
+             jobs_per_task: int = 32,
              on_start: Callable[[int, str | None], None] | None = None,
              on_record: Callable[[dict], None] | None = None) -> list[dict]:
     """Run the jobs of ``plan`` that are not up to date; return every job's record in
@@ -205,7 +207,8 @@ def run_plan(plan: Plan, *, workers: int | None = None, scheduler: str | None = 
     interrupt: what ran is kept, a job without a record runs next time).
 
     ``retries``: starts of a job after its worker died; ``timeout_s``: seconds a job may
-    run (None: no limit). ``on_start(n_to_run, dashboard_link)`` is called once the
+    run (None: no limit); ``jobs_per_task``: the most jobs one Dask task runs
+    (:func:`chunks`). ``on_start(n_to_run, dashboard_link)`` is called once the
     cluster is up (or with 0 when nothing is to run), ``on_record(record)`` as each job
     ends.
 
@@ -228,7 +231,8 @@ def run_plan(plan: Plan, *, workers: int | None = None, scheduler: str | None = 
         try:
             if stale:
                 settings = {"run": os.urandom(6).hex(), "retries": retries,
-                            "timeout_s": timeout_s, "gonio_version": __version__}
+                            "timeout_s": timeout_s, "gonio_version": __version__,
+                            "jobs_per_task": jobs_per_task}
                 _submit(plan, stale, records, previous, settings,
                         (workers, scheduler, dashboard), on_start, on_record)
             elif on_start is not None:
@@ -258,20 +262,27 @@ def _submit(plan, stale, records, previous, settings, cluster_args, on_start,
     client, cluster = connect(*cluster_args)
     journal = Journal(outdir)
     pending = as_completed()
-    running: dict[str, tuple[str, int]] = {}  # task key -> (job key, submissions)
+    running: dict[str, list[tuple[str, int]]] = {}  # task key -> [(job key, submissions)]
+
+    def slots() -> int:
+        return max(1, sum(client.nthreads().values()))
 
     def submit(go: list[tuple[str, int]]) -> None:
-        """Submit the jobs ``go`` ((key, submission number)) in one call."""
-        if not go:
+        """Submit the jobs ``go`` ((key, submission number)) in one call, in tasks of
+        :func:`chunks` (a job submitted again after a loss goes alone)."""
+        groups = chunks(go, [jobs[k].command.split()[0] for k, _ in go], slots(),
+                        settings["jobs_per_task"])
+        if not groups:
             return
-        keys = [k for k, _ in go]
         futures = client.map(
-            execute_pickled, [jobs[k] for k in keys], [outdir] * len(go),
-            [previous.get(k) for k in keys], [tuple(records[d] for d in deps[k]) for k in keys],
-            [settings] * len(go), key=[task_key(jobs[k], f"{settings['run']}{n}") for k, n in go],
+            execute_chunk, [[jobs[k] for k, _ in g] for g in groups], [outdir] * len(groups),
+            [[previous.get(k) for k, _ in g] for g in groups],
+            [[tuple(records[d] for d in deps[k]) for k, _ in g] for g in groups],
+            [settings] * len(groups),
+            key=[task_key(jobs[g[0][0]], f"{settings['run']}{g[0][1]}", len(g)) for g in groups],
             pure=False, retries=0)
-        for (k, n), f in zip(go, futures):
-            running[f.key] = (k, n)
+        for g, f in zip(groups, futures):
+            running[f.key] = g
         pending.update(futures)
 
     def finish(done: list[dict]) -> list[tuple[str, int]]:
@@ -304,13 +315,16 @@ def _submit(plan, stale, records, previous, settings, cluster_args, on_start,
         while not pending.is_empty():
             done, again = [], []
             for future, result in _gather(client, pending.next_batch()):
-                key, n = running.pop(future.key)
-                rec = lost(jobs[key], result, outdir, settings, n) \
-                    if isinstance(result, BaseException) else result
-                if rec is None:
-                    again.append((key, n + 1))
-                else:
-                    done.append(rec)
+                group = running.pop(future.key)
+                if not isinstance(result, BaseException):
+                    done += result
+                    continue
+                for key, n in group:  # each job of a lost task: its receipt, again or failed
+                    rec = lost(jobs[key], result, outdir, settings, n)
+                    if rec is None:
+                        again.append((key, n + 1))
+                    else:
+                        done.append(rec)
             submit(again + finish(done))
     finally:
         journal.close()
@@ -404,11 +418,33 @@ def lost(job, exc: BaseException, outdir: str, settings: Mapping[str, Any],
                                  f"{exc}".split()))
 
 
-def task_key(job, token: str) -> str:
-    """The Dask key of ``job``'s task: ``COMMAND-TOKEN-JOBKEY``. Dask groups tasks by the
-    key's first word (``dask.utils.key_split``), so every render shares one duration
-    estimate, every fit another …; with those, work stealing moves queued renders to an
-    idle worker (without them one worker was left the last material's renders while the
-    other idled: ~2 s of 13 at 1024², 2 workers). ``token``: the batch's id and the
-    submission's number (a job submitted again is a new task)."""
-    return f"{job.command.split()[0]}-{token}-{job.key}"
+def task_key(job, token: str, size: int = 1) -> str:
+    """The Dask key of the task that runs ``job`` (and ``size`` - 1 jobs after it):
+    ``COMMAND-TOKEN-JOBKEY`` (``+N`` for N more jobs). Dask groups tasks by the key's
+    first word (``dask.utils.key_split``), so every render shares one duration estimate,
+    every fit another …; with those, work stealing moves queued renders to an idle worker
+    (without them one worker was left the last material's renders while the other idled:
+    ~2 s of 13 at 1024², 2 workers). ``token``: the batch's id and the submission's number
+    (a job submitted again is a new task)."""
+    more = f"+{size - 1}" if size > 1 else ""
+    return f"{job.command.split()[0]}-{token}-{job.key}{more}"
+
+
+def chunks(go: list[tuple[str, int]], commands: list[str], slots: int, most: int = 32
+           ) -> list[list[tuple[str, int]]]:
+    """The jobs ``go`` made ready together, in tasks: each command's jobs in turn, in
+    groups of ``len / (2 slots)`` (at most ``most``), so that every worker
+    thread still gets two tasks or more while a long plan pays Dask's cost per task
+    (~1 ms of the driver's CPU, as much of the scheduler's) once per group rather than
+    per job. A job submitted again (its task was lost) goes alone, so that a job that
+    kills its worker takes no other job down with it next time."""
+    alone = [[item] for item in go if item[1] > 1]
+    by_command: dict[str, list[tuple[str, int]]] = {}
+    for item, command in zip(go, commands):
+        if item[1] == 1:
+            by_command.setdefault(command, []).append(item)
+    groups = []
+    for items in by_command.values():
+        size = min(most, max(1, len(items) // (2 * slots)))
+        groups += [items[k:k + size] for k in range(0, len(items), size)]
+    return groups + alone

@@ -47,6 +47,10 @@ def batch(
         None, "--job-timeout", metavar="SECONDS",
         help="Stop a job that runs longer (its worker process is restarted) and report "
              "it [default: no limit]."),
+    jobs_per_task: int = typer.Option(
+        32, "--jobs-per-task", metavar="N",
+        help="Most jobs one Dask task runs: jobs ready together are grouped while every "
+             "worker still gets two tasks; 1 sends each job alone."),
     dry_run: bool = typer.Option(False, "--dry-run",
                                  help="Print the jobs that would run and why; run nothing."),
     dashboard: bool = typer.Option(False, "--dashboard",
@@ -57,21 +61,9 @@ def batch(
 
     from .. import log
     from ..batch.plan import read_plan
-    from ..errors import InputError
 
     start = time.perf_counter()
-    if workers is not None and scheduler is not None:
-        raise InputError("--workers and --scheduler exclude each other",
-                         fix="a running cluster has its own workers; give one of them")
-    if workers is not None and workers < 1:
-        raise InputError(f"--workers {workers} is not a number of processes", fix="give N >= 1")
-    if retries < 0:
-        raise InputError(f"--retries {retries} is negative", fix="give N >= 0")
-    if job_timeout is not None and not job_timeout > 0:
-        raise InputError(f"--job-timeout {job_timeout:g} is not a time",
-                         fix="give SECONDS > 0, or leave it out for no limit")
-    if output.exists() and not output.is_dir():
-        raise InputError(f"-o {output} is a file", fix="name a folder")
+    _check_options(workers, scheduler, retries, job_timeout, jobs_per_task, output)
     p = read_plan(plan, output)  # every plan error before anything runs
     if dry_run:
         _dry_run(p, output)
@@ -79,7 +71,8 @@ def batch(
     from ..batch.sheet import write_sheet
 
     records = _run(p, output, dict(workers=workers, scheduler=scheduler, retries=retries,
-                                   timeout_s=job_timeout, dashboard=dashboard))
+                                   timeout_s=job_timeout, dashboard=dashboard,
+                                   jobs_per_task=jobs_per_task))
     sheet = write_sheet(output, records, title=f"gonio batch: {plan.name}")
     counts = {s: sum(r["status"] == s for r in records) for s in ("ok", "skipped", "failed", "blocked")}
     ran = counts["ok"] + counts["failed"]
@@ -102,6 +95,27 @@ def batch(
               file=sys.stderr)
     if failed or blocked:
         raise typer.Exit(1)
+
+
+def _check_options(workers, scheduler, retries, job_timeout, jobs_per_task, output) -> None:
+    """One line on the first option that cannot be used."""
+    from ..errors import InputError
+
+    if workers is not None and scheduler is not None:
+        raise InputError("--workers and --scheduler exclude each other",
+                         fix="a running cluster has its own workers; give one of them")
+    if workers is not None and workers < 1:
+        raise InputError(f"--workers {workers} is not a number of processes", fix="give N >= 1")
+    if retries < 0:
+        raise InputError(f"--retries {retries} is negative", fix="give N >= 0")
+    if job_timeout is not None and not job_timeout > 0:
+        raise InputError(f"--job-timeout {job_timeout:g} is not a time",
+                         fix="give SECONDS > 0, or leave it out for no limit")
+    if jobs_per_task < 1:
+        raise InputError(f"--jobs-per-task {jobs_per_task} is not a number of jobs",
+                         fix="give N >= 1 (1: every job its own task)")
+    if output.exists() and not output.is_dir():
+        raise InputError(f"-o {output} is a file", fix="name a folder")
 
 
 def _dry_run(p, output: Path) -> None:
