@@ -16,13 +16,17 @@ Two ways a command is not run:
   ``make test`` and ``make demo`` itself, and a Makefile target inside a temporary copy
   would rebuild the project).
 
-Commands run one at a time with ``bash -c`` in one working folder per Markdown file, with
-the current interpreter's folder (its ``gonio`` and ``python``) first on ``PATH``; a
-command may use what earlier commands of the same file wrote there.
+Commands run one at a time with ``bash -c``, with the current interpreter's folder (its
+``gonio`` and ``python``) first on ``PATH``; a command may use what earlier commands wrote
+into its working folder. The files of :data:`CHAIN` (the README's worked chain, then
+``docs/tour.md``, which goes on from it) run in that order in one folder, as a user pastes
+them on a fresh clone; every other page of ``docs/`` builds on what they wrote.
 
-From the command line (a quick check of one file, in a scratch folder)::
+From the command line (in a scratch folder; a page outside :data:`CHAIN` gets the chain
+run first, since its examples read what the chain wrote)::
 
-    python tests/docs_runner.py README.md docs/lobes.md
+    python tests/docs_runner.py README.md docs/tour.md docs/lobes.md
+    python tests/docs_runner.py docs/lobes.md          # the same
 """
 
 from __future__ import annotations
@@ -36,6 +40,10 @@ import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+
+#: The Markdown files (relative to the project) whose examples are one chain, run in this
+#: order in one folder; every other page's examples run after them.
+CHAIN = ("README.md", "docs/tour.md")
 
 #: Fence languages whose lines are run.
 SHELL_LANGUAGES = ("sh", "bash", "console")
@@ -219,13 +227,26 @@ def prepare_workspace(root: Path, project: Path) -> Path:
     return root
 
 
+def with_chain(names: list[str]) -> list[str]:
+    """``names`` in the order they run: the :data:`CHAIN` files first, as far as a named
+    page needs them (all of them for a page outside the chain), then the others as given."""
+    names = list(dict.fromkeys(names))
+    chain = [n for n in CHAIN if n in names]
+    if any(n not in CHAIN for n in names):
+        chain = list(CHAIN)
+    elif chain:
+        chain = list(CHAIN[:CHAIN.index(chain[-1]) + 1])
+    return chain + [n for n in names if n not in chain]
+
+
 def main(argv: list[str]) -> int:
-    """Run the files named (default README.md) one after another in one scratch folder."""
+    """Run the files named (default README.md), after the chain they build on, one after
+    another in one scratch folder."""
     project = Path(__file__).resolve().parents[1]
     status = 0
     with tempfile.TemporaryDirectory(prefix="gonio-docs-") as tmp:
         cwd = prepare_workspace(Path(tmp), project)
-        for name in argv or ["README.md"]:
+        for name in with_chain(argv or ["README.md"]):
             results = run_markdown(project / name, cwd)
             for r in results:
                 state = (f"skipped ({r.command.skip_reason})" if r.returncode is None

@@ -1,11 +1,12 @@
-"""The README's images are the demo's own outputs: copy them (``make readme-images``) or
-check that they have not drifted from what the code now makes (``make readme-check``, run
-by CI after ``make demo``).
+"""The demo pictures of the README and the docs pages (``docs/images/``) are the demo's own
+outputs: copy them (``make readme-images``) or check that they have not drifted from what
+the code now makes (``make readme-check``, run by CI after ``make demo``).
 
     .venv/bin/python tests/readme_images.py --check [--out out]
     .venv/bin/python tests/readme_images.py --write [--out out]
 
-:data:`IMAGES` is the one list of which demo output each image of the README is. A
+:data:`IMAGES` is the one list of which demo output each of those images is (the README
+shows the first two; ``tests/test_docs.py`` checks that each is shown on some page). A
 check compares the pixels: an image drifts when its size differs or its mean absolute
 difference exceeds :data:`MEAN_TOLERANCE` levels of 255 (the renders are deterministic:
 0 on this machine; a fit plot redrawn by another matplotlib moves a few anti-aliased edge
@@ -22,7 +23,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 
-#: README image (docs/images/) → the demo output it shows (relative to the output folder).
+#: Image (docs/images/) → the demo output it shows (relative to the output folder).
 IMAGES = {
     "render_paint_sky.png": "render/paint_sky.png",
     "demo_green_fit.png": "rgbink/green.fit.png",
@@ -85,7 +86,7 @@ def main() -> int:
         print(f"readme-check: {why}; make readme-images copies the demo's images",
               file=sys.stderr)
     if a.check and not problems:
-        print(f"readme-check: the README's {len(IMAGES)} demo images are what the demo makes")
+        print(f"readme-check: the docs' {len(IMAGES)} demo images are what the demo makes")
     return 1 if problems else 0
 
 

@@ -1,9 +1,11 @@
-"""The shell examples of README.md and docs/*.md run as written (tests/docs_runner.py).
+"""The shell examples of README.md and docs/*.md run as written (tests/docs_runner.py),
+and the README stays a newcomer's page: short, with its sections, and every link whole.
 
-README.md runs first, in a temporary folder holding a copy of sample_data/ (what a fresh
-clone's top level offers the examples). Each docs/*.md file then runs in its own copy of
-that folder, so a doc may use what the README's chain wrote into try/ but nothing another
-doc wrote. Every command must exit 0. `make …` lines are not run (CI runs `make test` and
+The chain (README.md's worked example, then docs/tour.md, which goes on from it) runs
+first, in order, in one temporary folder holding a copy of sample_data/ (what a fresh
+clone's top level offers the examples). Each other docs/*.md file then runs in its own copy
+of that folder, so a doc may use what the chain wrote into try/ but nothing another doc
+wrote. Every command must exit 0. `make …` lines are not run (CI runs `make test` and
 `make demo` itself); blocks marked `<!-- not run: reason -->` are not run either.
 
 The runner itself is tested first: a failing command fails, skipped ones are skipped, and
@@ -18,12 +20,19 @@ from pathlib import Path
 
 import pytest
 
-from docs_runner import (NOT_RUN, SKIPPED_PROGRAMS, extract_blocks, failure_message,
-                         prepare_workspace, run_commands, run_markdown)
+from docs_runner import (CHAIN, NOT_RUN, SKIPPED_PROGRAMS, extract_blocks, failure_message,
+                         prepare_workspace, run_commands, run_markdown, with_chain)
+from readme_images import IMAGES
 
 ROOT = Path(__file__).resolve().parents[1]
+README = ROOT / "README.md"
 DOCS = sorted((ROOT / "docs").glob("*.md"))
-MARKDOWN = [ROOT / "README.md", *DOCS]
+MARKDOWN = [README, *DOCS]
+#: The pages outside the chain: each runs in a copy of the folder the chain wrote.
+PAGES = [p for p in DOCS if str(p.relative_to(ROOT)) not in CHAIN]
+
+#: The README is a newcomer's page; the rest lives in docs/ (docs/tour.md goes on from it).
+README_MAX_LINES = 200
 
 #: A path into the demo's output folder (out/…), which belongs to make: an example that
 #: writes there breaks the next `make demo`, one that reads from there fails on a clone
@@ -86,6 +95,16 @@ def test_runner_reads_blocks():
     assert [c.text for c in console.commands] == ["wc -l b.txt", "test -s b.txt"]
     assert [c.line for c in last.commands] == [28, 29, 30]
     assert "make" in SKIPPED_PROGRAMS
+
+
+def test_runner_runs_the_chain_first():
+    """A page outside the chain gets the whole chain before it; a chain file what precedes it."""
+    readme, tour = CHAIN
+    assert with_chain(["docs/lobes.md"]) == [readme, tour, "docs/lobes.md"]
+    assert with_chain([readme]) == [readme]
+    assert with_chain([tour]) == [readme, tour]
+    assert with_chain([tour, readme, "docs/fit.md", "docs/fit.md"]) == [
+        readme, tour, "docs/fit.md"]
 
 
 def test_runner_fails_on_a_failing_command(tmp_path):
@@ -161,28 +180,130 @@ def test_make_output_pattern():
 
 
 @pytest.fixture(scope="module")
-def readme_workspace(tmp_path_factory):
-    """A folder after README.md's examples ran in it, and their results."""
-    root = prepare_workspace(tmp_path_factory.mktemp("docs") / "readme", ROOT)
-    return root, run_markdown(ROOT / "README.md", root)
+def chain_workspace(tmp_path_factory):
+    """A folder after the chain's examples (README.md, then docs/tour.md) ran in it, and
+    each file's results (a file after a failed one is not run: its results are empty)."""
+    root = prepare_workspace(tmp_path_factory.mktemp("docs") / "chain", ROOT)
+    results: dict[str, list] = {}
+    for name in CHAIN:
+        failed = any(failure_message(n, r) for n, r in results.items())
+        results[name] = [] if failed else run_markdown(ROOT / name, root)
+    return root, results
 
 
-def test_readme_runs(readme_workspace):
-    _, results = readme_workspace
-    message = failure_message("README.md", results)
+def _chain_failure(results) -> str | None:
+    return next((m for n, r in results.items() if (m := failure_message(n, r))), None)
+
+
+def test_readme_runs(chain_workspace):
+    """The README's worked chain runs and is one: ingest, then fit, then render."""
+    root, results = chain_workspace
+    message = failure_message("README.md", results["README.md"])
     assert message is None, message
-    assert sum(r.returncode == 0 for r in results) >= 20     # the chain, not an empty file
+    ran = [r.command.text.split()[:2] for r in results["README.md"] if r.returncode == 0]
+    assert ran == [["gonio", "ingest"], ["gonio", "fit"], ["gonio", "render"]]
+    assert (root / "try" / "render" / "green.png").stat().st_size > 0
 
 
-@pytest.mark.parametrize("path", DOCS, ids=_name)
-def test_doc_runs(path, readme_workspace, tmp_path):
-    root, readme_results = readme_workspace
-    if failure_message("README.md", readme_results):
-        pytest.fail("README.md's examples failed; the docs build on them")
+def test_tour_runs(chain_workspace):
+    _, results = chain_workspace
+    if failure_message("README.md", results["README.md"]):
+        pytest.fail("README.md's examples failed; docs/tour.md builds on them")
+    message = failure_message("docs/tour.md", results["docs/tour.md"])
+    assert message is None, message
+    tour = results["docs/tour.md"]
+    assert sum(r.returncode == 0 for r in tour) >= 20     # the chain, not an empty file
+
+
+@pytest.mark.parametrize("path", PAGES, ids=_name)
+def test_doc_runs(path, chain_workspace, tmp_path):
+    root, chain_results = chain_workspace
+    if _chain_failure(chain_results):
+        pytest.fail("the chain's examples (README.md, docs/tour.md) failed; the docs build on them")
     cwd = tmp_path / "clone"
     shutil.copytree(root, cwd, symlinks=True)
     message = failure_message(_name(path), run_markdown(path, cwd))
     assert message is None, message
+
+
+# --- the README: short, with what a newcomer needs ----------------------------------------
+
+def _section(text: str, title: str) -> str:
+    """The body of the ``## title…`` section of a Markdown text ("" if there is none)."""
+    match = re.search(rf"^## {re.escape(title)}.*?\n(.*?)(?=^## |\Z)", text, re.M | re.S)
+    return match.group(1) if match else ""
+
+
+def test_readme_is_short():
+    lines = len(README.read_text(encoding="utf-8").splitlines())
+    assert lines <= README_MAX_LINES, (
+        f"README.md has {lines} lines (at most {README_MAX_LINES}): move detail to docs/")
+
+
+def test_readme_keeps_the_two_commands_and_their_timing():
+    """`make demo` and `make test` in a shell block, and how long the demo takes, measured."""
+    section = _section(README.read_text(encoding="utf-8"), "The two commands")
+    commands = [c.text.split("#")[0].strip() for b in extract_blocks(section) for c in b.commands]
+    assert commands == ["make demo", "make test"]
+    assert re.search(r"The demo \(\d+ s\b.*measured with `/usr/bin/time`", section, re.S)
+
+
+def test_readme_names_every_command_and_its_doc():
+    """The Stages table has a row per gonio subcommand, each linking to its docs page."""
+    import typer
+    from gonio_cli import cli
+
+    table = _section(README.read_text(encoding="utf-8"), "Stages")
+    rows = {m.group(1): m.group(2) for m in re.finditer(r"^\| `gonio (\w+)` \|(.*)$", table, re.M)}
+    commands = set(typer.main.get_command(cli.app).commands)
+    assert set(rows) == commands
+    for name, row in rows.items():
+        assert re.search(r"\]\(docs/\w+\.md", row), f"gonio {name}: no link to its docs page"
+
+
+def test_readme_images_are_shown():
+    """Every demo image that tests/readme_images.py keeps up to date is shown on a page
+    (the README or the docs page its stage moved to), and the README shows some."""
+    shown = "\n".join(p.read_text(encoding="utf-8") for p in MARKDOWN)
+    assert [n for n in IMAGES if f"images/{n})" not in shown] == []
+    assert re.search(r"!\[[^\]]*\]\(docs/images/", README.read_text(encoding="utf-8"))
+
+
+def test_architecture_names_every_module():
+    """docs/architecture.md's module map has a line for every module of the package (and
+    none for a module that is gone), so a split or a new module updates the map."""
+    text = (ROOT / "docs" / "architecture.md").read_text(encoding="utf-8")
+    named = set(re.findall(r"`(gonio_cli/[\w/]+\.py)`", text))
+    modules = {_name(p) for p in (ROOT / "gonio_cli").rglob("*.py")}
+    assert sorted(modules - named) == [], "not in docs/architecture.md's module map"
+    assert sorted(named - modules) == [], "named in docs/architecture.md but gone"
+
+
+#: A Markdown link or image: ``[text](target)``.
+LINK = re.compile(r"!?\[[^\]]*\]\(([^)\s]+)\)")
+
+
+def _anchors(path: Path) -> set[str]:
+    """The heading anchors of a Markdown file, as GitHub spells them."""
+    text = re.sub(r"^```.*?^```", "", path.read_text(encoding="utf-8"), flags=re.M | re.S)
+    return {re.sub(r"[^\w\- ]", "", h.strip().lower()).replace(" ", "-")
+            for h in re.findall(r"^#+ (.*)$", text, re.M)}
+
+
+@pytest.mark.parametrize("path", MARKDOWN, ids=_name)
+def test_links_point_at_files_and_headings_that_exist(path):
+    """Text moves between the README and docs/: a link left pointing at it fails here."""
+    broken = []
+    for target in LINK.findall(path.read_text(encoding="utf-8")):
+        if re.match(r"[a-z]+:", target):
+            continue                                  # https:, mailto:
+        file, _, anchor = target.partition("#")
+        linked = (path.parent / file) if file else path
+        if not linked.exists():
+            broken.append(target)
+        elif anchor and linked.suffix == ".md" and anchor not in _anchors(linked):
+            broken.append(target)
+    assert not broken, f"{_name(path)}: links to nothing: {broken}"
 
 
 #: What a user's clone cannot follow: paths into the project's working folders outside the
