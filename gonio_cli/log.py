@@ -14,7 +14,7 @@ from typing import Iterable, Iterator, TypeVar
 
 T = TypeVar("T")
 
-_state = {"quiet": False}
+_state: dict = {"quiet": False, "collect": None}
 
 #: A progress bar appears only for loops expected to run longer than this (s).
 PROGRESS_MIN_S = 2.0
@@ -26,18 +26,34 @@ def set_quiet(quiet: bool) -> None:
 
 
 def is_quiet() -> bool:
-    return _state["quiet"]
+    return _state["quiet"] or _state["collect"] is not None
+
+
+@contextlib.contextmanager
+def collecting(into: list[str]) -> Iterator[list[str]]:
+    """Inside the block, warnings are appended to ``into`` (without ``gonio: warning:``)
+    instead of printed, and information and progress are not shown: how a batch job
+    (:mod:`gonio_cli.batch.jobs`) takes a stage's warnings as values."""
+    before = _state["collect"]
+    _state["collect"] = into
+    try:
+        yield into
+    finally:
+        _state["collect"] = before
 
 
 def warn(message: str) -> None:
     """One-line warning on stderr: ``gonio: warning: …`` (unless quiet)."""
-    if not _state["quiet"]:
-        print(f"gonio: warning: {' '.join(message.split())}", file=sys.stderr)
+    text = " ".join(message.split())
+    if _state["collect"] is not None:
+        _state["collect"].append(text)
+    elif not _state["quiet"]:
+        print(f"gonio: warning: {text}", file=sys.stderr)
 
 
 def info(message: str) -> None:
     """One-line information on stderr (unless quiet); stdout is kept for data."""
-    if not _state["quiet"]:
+    if not is_quiet():
         print(message, file=sys.stderr)
 
 
@@ -50,7 +66,7 @@ def progress(items: Iterable[T], description: str, total: int | None = None,
     Otherwise (``--quiet``, output redirected to a file or a pipe, as in ``make``) nothing
     is printed and the command's one summary line at the end is all there is.
     """
-    if _state["quiet"] or not sys.stderr.isatty() or (
+    if is_quiet() or not sys.stderr.isatty() or (
             expected_s is not None and expected_s < PROGRESS_MIN_S):
         yield from items
         return

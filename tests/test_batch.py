@@ -370,3 +370,50 @@ def test_local_workers_fork_from_a_preloaded_server_where_the_os_has_one():
             engine.WORKER_PRELOAD)
     else:
         assert method is None
+
+
+def test_a_fit_through_batch_and_through_the_cli_writes_the_same_material(tmp_path):
+    """gonio batch calls the stage in its worker (jobs.run_stage: the command's options,
+    then fit.run and its writes), not the CLI: the material it writes is the bytes that
+    ``gonio ingest`` and ``gonio fit`` with the same options write, with the same status
+    and verdict, for a good fit and a poor one; a fit refused by --max-error fails with
+    the CLI's own message."""
+    shutil.copy(SAMPLE / "ink_green.csv", tmp_path / "ink_green.csv")
+    fits = {"green": ["--exclude-theta-i", "70"], "flat": ["--model", "torrance-sparrow"],
+            "strict": ["--max-error", "0.01"]}
+    text = ""
+    for name, options in fits.items():
+        table = ", ".join(f'{options[k][2:]} = "{options[k + 1]}"' for k in range(0, len(options), 2))
+        text += (f'[[material]]\nname = "{name}"\ncsv = ["ink_green.csv"]\n'
+                 f'fit = {{ {table} }}\n')
+    (tmp_path / "plan.toml").write_text(text, encoding="utf-8")
+    r = _batch(tmp_path / "plan.toml", tmp_path / "a", "--workers", "1")
+    assert r.returncode == 1, r.stderr  # the strict fit fails
+    records = _manifest(tmp_path / "a")
+    for name, options in fits.items():
+        folder = tmp_path / "b" / name
+        folder.mkdir(parents=True)
+        measurement = folder / f"{name}.measurement.json"
+        done = subprocess.run([GONIO, "ingest", str(tmp_path / "ink_green.csv"), "-o",
+                               str(measurement)], capture_output=True, text=True, timeout=240)
+        assert done.returncode == 0, done.stderr
+        done = subprocess.run([GONIO, "fit", str(measurement), "-o",
+                               str(folder / f"{name}.material.json"), "--plot",
+                               str(folder / f"{name}.fit.png"), *options],
+                              capture_output=True, text=True, timeout=240)
+        rec = records[f"fit/{name}"]
+        if name == "strict":
+            assert done.returncode == 3 and rec["status"] == "failed"
+            line = done.stderr.strip().splitlines()[-1].replace(f"{tmp_path / 'b'}", "OUT")
+            assert line == f"gonio: error: {rec['error']}".replace(f"{tmp_path / 'a'}", "OUT")
+            assert not (tmp_path / "a" / name / f"{name}.material.json").exists()
+            continue
+        assert done.returncode == 0 and rec["status"] == "ok", (done.stderr, rec)
+        ours = (tmp_path / "a" / name / f"{name}.material.json").read_bytes()
+        assert ours == (folder / f"{name}.material.json").read_bytes()
+        verdict = json.loads(ours)["status"]
+        assert verdict == ("good" if name == "green" else "poor")
+        # the CLI's warnings are the record's
+        shown = [l.removeprefix("gonio: warning: ") for l in done.stderr.splitlines()
+                 if l.startswith("gonio: warning: ")]
+        assert rec["warnings"] == shown

@@ -1,11 +1,11 @@
 """One batch job, run inside a worker process: the idempotence test and the record.
 
-A job runs through gonio's own CLI in the worker (:func:`run_gonio`), not a subprocess,
-so what a stage keeps at module level (colour tables, compiled kernels, meshes,
-prefiltered maps) is loaded once per worker and reused by its next jobs; what belongs to
-one run (the list of files written, ``--quiet``) is reset by :func:`gonio_cli.cli.run`.
-A bad input ends that job with gonio's one-line error; it is a result, not an exception,
-so Dask never retries it. The record a job returns is one line of the manifest.
+A job calls its stage in the worker (:func:`run_stage`: the command's options read, the
+stage's library call and its writes), not a subprocess, so what a stage keeps at module
+level (colour tables, compiled kernels, meshes, prefiltered maps) is loaded once per
+worker and reused by its next jobs. A bad input ends that job with gonio's one-line
+error, taken from the exception; it is a result, not an exception, so Dask never
+retries it. The record a job returns is one line of the manifest.
 
 Nothing here imports Dask: the engine (:mod:`.engine`) submits :func:`execute`.
 """
@@ -13,6 +13,7 @@ Nothing here imports Dask: the engine (:mod:`.engine`) submits :func:`execute`.
 from __future__ import annotations
 
 import contextlib
+import functools
 import io
 import json
 import os
@@ -218,28 +219,54 @@ def worker_name() -> str:
 
 # --------------------------------------------------------------------------- runners --
 
-#: What a command's warnings start with on stderr (:func:`gonio_cli.log.warn`).
-WARNING_PREFIX = "gonio: warning: "
+def run_stage(job: Job, warnings: list[str]) -> str | None:
+    """Run the job's stage in this process; None, or its error on failure.
+
+    The job's words are what a user would type after ``gonio`` (a plan is written in the
+    commands' own options, docs/batch.md), so they are read by the command's own options
+    (one grammar for the command line and the plan); then the command's function runs:
+    the stage's library call (``fit.run.run``, ``render.run.run``, ``ingest.run`` …) and
+    its writes, in one outputs transaction (nothing half-written on failure). Its errors
+    come back as exceptions and its warnings as values (:func:`gonio_cli.log.collecting`),
+    not as lines read off stderr; what it prints for a user is dropped."""
+    import click
+
+    from .. import log, outputs
+    from ..commands import as_typed_in, remember_argv  # lazy: only workers run stages
+    from ..errors import GonioError
+
+    group = gonio_group()
+    remember_argv(job.argv)  # errors name options as the plan wrote them
+    outputs.forget_written()
+    try:
+        with log.collecting(warnings), outputs.transaction() as tx, \
+                contextlib.redirect_stdout(io.StringIO()), log.python_warnings(_subject(job)):
+            with group.make_context("gonio", list(job.argv)) as ctx:
+                group.invoke(ctx)
+            tx.commit()
+    except GonioError as exc:
+        return as_typed_in(exc.format())
+    except click.ClickException as exc:  # a bad option in the plan: its words, one line
+        return f"{exc.format_message()} (see 'gonio {job.argv[0]} --help')"
+    except click.exceptions.Exit as exc:
+        return None if exc.exit_code == 0 else f"exit status {exc.exit_code}"
+    return None
 
 
-def run_gonio(job: Job, warnings: list[str]) -> str | None:
-    """Run ``gonio ARGV`` in this process; None, or the error line on failure. The
-    command's warnings are appended to ``warnings``; its other output is dropped."""
-    from .. import cli
+@functools.lru_cache(maxsize=1)
+def gonio_group():
+    """The ``gonio`` command group as click builds it from the typer app (once per
+    worker: it reads every command's options, ~7 ms)."""
+    import typer.main
 
-    err = io.StringIO()
-    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
-        code = cli.run(list(job.argv))
-    lines = err.getvalue().splitlines()
-    warnings += [l[len(WARNING_PREFIX):] for l in lines if l.startswith(WARNING_PREFIX)]
-    if code == 0:
-        return None
-    lines = [l for l in lines if l.startswith("gonio: ") and not l.startswith(WARNING_PREFIX)]
-    text = lines[-1] if lines else f"exit status {code}"
-    for prefix in ("gonio: error: ", "gonio: "):
-        if text.startswith(prefix):
-            return text[len(prefix):]
-    return text
+    from .. import cli  # lazy: a worker loads the commands once, the driver never
+
+    return typer.main.get_command(cli.app)
+
+
+def _subject(job: Job) -> str | None:
+    """The job's first input: what a Python warning inside it is about."""
+    return job.inputs[0] if job.inputs else None
 
 
 def run_preview(job: Job, warnings: list[str]) -> str | None:  # noqa: ARG001
@@ -253,7 +280,8 @@ def run_preview(job: Job, warnings: list[str]) -> str | None:  # noqa: ARG001
 
 
 #: How a worker runs each kind of job (:data:`gonio_cli.batch.plan.COMMANDS`).
-RUNNERS: dict[str, Callable[[Job, list[str]], str | None]] = {"gonio": run_gonio, "preview": run_preview}
+RUNNERS: dict[str, Callable[[Job, list[str]], str | None]] = {"gonio": run_stage,
+                                                               "preview": run_preview}
 
 
 def make_thumbnails(outdir: str, job: Job) -> dict[str, Any] | None:
