@@ -7,6 +7,7 @@ Shared foundations (one place each):
 - :mod:`gonio_cli.spectra`   the working spectral grid, resampling, colour helpers
 - :mod:`gonio_cli.geometry`  in-plane goniometer geometry, half vector (seed 000 eq. 1, 6)
 - :mod:`gonio_cli.brdf`      every reflectance model (seed 000 eqs. 2-7, seed 004 eqs. 9-12)
+- :mod:`gonio_cli.brdf_jacobians` ∂ log of the microfacet terms, for the fits
 - :mod:`gonio_cli.log`       warnings and progress bars, silent with ``--quiet``
 
 Stages (pure numpy cores): :mod:`gonio_cli.ingest`, :mod:`gonio_cli.fit`.
