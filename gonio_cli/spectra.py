@@ -15,6 +15,7 @@ import functools
 
 import numpy as np
 
+from .cache import cached_arrays
 from .errors import InputError
 from .names import pick
 from .schemas import WAVELENGTH_MAX_NM
@@ -150,8 +151,6 @@ def colour_tables() -> dict[str, np.ndarray]:
     colour-science version, so a render or a report does not pay the import again.
     """
     from importlib.metadata import version
-
-    from .cache import cached_arrays
 
     name = (f"colour-tables-v{COLOUR_TABLES_VERSION}-"
             f"colour-science-{version('colour-science')}.npz")

@@ -214,7 +214,7 @@ def run_plan(plan: Plan, *, workers: int | None = None, scheduler: str | None = 
     InputError : another batch holds the output folder's lock; a worker's gonio version
         is not the driver's.
     """
-    from ..artifact import make_folder
+    from ..folders import make_folder
 
     outdir = os.fspath(plan.outdir)
     make_folder(outdir)

@@ -75,7 +75,7 @@ class Journal:
     returns once it is on the disk."""
 
     def __init__(self, outdir: str | os.PathLike):
-        from ..artifact import folder_error
+        from ..folders import folder_error
 
         self.path = os.path.join(outdir, MANIFEST_NAME)
         try:
@@ -179,7 +179,7 @@ def lock_folder(outdir: str | os.PathLike) -> Iterator[str]:
     ------
     InputError : another process holds it (its host:pid named, with the fix).
     """
-    from ..artifact import folder_error, make_folder
+    from ..folders import folder_error, make_folder
 
     path = os.path.join(outdir, LOCK_NAME)
     make_folder(os.path.dirname(path))

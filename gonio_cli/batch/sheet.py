@@ -100,7 +100,8 @@ def thumbnail(outdir: str, image: str) -> tuple[str, int, int]:
         if os.path.isfile(thumb) and os.path.getmtime(thumb) >= os.path.getmtime(image):
             return thumb, *size
         small = im.convert("RGB").reduce(factor)
-    from ..artifact import atomic_path, make_folder
+    from ..artifact import atomic_path
+    from ..folders import make_folder
 
     make_folder(os.path.dirname(thumb))
     with atomic_path(thumb) as tmp:
