@@ -20,9 +20,12 @@ import socket
 import time
 from typing import Any, Callable, Mapping
 
-from .. import __version__
+from .. import __version__, cli
+from ..artifact import sha256_file
+from ..errors import GonioError
 from .journal import ATTEMPTS_DIR, TIMEOUT_DIR, read_receipt, write_receipt
 from .plan import Job
+from .sheet import image_entry, thumbnail
 
 #: Statuses of a record: ran now; up to date (earlier outputs kept); its command failed;
 #: not run because a job it needs failed.
@@ -35,8 +38,6 @@ def sha256(path: str) -> str | None:
     """Hex SHA-256 of a file, or of a folder (``gonio prefilter -o DIR``): of the list of
     its files' relative paths and hashes; None if it is not there."""
     import hashlib
-
-    from ..artifact import sha256_file
 
     try:
         if not os.path.isdir(path):
@@ -225,8 +226,6 @@ WARNING_PREFIX = "gonio: warning: "
 def run_gonio(job: Job, warnings: list[str]) -> str | None:
     """Run ``gonio ARGV`` in this process; None, or the error line on failure. The
     command's warnings are appended to ``warnings``; its other output is dropped."""
-    from .. import cli
-
     err = io.StringIO()
     with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
         code = cli.run(list(job.argv))
@@ -244,8 +243,9 @@ def run_gonio(job: Job, warnings: list[str]) -> str | None:
 
 def run_preview(job: Job, warnings: list[str]) -> str | None:  # noqa: ARG001
     """Assemble a turntable's frames (the job's inputs, in order) into an animated PNG."""
+    # lazy: a worker loads OpenImageIO and the renderer only for a turntable's preview
     from ..imageio import write_apng
-    from ..render.pipeline import turntable_metadata
+    from ..render.pipeline import turntable_metadata  # lazy: (the same)
 
     frames = list(job.inputs)
     write_apng(job.outputs[0], frames, metadata=turntable_metadata(frames))
@@ -263,8 +263,6 @@ def make_thumbnails(outdir: str, job: Job) -> dict[str, Any] | None:
     (:func:`gonio_cli.batch.sheet.image_entry`: the thumbnail, its size, a frame's
     flags), for the record, so that the driver does not open the image again. A copy
     that cannot be made is made (or reported) by the sheet instead."""
-    from .sheet import image_entry, thumbnail
-
     entry = None
     for k, path in enumerate(job.outputs):
         if str(path).lower().endswith(".png"):
@@ -350,8 +348,6 @@ def _run(job: Job, outdir: str, previous, attempts: int, run) -> dict[str, Any]:
     try:
         error = RUNNERS[job.runner](job, warnings)
     except Exception as exc:  # a bug in a runner: one line in the record, not a retry loop
-        from ..errors import GonioError
-
         error = exc.format() if isinstance(exc, GonioError) else \
             f"internal error: {type(exc).__name__}: {exc}"
     time_s = time.perf_counter() - start
