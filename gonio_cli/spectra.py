@@ -350,13 +350,14 @@ def srgb_encode(linear) -> np.ndarray:
 #: sRGB (IEC 61966-2-1) decode: encoded values up to this are on the linear segment.
 SRGB_DECODE_BREAK = 0.04045
 
+
 def srgb_decode(encoded: np.ndarray) -> np.ndarray:
     """IEC 61966-2-1 sRGB transfer function inverted: encoded [0, 1] → linear [0, 1].
 
     The inverse of :func:`srgb_encode` (same standard, same break
     point); float32 in, float32 out, shape kept.
 
-    >>> float(srgb_decode(np.float32(0.5)).round(6))
+    >>> round(float(srgb_decode(np.float32(0.5))), 6)
     0.214041
     """
     x = np.clip(np.asarray(encoded, dtype=np.float32), 0.0, 1.0)
