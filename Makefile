@@ -2,7 +2,7 @@
 #   make demo   create .venv, install gonio with the pinned dependencies, run the demo pipeline
 #   make test   create .venv, install gonio with the pinned dependencies, run the test suite
 # Others: make bench (error against run time), make clean, make schemas (docs/schemas/ from
-# gonio_cli/schemas.py), make lock (refresh the pins in
+# gonio_cli/schemas/), make lock (refresh the pins in
 # requirements.lock after changing dependencies in pyproject.toml). One stage: make rgbink,
 # make carpaint, make lobes, make sky, make render, or one file (make out/render/figure5.png).
 # make report: error against run time of every stage and seed 000's Table 1 (quick in the
@@ -111,7 +111,7 @@ bench: $(STAMP)
 refresh-references: $(STAMP)
 	$(BIN)/python tests/regression/refresh.py $(NAMES)
 
-# Regenerate the published JSON Schemas (docs/schemas/) from gonio_cli/schemas.py after
+# Regenerate the published JSON Schemas (docs/schemas/) from gonio_cli/schemas/ after
 # changing an artifact's fields; tests/test_schemas.py fails while they differ.
 schemas: $(STAMP)
 	$(BIN)/python -m gonio_cli.schemas docs/schemas

@@ -34,6 +34,7 @@ def main() -> None:
     """Console entry point: import the CLI, run it, exit with its status."""
     use_blas_threads()
     try:
+        # lazy: the CLI (typer, click, rich) loads inside the try that turns a Ctrl-C into one line
         from .cli import run
 
         code = run()

@@ -34,10 +34,11 @@ from typing import Any, Iterable, Iterator, Mapping
 
 import numpy as np
 
-from . import __version__, runrecord
+from . import __version__, outputs, runrecord
 from .errors import ArtifactError, GonioError, NumericError, WriteError, binary_kind
-# the record of written files lives with the outputs' transaction (gonio_cli.outputs)
-from .outputs import forget_written, note_written, umask, written_files  # noqa: F401
+from .folders import folder_error, make_folder
+from .makers import artifact_name, make_fix
+from .names import choices_fix, closest
 
 #: Keys every artifact carries besides its payload.
 ENVELOPE_KEYS = ("schema", "schema_version", "gonio_version", "created_utc", "inputs",
@@ -59,9 +60,8 @@ def input_records(paths: Iterable[str | os.PathLike]) -> list[dict[str, str]]:
     """Provenance of input files: ``[{"path": ..., "sha256": ...}, ...]``. An input this
     command wrote itself and still holds back (a turntable's frames) is hashed where it is
     staged (:func:`gonio_cli.outputs.readable`)."""
-    from .outputs import readable
-
-    return [{"path": os.fspath(p), "sha256": sha256_file(readable(p))} for p in paths]
+    return [{"path": os.fspath(p), "sha256": sha256_file(outputs.readable(p))}
+            for p in paths]
 
 
 def image_metadata(schema: str, schema_version: int, *,
@@ -87,43 +87,6 @@ def image_metadata(schema: str, schema_version: int, *,
     return _to_jsonable(meta)
 
 
-def folder_error(folder: str | os.PathLike, exc: OSError) -> WriteError:
-    """The one-line error for an output folder that cannot take a file.
-
-    Names the folder (never a temporary file's name) and what to do.
-    """
-    folder = os.fspath(folder) or "."
-    if isinstance(exc, PermissionError):
-        return WriteError(f"cannot write to folder {folder}: permission denied",
-                          fix="choose another -o or fix the folder's permissions")
-    if isinstance(exc, (NotADirectoryError, FileExistsError)):
-        return WriteError(f"cannot write to folder {folder}: a file of that name (or of "
-                          "one of its parents) is in the way",
-                          fix="choose another -o or move that file")
-    if isinstance(exc, FileNotFoundError):
-        return WriteError(f"folder {folder} does not exist",
-                          fix="create it (mkdir -p) or choose another -o")
-    reason = exc.strerror or exc.__class__.__name__
-    return WriteError(f"cannot write to folder {folder}: {reason}",
-                      fix="choose another -o (another disk) or free some space"
-                      if exc.errno == errno.ENOSPC else "choose another -o")
-
-
-def make_folder(folder: str | os.PathLike) -> Path:
-    """Create ``folder`` (and its parents) if needed; a failure is a :class:`WriteError`."""
-    folder = Path(folder) if str(folder) else Path(".")
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except PermissionError:
-        parent = next((p for p in folder.parents if os.path.isdir(p)), Path("."))
-        raise WriteError(f"cannot create folder {folder}: permission denied in {parent}",
-                         fix="choose another -o or fix the permissions of "
-                             f"{parent}") from None
-    except OSError as exc:  # a file where a folder should be, a read-only disk, ...
-        raise folder_error(folder, exc) from None
-    return folder
-
-
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike, *, immediate: bool = False) -> Iterator[Path]:
     """Yield a temporary path beside ``path``; move it onto ``path`` only on success.
@@ -138,8 +101,6 @@ def atomic_path(path: str | os.PathLike, *, immediate: bool = False) -> Iterator
     :class:`WriteError` naming the folder, not the temporary file (it is also an
     ``OSError``, so optional writes such as caches can still ignore it).
     """
-    from . import outputs
-
     path = Path(path)
     folder = make_folder(path.parent)
     if path.is_dir():
@@ -158,7 +119,7 @@ def atomic_path(path: str | os.PathLike, *, immediate: bool = False) -> Iterator
         os.close(fd)
         yield tmp_path
         # mkstemp creates the file 0600; give the result the permissions of a normal file
-        os.chmod(tmp_path, 0o666 & ~umask())
+        os.chmod(tmp_path, 0o666 & ~outputs.umask())
         if tx is None:
             os.replace(tmp_path, path)
     except BaseException as exc:  # KeyboardInterrupt too: never leave the temporary file
@@ -168,7 +129,7 @@ def atomic_path(path: str | os.PathLike, *, immediate: bool = False) -> Iterator
             raise folder_error(folder, exc) from None
         raise
     if tx is None:
-        note_written(path)
+        outputs.note_written(path)
     else:
         tx.stage(tmp_path, path)
 
@@ -293,8 +254,6 @@ def _write_side_record(path: str | os.PathLike, data: bytes, timings: Mapping[st
     the artifact is one of the command's declared outputs (so the two land together)."""
     import hashlib
 
-    from . import outputs
-
     side = runrecord.side_path(path)
     tx = outputs.current()
     if tx is not None and tx.is_output(path):
@@ -311,54 +270,6 @@ def write_artifact(path: str | os.PathLike, schema: str, schema_version: int,
     doc = make_document(schema, schema_version, payload, **envelope)
     write_json(path, doc)
     return doc
-
-
-#: What each artifact is called in a message, the command that makes it (``{src}`` its
-#: input, ``{out}`` its output) and that input's and output's names when not known.
-_MAKERS = {
-    "gonio.measurement": ("a measurement", "gonio ingest {src} -o {out}", "INPUT.csv",
-                          "measurement.json"),
-    "gonio.material": ("a material", "gonio fit {src} -o {out}", "MEASUREMENT.json",
-                       "material.json"),
-    "gonio.lobe_basis": ("a lobe basis", "gonio lobes basis {src} -o {out}", "MATERIAL.json",
-                         "basis.json"),
-    "gonio.lobes": ("lobe weights", "gonio lobes fit {src} --basis BASIS.json -o {out}",
-                    "MATERIAL.json", "lobes.json"),
-    "gonio.prefilter": ("a prefiltered environment", "gonio prefilter ENV.exr --lobes {src} "
-                        "-o {out}", "LOBES.json", "FOLDER"),
-}
-
-#: The schema each maker reads (``gonio fit`` reads a measurement …): a file of that
-#: schema given where the made one is expected is the input of the command to run.
-_MADE_FROM = {"gonio.material": "gonio.measurement", "gonio.lobe_basis": "gonio.material",
-              "gonio.lobes": "gonio.material", "gonio.prefilter": "gonio.lobes"}
-
-
-def make_fix(schema: str, path=None, found: str | None = None, *,
-             missing: bool = False) -> str:
-    """The fix of a file that is not the ``schema`` artifact a command reads: the command
-    that makes one. The user's ``path`` is that command's input where it is what the
-    command reads (``found``: its schema; a ``.csv`` or ``.bsdf`` for ``gonio ingest``),
-    e.g. ``make a material from it with `gonio fit red.measurement.json -o
-    red.material.json```; a ``missing`` file is the command's output."""
-    if schema not in _MAKERS:
-        return "pass the file this command reads"
-    what, command, src, out = _MAKERS[schema]
-    name = os.fspath(path) if path is not None else ""
-    stem = Path(name).name.split(".")[0]
-    if stem and out != "FOLDER":
-        out = f"{stem}.{out}"
-    if missing:
-        return f"check the path, or make it with `{command.format(src=src, out=name)}`"
-    if (found is not None and found == _MADE_FROM.get(schema)) or \
-            (schema == "gonio.measurement" and name.lower().endswith((".csv", ".bsdf"))):
-        return f"make {what} from it with `{command.format(src=name, out=out)}`"
-    return f"make {what} with `{command.format(src=src, out=out)}`"
-
-
-def _found(schema: str) -> str:
-    """``schema`` as a message names it (``a material``), else the schema itself."""
-    return _MAKERS[schema][0] if schema in _MAKERS else f"a {schema} file"
 
 
 def read_artifact(path: str | os.PathLike, schema: str,
@@ -397,7 +308,7 @@ def read_artifact(path: str | os.PathLike, schema: str,
         raise ArtifactError("not a gonio artifact (no 'schema' field)", path=path)
     if doc["schema"] != schema:
         raise ArtifactError(f"schema is {doc['schema']!r}, expected {schema!r}: it is "
-                            f"{_found(str(doc['schema']))}, not {_found(schema)}",
+                            f"{artifact_name(str(doc['schema']))}, not {artifact_name(schema)}",
                             path=path, fix=make_fix(schema, path, str(doc["schema"])))
     if doc.get("schema_version") not in versions:
         raise ArtifactError(
@@ -430,8 +341,6 @@ def check_keys(doc: Mapping[str, Any], allowed: Iterable[str], *, path=None,
     """Refuse unknown keys (STYLE 7): a typo is an error, never silently ignored."""
     unknown = sorted(set(doc) - set(allowed))
     if unknown:
-        from .names import choices_fix, closest
-
         allowed = sorted(allowed)
         fix = choices_fix(unknown[0], allowed, "allowed:")
         if len(unknown) > 1:  # one question for every misspelt field that has a match

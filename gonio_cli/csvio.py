@@ -126,7 +126,7 @@ class Spectra:
     Attributes
     ----------
     path : str, the file (``"a.csv, b.csv"`` after merging).
-    layout : str, a key of :data:`LAYOUTS`.
+    layout : str, a key of :data:`gonio_cli.csvlayouts.LAYOUTS`.
     wavelength_nm : (n_λ,) float, strictly increasing.
     theta_i_deg, theta_o_deg : (n,) float, degrees, signed as in docs/conventions.md.
     values : (n, n_λ) float, in the units of the file's quantity.
@@ -216,37 +216,30 @@ def _header_names(text: str) -> list[str] | None:
             for c in cells]
 
 
-def is_layout_header(names: Sequence[str]) -> bool:
-    """Whether header cells ``names`` (lower case) hold every column of the layout they
-    select (:func:`detect_layout`), label columns and empty cells aside."""
-    from .csvlayouts import detect_layout   # the layouts build on this module's table
-
-    columns = [n for n in names if n and label_kind(n) is None]
-    return all(c in columns for c in detect_layout(columns).columns)
-
-
 #: Every column name of a layout (a header with a mistake still has some).
 _KNOWN_NAMES = frozenset((THETA_I, THETA_O, WAVELENGTH, VALUE, GEOMETRY))
 
 
-def _header_index(content: Sequence[tuple[int, str]]) -> int | None:
-    """Position in ``content`` of the header: the first line that is a layout's header
-    (:func:`is_layout_header`), so preamble lines before it are skipped. If none is, the
-    first line naming a known column (a header with a mistake, reported by the layout
-    checks), else None."""
+def _header_index(content: Sequence[tuple[int, str]],
+                  is_header: Callable[[list[str]], bool]) -> int | None:
+    """Position in ``content`` of the header: the first line whose cells pass
+    ``is_header`` (a layout's header: :func:`gonio_cli.csvlayouts.is_layout_header`), so
+    preamble lines before it are skipped. If none does, the first line naming a known
+    column (a header with a mistake, reported by the layout checks), else None."""
     fallback = None
     for k, (_, text) in enumerate(content[:HEADER_SEARCH_LINES]):
         names = _header_names(text)
         if names is None:
             continue
-        if is_layout_header(names):
+        if is_header(names):
             return k
         if fallback is None and any(n in _KNOWN_NAMES or label_kind(n) for n in names):
             fallback = k
     return fallback
 
 
-def read_table(path: str | os.PathLike, *, find_header: bool = False,
+def read_table(path: str | os.PathLike, *,
+               is_header: Callable[[list[str]], bool] | None = None,
                allow_empty: bool = False) -> Table:
     """Split a delimited file into a :class:`Table`.
 
@@ -255,9 +248,9 @@ def read_table(path: str | os.PathLike, *, find_header: bool = False,
     BOM, lines starting with ``#`` and rows with no content (blank, or only delimiters)
     are skipped. Every data row must have as many cells as the header.
 
-    The header is the first line with content, or with ``find_header`` the first that is
-    the header of one of the :data:`LAYOUTS` (:func:`_header_index`); the lines before it
-    are a preamble (``QC JOB:,Job …`` of an instrument export), counted and skipped.
+    The header is the first line with content, or with ``is_header`` the first whose
+    cells pass it (the header of one of the layouts, :func:`_header_index`); the lines
+    before it are a preamble (``QC JOB:,Job …`` of an instrument export), counted and skipped.
     A header without data rows is an error, or with ``allow_empty`` a table of no rows.
     """
     path = os.fspath(path)
@@ -268,7 +261,7 @@ def read_table(path: str | os.PathLike, *, find_header: bool = False,
     if not content:
         raise InputError("empty file (no header and no data rows)", path=path,
                          fix="export the measurement again; " + _LAYOUT_HELP)
-    preamble = _header_index(content) if find_header else 0
+    preamble = _header_index(content, is_header) if is_header is not None else 0
     if preamble is None:
         if any(d in content[0][1] for d in DELIMITERS):
             n = min(len(content), HEADER_SEARCH_LINES)

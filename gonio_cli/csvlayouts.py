@@ -301,6 +301,13 @@ def detect_layout(header: Sequence[str]) -> Layout:
     return LAYOUTS["long"]
 
 
+def is_layout_header(names: Sequence[str]) -> bool:
+    """Whether header cells ``names`` (lower case) hold every column of the layout they
+    select (:func:`detect_layout`), label columns and empty cells aside."""
+    columns = [n for n in names if n and label_kind(n) is None]
+    return all(c in columns for c in detect_layout(columns).columns)
+
+
 def read_spectra(path: str | os.PathLike, sample: str | None = None) -> Spectra:
     """Read and check one goniometer CSV (any of :data:`LAYOUTS`).
 
@@ -314,7 +321,7 @@ def read_spectra(path: str | os.PathLike, sample: str | None = None) -> Spectra:
         One spectrum per data row (wide, multi-angle) or per (θi, θo, repeat) (long), on
         the file's own wavelengths, in the file's units; nothing converted or resampled.
     """
-    table, labels = split_labels(read_table(path, find_header=True))
+    table, labels = split_labels(read_table(path, is_header=is_layout_header))
     layout = detect_layout(table.header)
     _check_header(table, layout)
     rows_read = int(table.lines.size)

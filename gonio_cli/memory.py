@@ -22,6 +22,8 @@ from __future__ import annotations
 import os
 import re
 
+from .errors import InputError, MemoryLimitError
+
 #: Environment variable that sets the available memory (bytes, or with K, M, G, T: 1024-based).
 MEMORY_ENV = "GONIO_MEMORY_AVAILABLE"
 
@@ -35,8 +37,6 @@ _UNITS = {"": 1, "K": 1 << 10, "M": 1 << 20, "G": 1 << 30, "T": 1 << 40}
 
 def parse_bytes(text: str) -> int:
     """``"512M"`` → 536870912; ``"2G"``, ``"1.5GiB"``, ``"100000"`` (bytes)."""
-    from .errors import InputError
-
     m = _SIZE.match(text)
     if m is None:
         raise InputError(f"{MEMORY_ENV}={text!r} is not a size",
@@ -102,8 +102,6 @@ def check(need: int, what: str, *, fix: str, path=None) -> int:
 
     Returns ``need``. Raises :class:`~gonio_cli.errors.MemoryLimitError`.
     """
-    from .errors import MemoryLimitError
-
     have, source = available_bytes()
     if have is not None and need > MARGIN * have:
         raise MemoryLimitError(

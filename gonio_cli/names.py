@@ -8,6 +8,8 @@ registry's keys equal the names here, in order, and that every command's help sh
 
 from __future__ import annotations
 
+from .errors import InputError
+
 # ---------------------------------------------------------------------------- gonio fit --
 
 #: ``--model``: the fitters of :data:`gonio_cli.fit.FITTERS`, in that order.
@@ -130,8 +132,6 @@ def pick(registry, name: str, what: str, *, path=None, extra=()):
     if name in extra:
         return name
     if name not in registry:
-        from .errors import InputError
-
         raise InputError(f"{what} {name!r} is unknown", path=path,
                          fix=choices_fix(name, tuple(extra) + tuple(registry)))
     return registry[name] if isinstance(registry, dict) else name

@@ -22,7 +22,7 @@ Every command that writes files runs inside one :class:`Transaction` (opened by
 
 The outputs' transaction lives here and not in :mod:`gonio_cli.artifact` because the CLI
 opens it around every command, ``gonio --version`` included: this module imports only
-the standard library.
+the standard library, :mod:`gonio_cli.errors` and :mod:`gonio_cli.folders`.
 
 Temporary names are ``.gonio-tmp-<pid>-<random>-<name>``: the pid says which process
 owns the file, the name keeps the extension (writers choose the format by it). A later run
@@ -44,6 +44,9 @@ import re
 import stat
 from pathlib import Path
 from typing import Iterable, Iterator, Mapping
+
+from .errors import OutputError
+from .folders import folder_error, make_folder
 
 #: Prefix of every temporary file and folder gonio makes beside an output.
 TMP_PREFIX = ".gonio-tmp-"
@@ -166,9 +169,7 @@ def same_file(a: str | os.PathLike, b: str | os.PathLike) -> bool:
         return False
 
 
-def _error(message: str, *, path=None, fix: str | None = None):
-    from .errors import OutputError
-
+def _error(message: str, *, path=None, fix: str | None = None) -> OutputError:
     return OutputError(message, path=path, fix=fix)
 
 
@@ -184,8 +185,6 @@ def check_output(flag: str, path: str | os.PathLike, *, folder: bool = False) ->
     except FileNotFoundError:
         return  # absent: fine (a dangling link is replaced by the file)
     except NotADirectoryError as exc:  # a file where a folder of the path should be
-        from .artifact import folder_error
-
         raise folder_error(os.path.dirname(path), exc) from None
     except OSError as exc:
         raise _error(f"{flag} {path}: cannot be examined ({exc.strerror})",
@@ -361,8 +360,6 @@ class Transaction:
         instead of replacing the folder as a whole.
         """
         import tempfile
-
-        from .artifact import folder_error, make_folder
 
         final = Path(final)
         parent = make_folder(final.parent if str(final.parent) else ".")

@@ -15,6 +15,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from .errors import InputError
+
 #: A file whose median value is above this, in the quantity's :attr:`Quantity.level`, is
 #: in percent (``--scale 0.01``), not fractions. A perfect white diffuser has reflectance
 #: factor 1 at every geometry and matte samples stay below it (the MA-T12 green earth of
@@ -65,8 +67,6 @@ def check_percent(parts: Sequence, brdf: np.ndarray, params: dict[str, Any], qua
     limit gets a warning instead (its units cannot be told). ``units_confirmed`` (an
     explicit ``--scale 1``) skips the check: the user stated the values are right.
     """
-    from .errors import InputError
-
     if units_confirmed:
         return []
     notes, start = [], 0

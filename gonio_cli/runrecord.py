@@ -29,6 +29,8 @@ import os
 from pathlib import Path
 from typing import Any, Mapping
 
+from . import __version__
+
 #: Schema and version of a side record.
 RUN_SCHEMA = "gonio.run"
 RUN_VERSION = 1
@@ -157,8 +159,6 @@ def side_record(path: str | os.PathLike, artifact_sha256: str,
                 timings: Mapping[str, Any]) -> dict[str, Any]:
     """The side record of the artifact at ``path``: what ran, where, when, how long."""
     import socket
-
-    from . import __version__
 
     when = {k: timings[k] for k in _WHEN if k in timings}
     return {"schema": RUN_SCHEMA, "schema_version": RUN_VERSION, "gonio_version": __version__,

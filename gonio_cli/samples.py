@@ -16,6 +16,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from .errors import InputError
+
 #: Environment variable naming a ``sample_data`` folder (for an installed gonio).
 SAMPLE_DATA_ENV = "GONIO_SAMPLE_DATA"
 #: The file that says how the demo reads the sample inks (and marks the folder).
@@ -27,8 +29,6 @@ FIT_FLAGS = {"exclude_theta_i_deg": "--exclude-theta-i-deg"}
 def sample_data_dir() -> Path:
     """The ``sample_data`` folder: ``$GONIO_SAMPLE_DATA``, else the checkout beside the
     package; an :class:`~gonio_cli.errors.InputError` saying how to get it otherwise."""
-    from .errors import InputError
-
     given = os.environ.get(SAMPLE_DATA_ENV)
     if given:
         folder = Path(given)

@@ -15,8 +15,10 @@ import functools
 
 import numpy as np
 
+from .cache import cached_arrays
 from .errors import InputError
 from .names import pick
+from .numbers import NumberList
 from .schemas import WAVELENGTH_MAX_NM
 
 DEFAULT_GRID_NM = "380:780:10"
@@ -31,45 +33,22 @@ WAVELENGTH_TOL_NM = 1e-6
 MAX_GRID_SAMPLES = 4001
 
 
-def inclusive_range(start: float, stop: float, step: float) -> np.ndarray | None:
-    """``START:STOP:STEP`` with both ends included (wavelength grids, angle lists), or None
-    when STOP − START is not a whole number of steps (to 1e-6 of a step) or is negative.
-
-    >>> inclusive_range(10.0, 30.0, 10.0)
-    array([10., 20., 30.])
-    """
-    n = (stop - start) / step if step > 0 else -1.0
-    if n < 0 or abs(n - round(n)) > 1e-6:
-        return None
-    return start + step * np.arange(int(round(n)) + 1)
+#: ``--grid-nm`` (and a scene's ``[output] grid_nm``): one inclusive range of wavelengths.
+GRID_NM = NumberList("--grid-nm", DEFAULT_GRID_NM, unit="nm", lo=0.0, lo_open=True,
+                     hi=WAVELENGTH_MAX_NM, one_range=True, max_count=MAX_GRID_SAMPLES,
+                     noun="samples")
 
 
 def parse_grid(spec: str = DEFAULT_GRID_NM) -> np.ndarray:
-    """``"START:STOP:STEP"`` in nm (inclusive) → (n_λ,) float array.
+    """``"START:STOP:STEP"`` in nm (inclusive) → (n_λ,) float array (:data:`GRID_NM`).
 
     >>> parse_grid("380:400:10")
     array([380., 390., 400.])
     """
-    parts = str(spec).split(":")
-    try:
-        start, stop, step = (float(p) for p in parts)
-    except ValueError:
-        raise InputError(f"--grid-nm {spec!r} is not START:STOP:STEP in nm",
-                         fix="e.g. --grid-nm 380:780:10") from None
-    if not (np.isfinite([start, stop, step]).all() and step > 0 and stop > start and start > 0):
-        raise InputError(f"--grid-nm {spec!r} needs 0 < START < STOP and STEP > 0",
-                         fix="e.g. --grid-nm 380:780:10")
-    n = (stop - start) / step
-    if stop > WAVELENGTH_MAX_NM or n + 1 > MAX_GRID_SAMPLES:
-        raise InputError(f"--grid-nm {spec!r} has {n + 1:.3g} samples up to {stop:g} nm",
-                         fix=f"at most {MAX_GRID_SAMPLES} samples up to {WAVELENGTH_MAX_NM:g} "
-                             "nm (docs/conventions.md, Numeric ranges), e.g. --grid-nm "
-                             "380:780:10")
-    grid = inclusive_range(start, stop, step)
-    if grid is None:
-        raise InputError(f"--grid-nm {spec!r}: STOP - START is not a multiple of STEP",
-                         fix="e.g. --grid-nm 380:780:10")
-    return grid
+    grid = GRID_NM.parse(spec)
+    if len(grid) < 2:
+        raise GRID_NM.error(spec, "needs START < STOP")
+    return np.asarray(grid)
 
 
 def grid_spec(wavelength_nm) -> str | None:
@@ -150,8 +129,6 @@ def colour_tables() -> dict[str, np.ndarray]:
     colour-science version, so a render or a report does not pay the import again.
     """
     from importlib.metadata import version
-
-    from .cache import cached_arrays
 
     name = (f"colour-tables-v{COLOUR_TABLES_VERSION}-"
             f"colour-science-{version('colour-science')}.npz")
@@ -373,13 +350,14 @@ def srgb_encode(linear) -> np.ndarray:
 #: sRGB (IEC 61966-2-1) decode: encoded values up to this are on the linear segment.
 SRGB_DECODE_BREAK = 0.04045
 
+
 def srgb_decode(encoded: np.ndarray) -> np.ndarray:
     """IEC 61966-2-1 sRGB transfer function inverted: encoded [0, 1] → linear [0, 1].
 
     The inverse of :func:`srgb_encode` (same standard, same break
     point); float32 in, float32 out, shape kept.
 
-    >>> float(srgb_decode(np.float32(0.5)).round(6))
+    >>> round(float(srgb_decode(np.float32(0.5))), 6)
     0.214041
     """
     x = np.clip(np.asarray(encoded, dtype=np.float32), 0.0, 1.0)

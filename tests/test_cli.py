@@ -25,7 +25,7 @@ import typer.main
 
 import gonio_cli
 import gonio_cli.commands
-from gonio_cli import artifact, cli, log
+from gonio_cli import artifact, cli, log, outputs
 from gonio_cli.errors import InputError, WriteError, num
 
 
@@ -295,11 +295,11 @@ def test_keyboard_interrupt_inside_atomic_path_removes_the_temporary_file(tmp_pa
 
 
 def test_outputs_are_recorded_for_the_interrupt_message(tmp_path):
-    artifact.forget_written()
+    outputs.forget_written()
     artifact.write_json(tmp_path / "a.json", {"x": 1})
-    assert artifact.written_files() == [tmp_path / "a.json"]
-    artifact.forget_written()
-    assert artifact.written_files() == []
+    assert outputs.written_files() == [tmp_path / "a.json"]
+    outputs.forget_written()
+    assert outputs.written_files() == []
 
 
 # ------------------------------------------------------------------ imports --
@@ -634,7 +634,7 @@ CSV_TEXTS = [
 def test_plain_csv_split_equals_the_csv_module(tmp_path, monkeypatch, text):
     """ingest's split of an unquoted CSV in one go gives the csv module's table (cells,
     their dtype, line numbers, counts) or its error, word for word."""
-    from gonio_cli import csvio
+    from gonio_cli import csvio, csvlayouts
 
     path = text if isinstance(text, Path) else tmp_path / "x.csv"
     if not isinstance(text, Path):
@@ -644,7 +644,7 @@ def test_plain_csv_split_equals_the_csv_module(tmp_path, monkeypatch, text):
         if not plain:
             monkeypatch.setattr(csvio, "_plain_rows", lambda texts, delim: None)
         try:
-            t = csvio.read_table(path, find_header=True)
+            t = csvio.read_table(path, is_header=csvlayouts.is_layout_header)
         except InputError as exc:
             return exc.format()
         finally:

@@ -356,7 +356,8 @@ def test_bad_grid_option_names_the_option(scene_dir):
     path = write_scene(scene_dir, CAMERA + OBJECT + LIGHT)
     with pytest.raises(InputError) as info:
         load_scene(path, overrides={"grid_nm": "700:400:10"})
-    assert info.value.format().startswith("--grid-nm '700:400:10' needs 0 < START < STOP")
+    assert info.value.format().startswith("--grid-nm '700:400:10': range '700:400:10' needs "
+                                          "STEP > 0, START <= STOP")
 
 
 def test_inks_with_no_common_range_are_refused(scene_dir):

@@ -380,7 +380,7 @@ def test_non_finite_values(refuse, tmp_path):
     ("--theta-i-deg", "10:70:7", "a multiple of STEP"),
     ("--theta-i-deg", "70:10:10", "START <= STOP"),
     ("--theta-o-deg", "nan", "'nan' is not a number"),
-    ("--theta-o-deg", "", "'' is not a number"),
+    ("--theta-o-deg", "", "is empty"),
 ])
 def test_bad_angle_grids(refuse, option, value, expect):
     refuse(SPEC, option, value, expect=["rgl_wrap_spec.bsdf: ", f"{option} {value!r}: ",

@@ -26,12 +26,12 @@ def good(tmp_path_factory):
 
 
 def test_published_schemas_are_what_the_definition_generates():
-    """docs/schemas/ cannot drift from gonio_cli/schemas.py: `make schemas` rewrites it."""
+    """docs/schemas/ cannot drift from gonio_cli/schemas/: `make schemas` rewrites it."""
     expected = schemas.schema_files()
     assert sorted(p.name for p in DOCS.glob("*.json")) == sorted(expected)
     for name, text in expected.items():
         assert (DOCS / name).read_text(encoding="utf-8") == text, (
-            f"docs/schemas/{name} differs from gonio_cli/schemas.py: run make schemas")
+            f"docs/schemas/{name} differs from gonio_cli/schemas/: run make schemas")
 
 
 def test_every_model_parameter_has_a_range():

@@ -27,11 +27,13 @@ from collections import deque
 from typing import Any, Callable, Mapping
 
 from .. import __version__
+from ..errors import InputError
+from ..folders import make_folder
 from ..machine import cpu_count
 from .jobs import attempt_log, execute_chunk, failed_roots, files, record, timed_out, \
-    why_stale
-from .journal import Journal, clear_run_state, compact, lock_folder, read_journal, \
-    recover_receipts
+    why_stale, worker_version
+from .journal import DONE_DIR, Journal, clear_run_state, compact, lock_folder, read_journal, \
+    read_receipt, recover_receipts
 from .plan import Plan, dependencies
 
 #: Seconds to wait for a scheduler given with ``--scheduler`` (and for its workers).
@@ -97,8 +99,6 @@ def dry_run(plan: Plan) -> tuple[list[tuple[str, str]], int]:
     """([(key, why it would run)], number of jobs up to date), touching nothing."""
     outdir = os.fspath(plan.outdir)
     previous = read_journal(outdir)
-    from .journal import DONE_DIR, read_receipt
-
     if os.path.isdir(os.path.join(outdir, DONE_DIR)):  # what a rerun would recover
         for j in plan.jobs:
             rec = read_receipt(outdir, j.file_name)
@@ -112,8 +112,6 @@ def dry_run(plan: Plan) -> tuple[list[tuple[str, str]], int]:
 def connect(workers: int | None, scheduler: str | None, dashboard: bool):
     """A Dask client (and the local cluster it owns, or None)."""
     import importlib.util
-
-    from ..errors import InputError
 
     missing = InputError("gonio batch needs Dask distributed, which is not installed",
                          fix="pip install 'gonio[batch]'")
@@ -177,9 +175,6 @@ def check_versions(client, scheduler: str) -> None:
     """Refuse workers whose gonio is not the driver's version (their outputs would not
     be what the records say); a worker that joins later is checked by each job
     (:func:`.jobs.execute`)."""
-    from ..errors import InputError
-    from .jobs import worker_version
-
     try:
         versions = client.run(worker_version)
     except Exception as exc:  # a worker without gonio: it cannot unpickle the function
@@ -217,8 +212,6 @@ def run_plan(plan: Plan, *, workers: int | None = None, scheduler: str | None = 
     InputError : another batch holds the output folder's lock; a worker's gonio version
         is not the driver's.
     """
-    from ..artifact import make_folder
-
     outdir = os.fspath(plan.outdir)
     make_folder(outdir)
     with lock_folder(outdir):

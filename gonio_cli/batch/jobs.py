@@ -21,9 +21,12 @@ import socket
 import time
 from typing import Any, Callable, Mapping
 
-from .. import __version__
+from .. import __version__, log, outputs
+from ..artifact import sha256_file
+from ..errors import GonioError
 from .journal import ATTEMPTS_DIR, TIMEOUT_DIR, read_receipt, write_receipt
 from .plan import Job
+from .sheet import image_entry, thumbnail
 
 #: Statuses of a record: ran now; up to date (earlier outputs kept); its command failed;
 #: not run because a job it needs failed.
@@ -36,8 +39,6 @@ def sha256(path: str) -> str | None:
     """Hex SHA-256 of a file, or of a folder (``gonio prefilter -o DIR``): of the list of
     its files' relative paths and hashes; None if it is not there."""
     import hashlib
-
-    from ..artifact import sha256_file
 
     try:
         if not os.path.isdir(path):
@@ -231,9 +232,8 @@ def run_stage(job: Job, warnings: list[str]) -> str | None:
     not as lines read off stderr; what it prints for a user is dropped."""
     import click
 
-    from .. import log, outputs
-    from ..commands import as_typed_in, remember_argv  # lazy: only workers run stages
-    from ..errors import GonioError
+    # lazy: the driver (and gonio --help) never load the commands' option tables
+    from ..commands import as_typed_in, remember_argv
 
     group = gonio_group()
     remember_argv(job.argv)  # errors name options as the plan wrote them
@@ -271,8 +271,9 @@ def _subject(job: Job) -> str | None:
 
 def run_preview(job: Job, warnings: list[str]) -> str | None:  # noqa: ARG001
     """Assemble a turntable's frames (the job's inputs, in order) into an animated PNG."""
+    # lazy: a worker loads OpenImageIO and the renderer only for a turntable's preview
     from ..imageio import write_apng
-    from ..render.pipeline import turntable_metadata
+    from ..render.pipeline import turntable_metadata  # lazy: (the same)
 
     frames = list(job.inputs)
     write_apng(job.outputs[0], frames, metadata=turntable_metadata(frames))
@@ -291,8 +292,6 @@ def make_thumbnails(outdir: str, job: Job) -> dict[str, Any] | None:
     (:func:`gonio_cli.batch.sheet.image_entry`: the thumbnail, its size, a frame's
     flags), for the record, so that the driver does not open the image again. A copy
     that cannot be made is made (or reported) by the sheet instead."""
-    from .sheet import image_entry, thumbnail
-
     entry = None
     for k, path in enumerate(job.outputs):
         if str(path).lower().endswith(".png"):
@@ -383,8 +382,6 @@ def _run(job: Job, outdir: str, previous, attempts: int, run) -> dict[str, Any]:
     try:
         error = RUNNERS[job.runner](job, warnings)
     except Exception as exc:  # a bug in a runner: one line in the record, not a retry loop
-        from ..errors import GonioError
-
         error = exc.format() if isinstance(exc, GonioError) else \
             f"internal error: {type(exc).__name__}: {exc}"
     time_s = time.perf_counter() - start

@@ -30,7 +30,10 @@ import socket
 from typing import Any, Iterable, Iterator, Mapping
 
 from . import MANIFEST_NAME, MANIFEST_SCHEMA, MANIFEST_SCHEMA_VERSION
+from ..artifact import atomic_path
 from ..errors import InputError
+from ..folders import folder_error, make_folder
+from .plan import file_name_of
 
 #: gonio batch's own folder inside the output folder (attempt logs, receipts, the lock).
 STATE_DIR = ".gonio-batch"
@@ -75,8 +78,6 @@ class Journal:
     returns once it is on the disk."""
 
     def __init__(self, outdir: str | os.PathLike):
-        from ..artifact import folder_error
-
         self.path = os.path.join(outdir, MANIFEST_NAME)
         try:
             self.fh = open(self.path, "a", encoding="utf-8")
@@ -100,8 +101,6 @@ class Journal:
 
 def compact(outdir: str | os.PathLike, records: Iterable[Mapping[str, Any]]) -> str:
     """Rewrite the journal atomically as ``records`` (one line each, in order)."""
-    from ..artifact import atomic_path
-
     path = os.path.join(outdir, MANIFEST_NAME)
     with atomic_path(path, immediate=True) as tmp, open(tmp, "w", encoding="utf-8") as fh:
         fh.writelines(_line(r) for r in records)
@@ -118,8 +117,6 @@ def receipt_path(outdir: str, file_name: str) -> str:
 
 def write_receipt(outdir: str, file_name: str, rec: Mapping[str, Any]) -> None:
     """The record of a job whose outputs are in place, written atomically (worker side)."""
-    from ..artifact import atomic_path
-
     with atomic_path(receipt_path(outdir, file_name), immediate=True) as tmp:
         tmp.write_text(json.dumps(dict(rec)), encoding="utf-8")
 
@@ -138,8 +135,6 @@ def recover_receipts(outdir: str, journal: dict[str, dict[str, Any]],
     """Append to the journal (and to ``journal``, by key) the receipts of an earlier
     batch for jobs of ``keys`` that its driver did not record (it was killed while they
     ran); return their keys. The rerun still checks their hashes before trusting them."""
-    from .plan import file_name_of
-
     folder = os.path.join(outdir, DONE_DIR)
     if not os.path.isdir(folder):
         return []
@@ -179,8 +174,6 @@ def lock_folder(outdir: str | os.PathLike) -> Iterator[str]:
     ------
     InputError : another process holds it (its host:pid named, with the fix).
     """
-    from ..artifact import folder_error, make_folder
-
     path = os.path.join(outdir, LOCK_NAME)
     make_folder(os.path.dirname(path))
     try:

@@ -36,6 +36,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Mapping
 
+from ..artifact import read_toml
 from ..errors import InputError
 from ..names import choices_fix
 
@@ -238,8 +239,6 @@ def read_plan(path: str | os.PathLike, outdir: str | os.PathLike) -> Plan:
     PlanError : one line naming the plan file, the table or job, and the fix.
     """
     display = os.fspath(path)
-    from ..artifact import read_toml
-
     p = Path(path)
     doc = read_toml(p, "plan", PlanError, display)
     r = _Reader(Path(display), Path(os.path.abspath(outdir)))
@@ -322,6 +321,7 @@ def _matrix(r: _Reader, m, materials: Mapping[str, str]) -> None:
     if not isinstance(frames, int) or isinstance(frames, bool) or frames < 0:
         raise r.error(f"{where} frames", f"{frames!r} is not a number of frames",
                       fix="give 0 (no turntable) or N >= 1")
+    # lazy: only a plan with a turntable loads the renderer's package (gonio_cli.render)
     from ..render.turntable import ORBITS
 
     orbit = m.get("orbit", "camera")

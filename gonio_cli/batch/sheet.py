@@ -22,6 +22,8 @@ import os
 from typing import Any, Mapping, Sequence
 
 from . import SHEET_NAME
+from ..artifact import atomic_path
+from ..folders import make_folder
 
 #: Largest side (pixels) of an image shown as it is; a larger one is reduced by the smallest
 #: whole factor that brings it to this size or below (the full image is a click away).
@@ -100,8 +102,6 @@ def thumbnail(outdir: str, image: str) -> tuple[str, int, int]:
         if os.path.isfile(thumb) and os.path.getmtime(thumb) >= os.path.getmtime(image):
             return thumb, *size
         small = im.convert("RGB").reduce(factor)
-    from ..artifact import atomic_path, make_folder
-
     make_folder(os.path.dirname(thumb))
     with atomic_path(thumb) as tmp:
         small.save(tmp, format="PNG")
@@ -185,8 +185,6 @@ def _material_links(outdir: str, fit: Mapping[str, Any] | None) -> tuple[str, st
 def write_sheet(outdir: str | os.PathLike, records: Sequence[Mapping[str, Any]], *,
                 title: str = "gonio batch") -> str:
     """Write ``OUTDIR/index.html`` for a batch's records (plan order); return its path."""
-    from ..artifact import atomic_path
-
     outdir = os.fspath(outdir)
     by_material: dict[str, dict[str, list]] = {}
     fits: dict[str, Mapping[str, Any]] = {}

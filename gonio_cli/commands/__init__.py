@@ -27,6 +27,9 @@ import typer
 from typer.core import TyperCommand, TyperGroup
 from typer.models import DefaultPlaceholder
 
+from ..errors import GonioError, InputError
+from ..makers import make_fix
+
 #: Stage shells in pipeline order (module names = command names); each module has
 #: ``register(app)`` and ``EXAMPLE``, and ``gonio --help`` lists the commands in this order.
 STAGES = ("ingest", "fit", "eval", "lobes", "halftone", "prefilter", "sparkle", "render", "export",
@@ -342,8 +345,6 @@ def is_pattern(text: str) -> bool:
 def read_as(option: str, read: Callable[[Any], Any], path) -> Any:
     """``read(path)`` for the file given as ``option`` (``--at``, ``--basis``): an error
     about that file names the option too (``b.json: schema is … (given as --basis)``)."""
-    from ..errors import GonioError
-
     try:
         return read(path)
     except GonioError as exc:
@@ -366,10 +367,8 @@ def require_files(paths: Iterable[str | os.PathLike], *, what: str = "file",
         ``no files match 'photo_ti*.png'``, ``PATH: no such file`` (``no such image
         file`` with ``what="image file"``) or ``PATH: is a folder, not a file``. With the
         ``schema`` of the artifact expected, the fix of a missing file is the command that
-        makes it (:func:`gonio_cli.artifact.make_fix`), not ``missing_fix``.
+        makes it (:func:`gonio_cli.makers.make_fix`), not ``missing_fix``.
     """
-    from ..errors import InputError
-
     for path in paths:
         text = os.fspath(path)
         if os.path.isfile(text):
@@ -382,16 +381,12 @@ def require_files(paths: Iterable[str | os.PathLike], *, what: str = "file",
                              fix="check the folder and the pattern (a pattern that matches "
                                  "nothing reaches gonio as it is)")
         if schema is not None:
-            from ..artifact import make_fix
-
             missing_fix = make_fix(schema, text, missing=True)
         raise InputError(f"no such {what}", path=text, fix=missing_fix)
 
 
 def parse_vars(items: Iterable[str]) -> dict[str, str]:
     """``--var NAME=VALUE`` options as a dict (scene variables: render, export)."""
-    from ..errors import InputError
-
     variables = {}
     for item in items:
         name, sep, value = item.partition("=")

@@ -7,6 +7,9 @@ from typing import Optional
 
 import typer
 
+from .. import log
+from ..errors import InputError
+
 HELP = """Run a plan of gonio jobs on Dask: locally on every core, or on a cluster.
 
 A plan (TOML, docs/batch.md) names materials (CSV files to ingest and fit), a matrix of
@@ -59,7 +62,7 @@ def batch(
     import sys
     import time
 
-    from .. import log
+    # lazy: gonio --help and the other commands do not load the batch core (gonio_cli.batch) (benchmarks/bench_startup.py)
     from ..batch.plan import read_plan
 
     start = time.perf_counter()
@@ -68,6 +71,7 @@ def batch(
     if dry_run:
         _dry_run(p, output)
         return
+    # lazy: gonio --help and the other commands do not load the batch core (gonio_cli.batch) (benchmarks/bench_startup.py)
     from ..batch.sheet import write_sheet
 
     records = _run(p, output, dict(workers=workers, scheduler=scheduler, retries=retries,
@@ -120,7 +124,7 @@ def _check_options(workers, scheduler, retries, job_timeout, jobs_per_task, outp
 
 def _dry_run(p, output: Path) -> None:
     """Print each job that would run and why (stdout), and a summary; run nothing."""
-    from .. import log
+    # lazy: gonio --help and the other commands do not load the batch core (gonio_cli.batch) (benchmarks/bench_startup.py)
     from ..batch.engine import dry_run
 
     stale, n_done = dry_run(p)
@@ -141,7 +145,7 @@ def _run(p, output: Path, options: dict) -> list[dict]:
     import sys
     import threading
 
-    from .. import log
+    # lazy: gonio --help and the other commands do not load the batch core (gonio_cli.batch) (benchmarks/bench_startup.py)
     from ..batch.engine import run_plan
 
     bar = _Progress()
@@ -185,8 +189,6 @@ class _Progress:
     def start(self, n: int) -> None:
         import sys
         import time
-
-        from .. import log
 
         self.n = n
         self.t0 = time.perf_counter()

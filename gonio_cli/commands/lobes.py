@@ -9,6 +9,10 @@ import typer
 
 from ..names import (BASIS_SOLVER_NAMES, CHANNEL_NAMES, SAMPLE_SET_NAMES, WEIGHT_SOLVER_NAMES,
                      metavar)
+from ..numbers import NumberList
+
+#: ``lobes fit --exponents``: the lobes' exponents (their range is checked by the core).
+EXPONENTS = NumberList("--exponents", "1,10,100")
 
 SAMPLE_SET_HELP = ("seed001 (default, seed 001 §4), dense, hemisphere (lights off the plane too: "
                    "use it for lobes rendered under an environment), or a CSV with "
@@ -164,11 +168,7 @@ def fit(
         e = read_as("--basis", read_lobe_basis, basis_path).exponents(n_lobes, path=basis_path)
         inputs.append(basis_path)
     else:
-        try:
-            e = [float(v) for v in exponents.split(",") if v.strip()]
-        except ValueError:
-            raise InputError(f"--exponents {exponents!r} is not a list of numbers",
-                             fix="e.g. --exponents 1,10,100") from None
+        e = EXPONENTS.parse(exponents)
     e = core.check_exponents(e, where="--exponents" if basis_path is None else str(basis_path))
     mat = read_material(material)
     s = core.sample_set(samples, core.parse_view_angles(view_angles), mirror_dense)

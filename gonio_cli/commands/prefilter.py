@@ -17,26 +17,12 @@ from typing import Optional
 import typer
 
 from ..names import PREFILTER_AUTO, PREFILTER_METHOD_NAMES, metavar
+from ..numbers import NumberList
 from ..prefilter_files import map_name  # the maps' file names (pathlib only: a light import)
 
 
-def parse_exponents(text: str) -> list[float]:
-    """``"1,8,64"`` → [1.0, 8.0, 64.0]; a bad item is an error naming it."""
-    from ..errors import InputError
-
-    values = []
-    for item in text.split(","):
-        item = item.strip()
-        if not item:
-            continue
-        try:
-            values.append(float(item))
-        except ValueError:
-            raise InputError(f"--exponents item {item!r} is not a number",
-                             fix="give a comma-separated list such as 1,8,64") from None
-    if not values:
-        raise InputError("--exponents is empty", fix="give a list such as 1,8,64")
-    return values
+#: ``--exponents``: the maps' cosine-lobe exponents (their range is checked by the core).
+EXPONENTS = NumberList("--exponents", "1,8,64")
 
 
 def prefilter(
@@ -106,7 +92,7 @@ def prefilter(
 
         exps = chain_exponents(pixels.shape[0])
     else:
-        exps = (parse_exponents(exponents) if exponents is not None
+        exps = (EXPONENTS.parse(exponents) if exponents is not None
                 else read_as("--lobes", read_lobe_exponents, lobes))
     exps = core.inputs.validate_exponents(exps, path=lobes)
     if replaced:

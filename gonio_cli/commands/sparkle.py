@@ -9,20 +9,10 @@ import typer
 
 from ..names import SPARKLE_RULE_NAMES as RULE_NAMES
 from ..names import metavar
+from ..numbers import NumberList
 
-
-def parse_angles(text: str) -> list[float]:
-    """``"10,20,30"`` → [10.0, 20.0, 30.0]; a bad item is a one-line error."""
-    from ..errors import InputError
-
-    out = []
-    for item in text.split(","):
-        try:
-            out.append(float(item))
-        except ValueError:
-            raise InputError(f"--theta-i-deg: {item.strip()!r} is not a number",
-                             fix="give degrees separated by commas, e.g. 10,20,30") from None
-    return out
+#: ``--theta-i-deg``: the photos' angles of incidence, in the photos' order.
+THETA_I_DEG = NumberList("--theta-i-deg", "10,20,30", unit="deg")
 
 
 def sparkle(
@@ -62,7 +52,7 @@ def sparkle(
     core.get_rule(rule)
     if output.suffix.lower() != ".png":
         raise InputError("the sparkle texture must be a PNG", path=output, fix="name it *.png")
-    angles = parse_angles(theta_i)
+    angles = THETA_I_DEG.parse(theta_i)
     from ..outputs import declare
     declare({"-o": output}, photos)
     if len(photos) > core.N_BITS:

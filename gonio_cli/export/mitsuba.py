@@ -32,7 +32,8 @@ from typing import Callable
 
 import numpy as np
 
-from ..artifact import atomic_path, make_folder, write_artifact
+from ..artifact import atomic_path, write_artifact
+from ..folders import make_folder
 from ..brdf import UNDERCOAT_INDEX, goniochromatic_exponent_arg
 from ..errors import InputError
 

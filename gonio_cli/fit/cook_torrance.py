@@ -57,7 +57,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..brdf import LOG_MAX, cook_torrance, cook_torrance_specular_geometry, dlog_beckmann_dlog_m
+from ..brdf import LOG_MAX, cook_torrance, cook_torrance_specular_geometry
+from ..brdf_jacobians import dlog_beckmann_dlog_m
 from ..errors import FitError, InputError
 from .alpha import choose_optimizer
 from .common import FitData

@@ -30,8 +30,9 @@ from typing import Any
 
 import numpy as np
 
-from ..brdf import (LOG_MAX, dlog_ggx_d_dlog_alpha, goniochromatic,
-                    goniochromatic_exponent_arg, log_ggx_d, log_goniochromatic_d4)
+from ..brdf import (LOG_MAX, goniochromatic, goniochromatic_exponent_arg, log_ggx_d,
+                    log_goniochromatic_d4)
+from ..brdf_jacobians import dlog_ggx_d_dlog_alpha
 from ..errors import FitError, InputError
 from ..names import STEP2_NAMES, pick
 from .alpha import choose_optimizer, minimize_log_alpha, scan_log_alpha

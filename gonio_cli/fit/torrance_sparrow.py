@@ -35,8 +35,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..brdf import (dlog_ggx_d_dlog_alpha, dlog_smith_g1_dlog_alpha, schlick_fresnel,
-                    torrance_sparrow)
+from ..brdf import schlick_fresnel, torrance_sparrow
+from ..brdf_jacobians import dlog_ggx_d_dlog_alpha, dlog_smith_g1_dlog_alpha
 from ..errors import FitError, InputError
 from .alpha import choose_optimizer, minimize_log_alpha, scan_log_alpha
 from .common import ALPHA_MAX, ALPHA_MIN, FitData

@@ -40,8 +40,9 @@ import numpy as np
 
 from .. import log
 from ..errors import InputError
+from ..numbers import NumberList
 from ..schemas import Measurement
-from ..spectra import DEFAULT_GRID_NM, covers, inclusive_range, parse_grid, resample, same_grid
+from ..spectra import DEFAULT_GRID_NM, covers, parse_grid, resample, same_grid
 from .tensorfile import TensorField, read_tensor_file, read_tensor_header
 
 #: The format's name in summaries and in the artifact's parameters.
@@ -157,41 +158,17 @@ def parse_angles(spec: str, flag: str, theta_i: bool, path=None) -> np.ndarray:
     """An angle list option in degrees → sorted distinct (n,) array.
 
     ``spec`` is comma-separated numbers and inclusive ``START:STOP:STEP`` ranges, e.g.
-    ``10:70:10`` or ``-80:85:5,44,46``. θi must lie in [0, 90), θo in (−90, 90)
-    (docs/conventions.md). Overlapping items are merged. ``path``: the input the angles
-    are for, named in an error.
+    ``10:70:10`` or ``-80:85:5,44,46`` (:class:`gonio_cli.numbers.NumberList`). θi must
+    lie in [0, 90), θo in (−90, 90) (docs/conventions.md). Overlapping items are merged.
+    ``path``: the input the angles are for, named in an error.
     """
-    rng = "[0, 90)" if theta_i else "(-90, 90)"
-    example = DEFAULT_THETA_I_DEG if theta_i else DEFAULT_THETA_O_DEG
-
-    def refuse(what: str) -> InputError:
-        return InputError(f"{flag} {spec!r}: {what}", path=path,
-                          fix=f"a list or START:STOP:STEP in degrees within {rng}, e.g. "
-                              f"{flag} {example}")
-
-    values: list[float] = []
-    for item in str(spec).split(","):
-        item = item.strip()
-        try:
-            numbers = [float(p) for p in item.split(":")]
-        except ValueError:
-            raise refuse(f"{item!r} is not a number or START:STOP:STEP") from None
-        if len(numbers) not in (1, 3) or not all(math.isfinite(x) for x in numbers):
-            raise refuse(f"{item!r} is not a number or START:STOP:STEP")
-        if len(numbers) == 3:
-            grid = inclusive_range(*numbers)
-            if grid is None:
-                raise refuse(f"range {item!r} needs STEP > 0, START <= STOP and STOP - START "
-                             "a multiple of STEP")
-            numbers = list(grid)
-        values += numbers
+    option = NumberList(flag, DEFAULT_THETA_I_DEG if theta_i else DEFAULT_THETA_O_DEG,
+                        unit="deg", lo=0.0 if theta_i else -90.0, lo_open=not theta_i,
+                        hi=90.0, hi_open=True)
+    values = option.parse(spec, path)
     from .steps import distinct  # np.unique without its numpy.ma import
 
-    theta = distinct(np.round(np.asarray(values, dtype=float), 6)) + 0.0  # + 0.0: −0 → 0
-    ok = (theta >= 0) & (theta < 90) if theta_i else np.abs(theta) < 90
-    if not ok.all():
-        raise refuse(f"{theta[~ok][0]:g} deg is outside {rng}")
-    return theta
+    return distinct(np.round(np.asarray(values, dtype=float), 6)) + 0.0  # + 0.0: −0 → 0
 
 
 def resolve_parameters(paths: Sequence[str | os.PathLike], *,

@@ -15,6 +15,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..names import choices_fix, pick
+from ..numbers import NumberList
 from ..geometry import cosines, in_plane_directions, reflect
 from . import (GLOBAL_VIEW_ANGLES_DEG, HEMISPHERE_POINTS, HORIZON_DEG, MIRROR_BLEND_DEG,
                MIRROR_RING_AZIMUTHS, MIRROR_RING_GAUSS, MIRROR_RING_INNER_DEG,
@@ -318,24 +319,14 @@ def sample_set(name: str, view_angle_deg: Sequence[float] | None = None,
     return samples
 
 
+#: ``--view-angles-deg``: the weight table's view angles.
+VIEW_ANGLES_DEG = NumberList("--view-angles-deg", "0:80:10", unit="deg", lo=0.0, hi=90.0,
+                             hi_open=True)
+
+
 def parse_view_angles(spec: str) -> np.ndarray:
-    """``"0:80:10"`` (inclusive) or ``"10,40,70"`` → (V,) degrees."""
-    text = str(spec).strip()
-    try:
-        if ":" in text:
-            start, stop, step = (float(p) for p in text.split(":"))
-            if step <= 0 or stop < start:
-                raise ValueError
-            values = np.arange(start, stop + 0.5 * step, step)
-        else:
-            values = np.array([float(p) for p in text.split(",") if p.strip()])
-    except ValueError:
-        raise InputError(f"--view-angles-deg {spec!r} is not START:STOP:STEP or a list",
-                         fix="e.g. --view-angles-deg 0:80:10 or --view-angles-deg 10,40,70"
-                         ) from None
-    if values.size == 0:
-        raise InputError("--view-angles-deg is empty", fix="e.g. --view-angles-deg 0:80:10")
-    return values
+    """``"0:80:10"`` (inclusive) or ``"10,40,70"`` → (V,) degrees (:data:`VIEW_ANGLES_DEG`)."""
+    return np.asarray(VIEW_ANGLES_DEG.parse(spec))
 
 
 # ------------------------------------------------------------------------- channels --

@@ -1,0 +1,124 @@
+"""``gonio.material`` v1 and v2: a fitted reflectance model (``gonio fit`` writes it,
+``gonio lobes``, ``gonio render`` and ``gonio export`` read it), and the range of every
+model parameter (:data:`PARAM_RANGES`)."""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .. import brdf
+from ..brdf import MODELS
+from ..errors import ArtifactError
+from .spec import (FREE, MAX_MAGNITUDE, NON_NEGATIVE, WAVELENGTHS, Array,
+                   Number, Obj, Text, envelope_fields, json_kind, optional, read_artifact_as,
+                   required, validate, write_artifact_as)
+
+
+@dataclass
+class Material:
+    """A fitted reflectance model (``gonio.material`` v2), read by lobes and render.
+
+    Attributes
+    ----------
+    model : a key of :data:`gonio_cli.brdf.MODELS` (``goniochromatic`` …).
+    wavelength_nm : (n_λ,) the grid of the spectral parameters.
+    params : the model's parameters by name: scalars (``alpha``) as float, spectra
+        (``rho``, ``c``, ``f0``, ``kd`` …) as (n_λ,) arrays. Written at the top level of
+        the artifact, so a material reads like the paper: ``alpha``, ``rho``, ``c``.
+    status : the fit's verdict, "good", "poor" or "failed" (:mod:`gonio_cli.fit.verdict`;
+        a failed fit is written only on request). Version 1 files said "success" or
+        "failed"; they are read as they are.
+    fit : how it was obtained: ``final`` (the method whose parameters these are) and
+        ``methods`` (per method: parameters, errors, optimiser, evaluations, time_s).
+    """
+
+    model: str
+    wavelength_nm: np.ndarray
+    params: dict[str, Any]
+    status: str = "good"
+    fit: dict[str, Any] = field(default_factory=dict)
+
+    SCHEMA = "gonio.material"
+    VERSION = 2
+    #: Versions read: 1 (status success/failed) and 2 (status good/poor/failed).
+    READ_VERSIONS = (1, 2)
+    STATUSES = {1: ("success", "failed"), 2: ("good", "poor", "failed")}
+
+    def to_payload(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"model": self.model, "status": self.status,
+                               "wavelength_nm": self.wavelength_nm}
+        out.update(self.params)
+        out["fit"] = self.fit
+        return out
+
+    def evaluate(self, cos) -> np.ndarray:
+        """f in sr⁻¹ at :class:`~gonio_cli.geometry.Cosines` (...,) → (..., n_λ)."""
+        return brdf.evaluate(self.model, cos, self.params)
+
+    FIX = "regenerate it with gonio fit"
+
+    @classmethod
+    def spec(cls, model: str, version: int = VERSION) -> Obj:
+        """The one definition of a ``gonio.material`` document of ``model`` (docs/schemas/)."""
+        m = MODELS[model]
+        return Obj({**envelope_fields(cls.SCHEMA, (version,)),
+                    "model": required(Text((model,))),
+                    "status": optional(Text(cls.STATUSES[version])),
+                    "wavelength_nm": required(WAVELENGTHS),
+                    **{k: required(PARAM_RANGES[k]) for k in m.scalar_params},
+                    **{k: required(Array(1, PARAM_RANGES[k])) for k in m.spectral_params},
+                    "fit": optional(FREE)})
+
+    @classmethod
+    def from_document(cls, doc: dict[str, Any], path=None) -> "Material":
+        model = doc.get("model")
+        if not isinstance(model, str) or model not in MODELS:
+            raise ArtifactError(f"field 'model' is {json_kind(model)}, not a known model",
+                                path=path, fix=f"one of {', '.join(MODELS)}")
+        version = doc.get("schema_version", cls.VERSION)
+        f = validate(doc, cls.spec(model, version if version in cls.STATUSES else cls.VERSION),
+                     path, cls.FIX)
+        wl = f["wavelength_nm"]
+        spec = MODELS[model]
+        params: dict[str, Any] = {k: float(f[k]) for k in spec.scalar_params}
+        for name in spec.spectral_params:
+            params[name] = f[name]
+            if params[name].shape != wl.shape:
+                raise ArtifactError(f"field {name!r} has {params[name].size} values for "
+                                    f"{wl.size} wavelengths", path=path, fix=cls.FIX)
+        status = f.get("status", cls.STATUSES[version][0])
+        return cls(model, wl, params, status, dict(f.get("fit") or {}))
+
+
+#: Bound of |c(λ)| in seed 000 eq. 5's exp(c x), x in [0, 1]: e^100 ≈ 3e43, so ρ e^{c x}
+#: stays finite in float64 for any ρ ≤ MAX_MAGNITUDE; gonio fit searches |c| ≤ 60
+#: (fit.separable.C_LIMIT), so nothing it writes is refused.
+C_MAX = 100.0
+
+#: The range of every material parameter (brdf.MODELS), by name: α of GGX in (0, 1]
+#: (seed 000 eq. 3, fit.common.ALPHA_MAX); Beckmann m in (0, 1] (seed 004 eq. 9,
+#: fit.cook_torrance.M_MAX); Fresnel F0 in [0, 1]; scales and albedos in
+#: [0, MAX_MAGNITUDE]. A test checks that every model parameter is listed.
+PARAM_RANGES: dict[str, Number] = {
+    **{k: Number(0.0, 1.0, lo_open=True) for k in ("alpha", "alpha_coat", "alpha_2")},
+    **{k: Number(0.0, 1.0, lo_open=True) for k in ("m", "m_1", "m_2", "m_3")},
+    **{k: Number(0.0, 1.0) for k in ("f0", "f0_coat")},
+    **{k: NON_NEGATIVE for k in ("rho", "rho_d", "rho_2", "kd", "ks", "ks_1", "ks_2", "ks_3",
+                                 "k_coat")},
+    "c": Number(-C_MAX, C_MAX),
+    "b0": NON_NEGATIVE, "h": Number(0.0, MAX_MAGNITUDE, lo_open=True),
+}
+
+
+def read_material(path: str | os.PathLike) -> Material:
+    """Read and validate a ``gonio.material`` artifact."""
+    return read_artifact_as(Material, path)
+
+
+def write_material(path: str | os.PathLike, m: Material, **envelope) -> dict:
+    """Write a material atomically with provenance."""
+    return write_artifact_as(path, m, **envelope)
