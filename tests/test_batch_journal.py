@@ -164,6 +164,23 @@ def test_lost_submits_again_within_the_retries(tmp_path, starts, submissions, ag
                                        "(--retries 1); last: RuntimeError: KilledWorker")
 
 
+def test_a_job_that_ended_inside_a_lost_task_keeps_its_record(tmp_path):
+    """A task runs several jobs (engine.chunks): when its worker dies after the first
+    ended, that job's receipt is its record (--retries 0 or not), nothing is run again;
+    once its output changes, the receipt no longer stands."""
+    job = _preview_job(tmp_path)
+    outdir = str(tmp_path / "out")
+    rec = execute(job, outdir, None, (), SETTINGS)
+    assert rec["status"] == "ok"
+    write_receipt(outdir, job.file_name, rec)
+    for retries in (0, 1):
+        got = lost(job, RuntimeError("KilledWorker"), outdir, {**SETTINGS, "retries": retries}, 1)
+        assert got == rec
+    Image.fromarray(np.zeros((2, 2, 3), np.uint8)).save(job.outputs[0])
+    assert lost(job, RuntimeError("KilledWorker"), outdir, {**SETTINGS, "retries": 0}, 1)[
+        "status"] == "failed"
+
+
 def test_signals_held_defers_sigterm_to_the_end_of_the_block():
     """A SIGTERM sent while a record is being journalled runs its handler after the
     block, once; sent from another thread too (the kernel may hand a process's signal to

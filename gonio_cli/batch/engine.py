@@ -30,8 +30,8 @@ from .. import __version__
 from ..errors import InputError
 from ..folders import make_folder
 from ..machine import cpu_count
-from .jobs import attempt_log, execute_chunk, failed_roots, files, record, timed_out, \
-    why_stale, worker_version
+from .jobs import attempt_log, execute_chunk, failed_roots, files, receipt, record, \
+    timed_out, why_stale, worker_version
 from .journal import DONE_DIR, Journal, clear_run_state, compact, lock_folder, read_journal, \
     read_receipt, recover_receipts
 from .plan import Plan, dependencies
@@ -257,13 +257,11 @@ def _submit(plan, stale, records, previous, settings, cluster_args, on_start,
     pending = as_completed()
     running: dict[str, list[tuple[str, int]]] = {}  # task key -> [(job key, submissions)]
 
-    def slots() -> int:
-        return max(1, sum(client.nthreads().values()))
-
     def submit(go: list[tuple[str, int]]) -> None:
         """Submit the jobs ``go`` ((key, submission number)) in one call, in tasks of
         :func:`chunks` (a job submitted again after a loss goes alone)."""
-        groups = chunks(go, [jobs[k].command.split()[0] for k, _ in go], slots(),
+        slots = max(1, sum(client.nthreads().values()))
+        groups = chunks(go, [jobs[k].command.split()[0] for k, _ in go], slots,
                         settings["jobs_per_task"])
         if not groups:
             return
@@ -306,24 +304,33 @@ def _submit(plan, stale, records, previous, settings, cluster_args, on_start,
             on_start(len(stale), client.dashboard_link if cluster_args[2] else None)
         submit([(k, 1) for k in stale if waiting[k] == 0])
         while not pending.is_empty():
-            done, again = [], []
-            for future, result in _gather(client, pending.next_batch()):
-                group = running.pop(future.key)
-                if not isinstance(result, BaseException):
-                    done += result
-                    continue
-                for key, n in group:  # each job of a lost task: its receipt, again or failed
-                    rec = lost(jobs[key], result, outdir, settings, n)
-                    if rec is None:
-                        again.append((key, n + 1))
-                    else:
-                        done.append(rec)
+            done, again = _results(_gather(client, pending.next_batch()), running, jobs,
+                                   outdir, settings)
             submit(again + finish(done))
     finally:
         journal.close()
         client.close()
         if cluster is not None:
             cluster.close()
+
+
+def _results(arrived, running, jobs, outdir: str, settings) -> tuple[list[dict], list]:
+    """(records, [(job key, submission number)] to submit again) of the tasks that
+    ``arrived`` ([(future, its records or the exception it ended in)]): each job of a
+    lost task gets its receipt, another start or its failed record (:func:`lost`)."""
+    done, again = [], []
+    for future, result in arrived:
+        group = running.pop(future.key)
+        if not isinstance(result, BaseException):
+            done += result
+            continue
+        for key, n in group:
+            rec = lost(jobs[key], result, outdir, settings, n)
+            if rec is None:
+                again.append((key, n + 1))
+            else:
+                done.append(rec)
+    return done, again
 
 
 def _count_down(waiting: dict[str, int], key: str) -> bool:
@@ -391,10 +398,14 @@ def _waits(stale: list[str], deps: Mapping[str, list[str]]):
 def lost(job, exc: BaseException, outdir: str, settings: Mapping[str, Any],
          submissions: int) -> dict | None:
     """The record of a job whose task ended in an exception (its worker died and the
-    scheduler gave up, the cluster went), or None to submit it again: fewer than
+    scheduler gave up, the cluster went): its receipt if it had ended (a task runs
+    several jobs, :func:`chunks`), else None to submit it again: fewer than
     ``retries`` + 1 starts so far and not stopped by the time limit. A task can be lost
     before it starts (queued on a worker that died): it is submitted again too, up to
     twice the starts allowed in all, so a task that can never start ends."""
+    done = receipt(job, outdir, settings["run"])  # it ended before its task was lost
+    if done is not None:
+        return done
     starts = len(attempt_log(outdir, job))
     limit = timed_out(outdir, job)
     common = {"attempts": starts, "run": settings["run"]}

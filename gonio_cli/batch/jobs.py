@@ -320,6 +320,16 @@ def refused(job: Job, outdir: str, attempts: int, retries: int) -> dict | None:
     return None
 
 
+def receipt(job: Job, outdir: str, run) -> dict[str, Any] | None:
+    """The record ``job`` left when it ended in this batch (``run``), if its outputs are
+    still what it says: the job is done, whatever became of its task."""
+    done = read_receipt(outdir, job.file_name)
+    if done is not None and done.get("run") == run and all(
+            sha256(o["path"]) == o["sha256"] for o in done.get("outputs", [])):
+        return done
+    return None
+
+
 def execute(job: Job, outdir: str, previous: Mapping[str, Any] | None,
             upstream: tuple = (), settings: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """Run one job in a worker and return its manifest record.
@@ -334,9 +344,8 @@ def execute(job: Job, outdir: str, previous: Mapping[str, Any] | None,
     settings = dict(settings or {})
     run = settings.get("run")
     attempts = note_attempt(outdir, job)
-    done = read_receipt(outdir, job.file_name)
-    if done is not None and done.get("run") == run and all(
-            sha256(o["path"]) == o["sha256"] for o in done.get("outputs", [])):
+    done = receipt(job, outdir, run)
+    if done is not None:
         return done
     want = settings.get("gonio_version")
     if want and want != __version__:

@@ -103,8 +103,6 @@ def batch(
 
 def _check_options(workers, scheduler, retries, job_timeout, jobs_per_task, output) -> None:
     """One line on the first option that cannot be used."""
-    from ..errors import InputError
-
     if workers is not None and scheduler is not None:
         raise InputError("--workers and --scheduler exclude each other",
                          fix="a running cluster has its own workers; give one of them")
