@@ -875,7 +875,7 @@ def write_prefilter_index(path: str | os.PathLike, index: PrefilterIndex, **enve
 
 # --------------------------------------------------------------------- render report --
 
-#: ``gonio render --report`` (:func:`gonio_cli.render.pipeline.write_report`).
+#: ``gonio render --report`` (:func:`gonio_cli.render.output.write_report`).
 RENDER_REPORT_SCHEMA = "gonio.render-report"
 RENDER_REPORT_VERSION = 1
 

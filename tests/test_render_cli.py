@@ -225,16 +225,16 @@ def test_nan_samples_from_shading_are_counted_and_blacked(run_gonio, scene, tmp_
                                                           monkeypatch):
     """A shading NaN (a bug upstream, or a degenerate input that slipped through) never
     reaches the files: it is set to black with one warning that counts it."""
-    from gonio_cli.render import shade as shade_module
+    from gonio_cli.render import pipeline as pipeline_module
 
-    real = shade_module.shade_rows
+    real = pipeline_module.shade_rows
 
     def nan_shade(*args, **kwargs):
         out = real(*args, **kwargs)           # one row per covered sample
         out[5:9] = np.nan
         return out
 
-    monkeypatch.setattr(shade_module, "shade_rows", nan_shade)
+    monkeypatch.setattr(pipeline_module, "shade_rows", nan_shade)
     rep, exr = tmp_path / "r.json", tmp_path / "o.exr"
     r = run_gonio("render", scene, "-o", tmp_path / "o.png", "--exr", exr, "--report", rep)
     assert r.exit_code == 0, r.stderr

@@ -245,7 +245,7 @@ def run_gonio(job: Job, warnings: list[str]) -> str | None:
 def run_preview(job: Job, warnings: list[str]) -> str | None:  # noqa: ARG001
     """Assemble a turntable's frames (the job's inputs, in order) into an animated PNG."""
     from ..imageio import write_apng
-    from ..render.pipeline import turntable_metadata
+    from ..render.output import turntable_metadata
 
     frames = list(job.inputs)
     write_apng(job.outputs[0], frames, metadata=turntable_metadata(frames))

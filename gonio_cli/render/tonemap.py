@@ -177,6 +177,12 @@ def scene_white_xyz(lights, grid_nm, target) -> np.ndarray | None:
     return total / total[1]
 
 
+def scene_white(scene) -> np.ndarray | None:
+    """The white of a :class:`~gonio_cli.render.scene.Scene`, XYZ (3,) with Y = 1: its
+    lights' irradiance-weighted spectra (:func:`scene_white_xyz`); None without lights."""
+    return scene_white_xyz(scene.lights, scene.grid_nm, scene.camera.target)
+
+
 #: Squared distance floor (scene units²) for a point light sitting on the camera target:
 #: its weight stays finite and it then dominates the white, as it dominates the image.
 MIN_DISTANCE_SQ = 1e-12

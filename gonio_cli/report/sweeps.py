@@ -212,7 +212,8 @@ def render_scene_file(path: Path, variables: dict | None = None, *, doc: dict | 
     width, height, ssaa, spectral; ``doc``: the scene as data, ``path`` then only anchors
     its relative paths). Returns (Frame, Stats, frame time s)."""
     from ..render import Stats
-    from ..render.pipeline import frame_time, render_scene
+    from ..render.frame import frame_time
+    from ..render.pipeline import render_scene
     from ..render.scene import load_scene
 
     stats = Stats()
