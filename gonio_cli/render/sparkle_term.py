@@ -12,7 +12,7 @@ from ..errors import InputError
 from ..geometry import Cosines, cosines_from_dots
 from ..schemas import Material
 from . import GBuffer, Light
-from .shade import BLOCK, incident
+from .direct import BLOCK, incident
 from .surface import Surface
 
 
