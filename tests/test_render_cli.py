@@ -200,7 +200,7 @@ def test_lobes_method_without_lobes_is_one_line(run_gonio, scene, tmp_path):
 def test_help_and_tonemap_names_match_the_registry(run_gonio):
     from gonio_cli.commands import render as shell
     from gonio_cli.render.shade import SPECTRAL_PATHS
-    from gonio_cli.render.scene import Output
+    from gonio_cli.render.scene_types import Output
     from gonio_cli.render.tonemap import (ADAPTATIONS, DEFAULT_ADAPTATION, DEFAULT_TONEMAP,
                                           TONEMAPS)
 

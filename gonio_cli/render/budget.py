@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .scene import Scene
+from .scene_types import Scene
 
 
 #: Bytes per covered sample of the shading and the resolve besides the G-buffer: the

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
-from .scene import Scene
+from .scene_types import Scene
 
 
 def environment_method(scene: Scene, o) -> str:

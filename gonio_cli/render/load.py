@@ -27,7 +27,7 @@ from .frame import Stage
 from .glint_term import glint_surface
 from .measured import measured_material
 from .mesh import load_mesh, require_uvs, transform
-from .scene import Scene
+from .scene_types import Scene
 from .surface import Surface
 from .texture import MaskPyramid
 

@@ -22,7 +22,7 @@ from ..schemas import RENDER_REPORT_VERSION as REPORT_VERSION
 from ..spectra import grid_spec
 from . import Stats
 from .frame import FRAME_STAGES, Frame, Stage, frame_time
-from .scene import Scene
+from .scene_types import Scene
 from .tonemap import (DEFAULT_EXR_ADAPTATION, get_adaptation, get_exr_space, scene_white,
                       xyz_to_exr_matrix, xyz_to_linear)
 

@@ -53,7 +53,7 @@ from .load import SceneKey, build_surfaces, load_meshes
 from .occlusion import occlusion_visibility
 from .raster import rasterize
 from .resolve import resolve
-from .scene import Scene
+from .scene_types import Scene
 from .shade import shade_rows
 from .shadow import shadow_visibility
 from .shadowmap import lone_convex

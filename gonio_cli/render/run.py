@@ -21,7 +21,8 @@ from .frame import frame_time
 from .options import OVERRIDE_FLAGS, RenderOptions, check_options, declared_outputs, frame_files
 from .output import turntable_metadata, write_outputs, write_report
 from .pipeline import render_scene
-from .scene import Scene, load_scene
+from .scene import load_scene
+from .scene_types import Scene
 from .turntable import orbit
 
 

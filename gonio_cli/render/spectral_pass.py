@@ -10,7 +10,7 @@ import numpy as np
 from ..errors import InputError
 from .budget import bands_per_pass
 from .resolve import resolve
-from .scene import Scene
+from .scene_types import Scene
 
 
 def check_spectral_lobes(scene: Scene, surfaces: list) -> None:
