@@ -60,7 +60,7 @@ class Mesh:
     normals : (V, 3) unit vertex normals (smooth) ; uvs : (V, 2) or None
     (OpenGL convention: v = 0 is the bottom row of a texture image).
     closed : the faces form closed surfaces facing outwards
-    (:func:`gonio_cli.render.mesh.closed_surface`), so from outside only front faces can
+    (:func:`gonio_cli.render.solid.closed_surface`), so from outside only front faces can
     be seen; False when unknown (the rasterizer then tests every face).
     """
 

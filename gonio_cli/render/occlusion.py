@@ -53,6 +53,7 @@ from .shadow import BLOCK as SHADOW_BLOCK
 from .shadow import light_visibility
 from .shadowmap import _light_basis, lone_convex
 from .skycut import SkyDirections
+from .solid import is_convex
 
 #: Directions (regions of the sky) when ``[environment] occlusion = true``: 24 regions of
 #: a 1k sky are ~0.5 sr each (~45° across, :data:`.skycut.MAX_SPREAD_DEG` at most), so the
@@ -139,8 +140,6 @@ def occludes_itself(mesh: Mesh) -> bool:
     """Whether a mesh can hide part of the sky from a point on itself: not a convex
     solid (:func:`.solid.is_convex`) and not flat (its vertices within
     :data:`FLAT_TOLERANCE` of its size of one plane: a floor)."""
-    from .solid import is_convex
-
     v = np.asarray(mesh.vertices, np.float64)
     if len(mesh.faces) == 0 or is_convex(mesh):
         return False

@@ -25,6 +25,7 @@ import numpy as np
 
 from . import Light, Mesh
 from .depthmap import clip_near, dilate, empty_map, rasterize_depth
+from .solid import is_convex
 
 #: Texels per lit sample: a map side is √(2 n) for n samples in a square, ~1.4 texels
 #: across a sample, so a shadow edge (located to ±½ texel by the map, smoothed over ≥ 1
@@ -351,7 +352,5 @@ def lone_convex(meshes: list[Mesh]) -> bool:
     """True when the scene holds one mesh with faces and it is a convex solid
     (:func:`.solid.is_convex`): no lit point of it can be shadowed (every ray from its
     surface towards a light it faces leaves the solid for good), so no map is needed."""
-    from .solid import is_convex
-
     solid = [m for m in meshes if len(m.faces)]
     return len(solid) == 1 and is_convex(solid[0])
