@@ -107,7 +107,7 @@ def on_grid(material, grid_nm: np.ndarray, path: Path):
 
 
 def build_surfaces(scene: Scene, stats: Stats) -> list:
-    """One :class:`~gonio_cli.render.shade.Surface` per object: materials read once per
+    """One :class:`~gonio_cli.render.surface.Surface` per object: materials read once per
     file, mask pyramids for printed objects only, lobes only with an environment."""
     materials: dict[Path, Any] = {}
 

@@ -154,6 +154,7 @@ def visible_keys(st, w, h, F, hiz: bool = True, culled: np.ndarray | None = None
 def c_build_available() -> bool:
     """Whether the C build (``_rasterscan.c``) was compiled when gonio was installed."""
     try:
+        # lazy: whether the C build is there is the question (an ImportError when not)
         from . import _rasterscan  # noqa: F401
     except ImportError:
         return False
