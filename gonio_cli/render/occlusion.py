@@ -51,7 +51,7 @@ import numpy as np
 from . import GBuffer, Light, Mesh
 from .shadow import BLOCK as SHADOW_BLOCK
 from .shadow import light_visibility
-from .shadowmap import _light_basis, lone_convex
+from .shadowmap import light_basis, lone_convex
 from .skycut import SkyDirections
 from .solid import is_convex
 
@@ -171,7 +171,7 @@ def _may_be_hidden(light: Light, p: np.ndarray, owner: np.ndarray, boxes, self_h
     (the top's height above the sample × tan(α/2)) + ``margin``. A mesh that cannot
     occlude itself (``self_hiding`` False) is no caster for its own samples."""
     L = np.asarray(light.direction, np.float64)
-    basis = _light_basis(-L)                                   # rows: right, up, forward
+    basis = light_basis(-L)                                   # rows: right, up, forward
     x, y = (np.float32(r[0]) * p[0] + np.float32(r[1]) * p[1] + np.float32(r[2]) * p[2]
             for r in basis[:2].tolist())
     h = L.astype(np.float32) @ p
