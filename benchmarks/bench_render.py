@@ -98,7 +98,9 @@ def warm_frame(scene: Path, ssaa: int, repeats: int) -> dict[str, float]:
     """Median per-stage times (s) of ``repeats`` renders in this process (after one)."""
     from gonio_cli import log
     from gonio_cli.render import Stats, raster
-    from gonio_cli.render.pipeline import frame_time, load_meshes, render_scene
+    from gonio_cli.render.frame import frame_time
+    from gonio_cli.render.load import load_meshes
+    from gonio_cli.render.pipeline import render_scene
     from gonio_cli.render.scene import load_scene
 
     log.set_quiet(True)

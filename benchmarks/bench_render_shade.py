@@ -29,7 +29,8 @@ use_blas_threads()  # before numpy: kernels timed as in a gonio process
 import numpy as np
 
 from gonio_cli.render import GBuffer, Light, Stats
-from gonio_cli.render.shade import Surface, shade
+from gonio_cli.render.shade import shade
+from gonio_cli.render.surface import Surface
 from gonio_cli.schemas import Material, read_material
 from gonio_cli.spectra import illuminant, parse_grid
 

@@ -117,7 +117,8 @@ def warm_frame(scene: Path, repeats: int) -> tuple[dict[str, float], dict]:
     the last run's shadow counts."""
     from gonio_cli import log
     from gonio_cli.render import Stats
-    from gonio_cli.render.pipeline import frame_time, render_scene
+    from gonio_cli.render.frame import frame_time
+    from gonio_cli.render.pipeline import render_scene
     from gonio_cli.render.scene import load_scene
 
     log.set_quiet(True)
@@ -137,7 +138,7 @@ def kernel_parts(scene: Path, repeats: int) -> dict[str, float]:
     seconds of ``repeats`` calls."""
     from gonio_cli.render import shadow, shadowmap
     from gonio_cli.render.budget import needs_positions
-    from gonio_cli.render.pipeline import load_meshes
+    from gonio_cli.render.load import load_meshes
     from gonio_cli.render.raster import rasterize
     from gonio_cli.render.scene import load_scene
 

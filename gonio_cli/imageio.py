@@ -29,6 +29,9 @@ from . import __version__
 from .artifact import atomic_path, check_finite
 from .errors import InputError
 from .names import pick
+from .outputs import readable
+from .runrecord import drop_timings, portable
+from .spectra import rgb_space_chromaticities
 
 #: Prefix of gonio's metadata attributes in image headers.
 META_PREFIX = "gonio:"
@@ -178,8 +181,6 @@ def _with_version(metadata: Mapping[str, Any] | None, path: str | os.PathLike
     the caller's :func:`gonio_cli.artifact.image_metadata` has it), then the caller's keys,
     reproducibly (:mod:`gonio_cli.runrecord`): no times (``time_s``, ``…_time_s``: the
     command's JSON and run report have them), paths relative to the image's folder."""
-    from .runrecord import drop_timings, portable
-
     return portable(drop_timings({"gonio_version": __version__, **(metadata or {})}), path)
 
 
@@ -269,8 +270,6 @@ def write_apng(path: str | os.PathLike, frames: Sequence[str | os.PathLike], *,
     ``compression``: a key of :data:`COMPRESSION`."""
     from PIL import Image as PILImage
     from PIL.PngImagePlugin import PngInfo
-
-    from .outputs import readable
 
     images = []
     for f in frames:  # frames this command wrote may still be held back (outputs.py)
@@ -389,8 +388,6 @@ def write_spectral_exr(path: str | os.PathLike, spectra: np.ndarray, wavelength_
     from colour.io import (Image_Specification_Attribute, Specification_Fichet2021,
                            write_spectral_image_Fichet2021)
     from OpenImageIO import TypeDesc
-
-    from .spectra import rgb_space_chromaticities
 
     with np.errstate(over="ignore"):  # a value beyond float32 becomes inf: refused next
         values = np.asarray(spectra, dtype=np.float32)

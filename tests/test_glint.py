@@ -16,7 +16,8 @@ from gonio_cli.errors import InputError
 from gonio_cli.geometry import Cosines
 from gonio_cli.render import GBuffer, Light
 from gonio_cli.render.glint_term import GlintView, light_cone, lobe_tables, lobe_xyz
-from gonio_cli.render.shade import Surface, shade
+from gonio_cli.render.shade import shade
+from gonio_cli.render.surface import Surface
 from gonio_cli.schemas import Material
 from gonio_cli.spectra import cmf_weights, illuminant, parse_grid
 

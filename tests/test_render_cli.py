@@ -200,7 +200,7 @@ def test_lobes_method_without_lobes_is_one_line(run_gonio, scene, tmp_path):
 def test_help_and_tonemap_names_match_the_registry(run_gonio):
     from gonio_cli.commands import render as shell
     from gonio_cli.render.shade import SPECTRAL_PATHS
-    from gonio_cli.render.scene import Output
+    from gonio_cli.render.scene_types import Output
     from gonio_cli.render.tonemap import (ADAPTATIONS, DEFAULT_ADAPTATION, DEFAULT_TONEMAP,
                                           TONEMAPS)
 
@@ -225,16 +225,16 @@ def test_nan_samples_from_shading_are_counted_and_blacked(run_gonio, scene, tmp_
                                                           monkeypatch):
     """A shading NaN (a bug upstream, or a degenerate input that slipped through) never
     reaches the files: it is set to black with one warning that counts it."""
-    from gonio_cli.render import shade as shade_module
+    from gonio_cli.render import pipeline as pipeline_module
 
-    real = shade_module.shade_rows
+    real = pipeline_module.shade_rows
 
     def nan_shade(*args, **kwargs):
         out = real(*args, **kwargs)           # one row per covered sample
         out[5:9] = np.nan
         return out
 
-    monkeypatch.setattr(shade_module, "shade_rows", nan_shade)
+    monkeypatch.setattr(pipeline_module, "shade_rows", nan_shade)
     rep, exr = tmp_path / "r.json", tmp_path / "o.exr"
     r = run_gonio("render", scene, "-o", tmp_path / "o.png", "--exr", exr, "--report", rep)
     assert r.exit_code == 0, r.stderr

@@ -15,7 +15,8 @@ from gonio_cli.prefilter import prefilter
 from gonio_cli.render import Stats
 from gonio_cli.render.environment import (Environment, environment_xyz, load_environment,
                                           rgb_basis, view_interpolation)
-from gonio_cli.render.shade import Surface, shade
+from gonio_cli.render.shade import shade
+from gonio_cli.render.surface import Surface
 from gonio_cli.schemas import Lobes
 from gonio_cli.spectra import cmfs
 

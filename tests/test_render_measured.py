@@ -8,7 +8,8 @@ import pytest
 
 from gonio_cli.geometry import in_plane_cosines, in_plane_directions
 from gonio_cli.render.measured import MeasuredMaterial
-from gonio_cli.render.shade import Surface, shade
+from gonio_cli.render.shade import shade
+from gonio_cli.render.surface import Surface
 from gonio_cli.schemas import Measurement
 
 from test_render_shade import WL, delta_e, ink, lights_two, sphere_gbuffer

@@ -14,7 +14,8 @@ from gonio_cli.render.crease import away_from_terminators, crease_ratio, lightne
 from gonio_cli.render.measured import MeasuredMaterial, measured_material
 from gonio_cli.render.measured_smooth import (MEASURED_RADIUS_DEG, SmoothMeasured,
                                               direction_coordinates)
-from gonio_cli.render.shade import Surface, shade
+from gonio_cli.render.shade import shade
+from gonio_cli.render.surface import Surface
 from gonio_cli.schemas import Measurement
 from gonio_cli.spectra import illuminant
 from gonio_cli.synthetic import paper_geometry

@@ -8,6 +8,7 @@ import pytest
 from gonio_cli import envmap
 from gonio_cli.errors import InputError
 from gonio_cli.render import mesh as M
+from gonio_cli.render.solid import closed_surface
 
 
 def face_normals(m):
@@ -215,16 +216,16 @@ def test_closed_surface_needs_every_edge_paired_and_the_faces_outwards():
     vertex), also split per face as an OBJ with per-corner normals is; not the plane, a
     sphere with a hole, one turned inside out, one with a single face turned."""
     s = M.uv_sphere(24, 12)
-    assert M.closed_surface(s.vertices, s.faces)
+    assert closed_surface(s.vertices, s.faces)
     split = s.vertices[s.faces].reshape(-1, 3)                # 3 vertices per face
-    assert M.closed_surface(split, np.arange(len(split)).reshape(-1, 3))
-    assert not M.closed_surface(*(lambda p: (p.vertices, p.faces))(M.plane(2)))
-    assert not M.closed_surface(s.vertices, s.faces[1:])                 # a hole
-    assert not M.closed_surface(s.vertices, np.concatenate([s.faces, s.faces]))  # 4 per edge
-    assert not M.closed_surface(s.vertices, s.faces[:, ::-1])            # inside out
+    assert closed_surface(split, np.arange(len(split)).reshape(-1, 3))
+    assert not closed_surface(*(lambda p: (p.vertices, p.faces))(M.plane(2)))
+    assert not closed_surface(s.vertices, s.faces[1:])                 # a hole
+    assert not closed_surface(s.vertices, np.concatenate([s.faces, s.faces]))  # 4 per edge
+    assert not closed_surface(s.vertices, s.faces[:, ::-1])            # inside out
     turned = s.faces.copy()
     turned[5] = turned[5, ::-1]
-    assert not M.closed_surface(s.vertices, turned)
+    assert not closed_surface(s.vertices, turned)
     # the flag comes with the loaded mesh and survives placement, a mirror included
     assert M.load_mesh("builtin:sphere?segments=24").closed
     assert not M.load_mesh("builtin:plane").closed

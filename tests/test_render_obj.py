@@ -169,11 +169,9 @@ def test_cache_is_keyed_by_content(tmp_path, monkeypatch):
     write_sphere_obj(path, 12)
     first = load_mesh(str(path))
     assert len(list((tmp_path / "cache").glob("obj-*.npz"))) == 1
-    import gonio_cli.render.obj as obj_module
-
     calls = []
-    real = obj_module.read_obj
-    monkeypatch.setattr(obj_module, "read_obj", lambda *a, **k: calls.append(1) or real(*a, **k))
+    real = mesh_module.read_obj
+    monkeypatch.setattr(mesh_module, "read_obj", lambda *a, **k: calls.append(1) or real(*a, **k))
     again = load_mesh(str(path))                      # a hit: the parser does not run
     assert calls == []
     np.testing.assert_array_equal(again.vertices, first.vertices)

@@ -431,7 +431,7 @@ def test_resolve_at_ssaa_1_scatters_rows_and_defers_xyz():
     """At ssaa 1 the resolve is a scatter: XYZ and coverage are the rows at their pixels
     (zero and 0 elsewhere), the linear image is the rows times the matrix (float32 round-
     off), and the frame's XYZ is made only when asked, equal to the eager one."""
-    from gonio_cli.render.pipeline import Frame
+    from gonio_cli.render.frame import Frame
     from gonio_cli.render.resolve import resolve
 
     rng = np.random.default_rng(5)

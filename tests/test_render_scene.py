@@ -13,7 +13,8 @@ import pytest
 from gonio_cli.errors import InputError
 from gonio_cli.evaluate import grid_spec
 from gonio_cli.render.pipeline import render_scene
-from gonio_cli.render.scene import choose_grid, load_scene
+from gonio_cli.render.scene import load_scene
+from gonio_cli.render.scene_grid import choose_grid
 from gonio_cli.schemas import Material, write_material
 from gonio_cli.spectra import cmfs, delta_e_2000, parse_grid, xyz_to_lab
 

@@ -9,8 +9,10 @@ from gonio_cli.errors import InputError
 from gonio_cli.geometry import cosines
 from gonio_cli.render import GBuffer, Light, Stats
 from gonio_cli.geometry import cosines_from_dots
-from gonio_cli.render.shade import (Surface, goniochromatic_table, shade,
-                                    table_lookup, xyz_weights, TABLE_REL_TOL)
+from gonio_cli.render.kernels import (TABLE_REL_TOL, goniochromatic_table, table_lookup,
+                                      xyz_weights)
+from gonio_cli.render.shade import shade
+from gonio_cli.render.surface import Surface
 from gonio_cli.schemas import Material
 from gonio_cli.spectra import illuminant, parse_grid
 
@@ -376,7 +378,8 @@ def test_float32_shading_matches_float64():
     move sin²θh by ~4e-7, so D's peak by ≤ 4e-7 / α² = 1.6e-4 at α = 0.05 (measured:
     6e-6 at α = 0.3, 6.5e-5 at α = 0.05 in float32, 1.3e-4 at α = 0.02 in float64 —
     the float32 normals' own rounding dominates), far below a colour difference."""
-    from gonio_cli.render.shade import FLOAT32_MIN_ALPHA, shade_rows, work_dtype
+    from gonio_cli.render.kernels import FLOAT32_MIN_ALPHA, work_dtype
+    from gonio_cli.render.shade import shade_rows
 
     g64 = sphere_gbuffer(64)
     cov = g64.covered

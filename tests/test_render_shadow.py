@@ -438,7 +438,8 @@ def test_every_shading_path_takes_the_visibility():
     material, a print (three inks and a Phong substrate) and sparkles."""
     import test_render_shade as rs
     import test_sparkle as ts
-    from gonio_cli.render.shade import Surface, shade
+    from gonio_cli.render.shade import shade
+    from gonio_cli.render.surface import Surface
 
     rng = np.random.default_rng(5)
     g = ts.flat_gbuffer(24)

@@ -15,7 +15,8 @@ from gonio_cli import sparkle as sp
 from gonio_cli.errors import InputError
 from gonio_cli.imageio import read_image
 from gonio_cli.render import GBuffer, Light, Stats
-from gonio_cli.render.shade import Surface, shade
+from gonio_cli.render.shade import shade
+from gonio_cli.render.surface import Surface
 from gonio_cli.render.sparkle_term import mirror_peak
 from gonio_cli.schemas import Material
 from gonio_cli.spectra import illuminant, parse_grid

@@ -330,7 +330,8 @@ def test_environment_and_print_give_the_closed_form_spectrum(tmp_path):
     lights too its Σλ L cmf / Σ ȳ is the XYZ path's (float64 throughout: 1e-10)."""
     from gonio_cli.render import Light
     from gonio_cli.render.environment import load_environment
-    from gonio_cli.render.shade import Surface, shade_rows
+    from gonio_cli.render.shade import shade_rows
+    from gonio_cli.render.surface import Surface
     from gonio_cli.spectra import illuminant
     from test_render_environment import env_spectrum, lobes_of, write_env
     from test_render_shade import ink, sphere_gbuffer

@@ -273,7 +273,7 @@ def run_preview(job: Job, warnings: list[str]) -> str | None:  # noqa: ARG001
     """Assemble a turntable's frames (the job's inputs, in order) into an animated PNG."""
     # lazy: a worker loads OpenImageIO and the renderer only for a turntable's preview
     from ..imageio import write_apng
-    from ..render.pipeline import turntable_metadata  # lazy: (the same)
+    from ..render.output import turntable_metadata  # lazy: (the same)
 
     frames = list(job.inputs)
     write_apng(job.outputs[0], frames, metadata=turntable_metadata(frames))

@@ -22,7 +22,10 @@ between them are the dataclasses below, so each stage can be tested on its own:
                     sum (eq. 5 depends on the angles only through x for one light
                     spectrum) or the exact 41-wavelength path.
 6. :mod:`.tonemap`  XYZ → linear sRGB → exposure → tone map → sRGB-encoded 8-bit.
-7. :mod:`gonio_cli.commands.render` the CLI: PNG and EXR out, ``--report run.json``.
+7. :mod:`.run`      the whole ``gonio render`` as a library call: :class:`.options.RenderOptions`
+                    → :func:`.run.run` (scene, frames, PNG and EXR out, ``--report``), the
+                    stages in order in :mod:`.pipeline`; :mod:`gonio_cli.commands.render`
+                    is its typer shell.
 
 Conventions (``docs/conventions.md``): right-handed world; camera ``eye``, ``target``, ``up``,
 ``fov_deg`` = full vertical field of view; pixel centres at (col + ½, row + ½), row 0 the
@@ -60,7 +63,7 @@ class Mesh:
     normals : (V, 3) unit vertex normals (smooth) ; uvs : (V, 2) or None
     (OpenGL convention: v = 0 is the bottom row of a texture image).
     closed : the faces form closed surfaces facing outwards
-    (:func:`gonio_cli.render.mesh.closed_surface`), so from outside only front faces can
+    (:func:`gonio_cli.render.solid.closed_surface`), so from outside only front faces can
     be seen; False when unknown (the rasterizer then tests every face).
     """
 

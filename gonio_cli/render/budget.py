@@ -11,7 +11,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from .scene import Scene
+from ..memory import check
+from .mesh import builtin_triangles
+from .raster import gbuffer_bytes
+from .scene_types import Scene
+from .shadowmap import MAX_MAP_SIDE, TEXELS_PER_SAMPLE
 
 
 #: Bytes per covered sample of the shading and the resolve besides the G-buffer: the
@@ -49,8 +53,6 @@ def memory_estimate(scene: Scene, spectra: bool = False) -> int:
     ``spectra``, plus :func:`spectral_image_bytes`. Built-in meshes count
     :data:`MESH_BYTES_PER_TRIANGLE` (:func:`mesh_triangles`); OBJ files and materials are
     not counted."""
-    from .raster import gbuffer_bytes
-
     cam, ssaa = scene.camera, scene.output.ssaa
     samples = cam.width * cam.height * ssaa ** 2
     return (gbuffer_bytes(cam.height, cam.width, ssaa, uv=scene.needs_uvs,
@@ -75,10 +77,8 @@ SHADOW_BYTES_PER_TEXEL = 20
 
 def shadow_bytes(scene: Scene) -> int:
     """Bytes of the shadows: the visibilities of the shadowing lights, and the largest
-    map (:data:`gonio_cli.render.shadow.TEXELS_PER_SAMPLE` texels per sample, at most
-    :data:`~gonio_cli.render.shadow.MAX_MAP_SIDE` a side; maps are made one at a time)."""
-    from .shadow import MAX_MAP_SIDE, TEXELS_PER_SAMPLE
-
+    map (:data:`gonio_cli.render.shadowmap.TEXELS_PER_SAMPLE` texels per sample, at most
+    :data:`~gonio_cli.render.shadowmap.MAX_MAP_SIDE` a side; maps are made one at a time)."""
     n = shadowing_lights(scene)
     if not n:
         return 0
@@ -108,8 +108,6 @@ def bands_per_pass(rows: int, n_wavelengths: int) -> int:
 def mesh_triangles(scene: Scene) -> int:
     """Triangles of the scene's built-in meshes, one copy per object (each is
     transformed into world space)."""
-    from .mesh import builtin_triangles
-
     return sum(builtin_triangles(o.mesh) or 0 for o in scene.objects)
 
 
@@ -118,8 +116,6 @@ def check_memory(scene: Scene, spectra: bool = False) -> int:
     memory available (:func:`gonio_cli.memory.check`); the message gives the estimate
     and the options that lower it. With ``spectra`` (a spectral image) the frame is
     checked first, then frame + image. Returns the estimate in bytes."""
-    from ..memory import check
-
     cam = scene.camera
     frame = memory_estimate(scene)
     triangles = mesh_triangles(scene)

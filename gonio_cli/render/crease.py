@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 from scipy import ndimage
+from ..spectra import xyz_to_lab
 
 #: Pixels dropped at each end of a row inside the mask: the silhouette's antialiased
 #: pixels (ssaa blends sphere and background over ~1 px) and the grazing rim, where L*
@@ -50,8 +51,6 @@ TERMINATOR_COS = 0.1
 def lightness(xyz: np.ndarray, white_y: float) -> np.ndarray:
     """CIE L* (...,) of XYZ (..., 3) relative to a white of luminance ``white_y``
     (CIE 15:2004: L* = 116 f(Y/Yn) − 16, f the cube root with its linear toe)."""
-    from ..spectra import xyz_to_lab
-
     y = np.asarray(xyz, dtype=float)[..., 1:2]
     return xyz_to_lab(np.repeat(y, 3, axis=-1), np.full(3, float(white_y)))[..., 0]
 

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import machine
+
 #: Builds of :func:`.env_model.model_environment_xyz`, in order of preference: the C
 #: extension module built by pip (``_envlookup.c``, optional: skipped where no C compiler
 #: was found) and numpy. They agree to 2e-3 of the largest value (``tests/test_env_model.py``).
@@ -18,6 +20,7 @@ C_MIN_PIXELS_PER_THREAD = 16384
 def c_build_available() -> bool:
     """Whether the C build (``_envlookup.c``) was compiled when gonio was installed."""
     try:
+        # lazy: whether the C build is there is the question (an ImportError when not)
         from . import _envlookup  # noqa: F401
     except ImportError:
         return False
@@ -31,7 +34,6 @@ def c_environment(environment, tables, matrices, normal, view, out, view_angle_d
     import inside the frame)."""
     import threading
 
-    from ..machine import cpu_count
     from ._envlookup import run
 
     used = sorted({int(level) for t in tables for level in t.levels})
@@ -53,7 +55,7 @@ def c_environment(environment, tables, matrices, normal, view, out, view_angle_d
         run(normal, view, n, b.start, b.stop, views, views.size, cos_beta, sin_beta, weights,
             mats, len(tables), maps, heights, widths, len(maps), channels, out)
 
-    threads = max(1, min(cpu_count(), n // C_MIN_PIXELS_PER_THREAD))
+    threads = max(1, min(machine.cpu_count(), n // C_MIN_PIXELS_PER_THREAD))
     edges = np.linspace(0, n, threads + 1).astype(int)
     parts = [slice(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:])]
     errors: list[BaseException] = []

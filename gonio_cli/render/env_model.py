@@ -46,10 +46,15 @@ import numpy as np
 
 from .. import log
 from ..brdf_components import DIFFUSE, Component, components
+from ..cache import cached_arrays
 from ..envmap import direction_to_spherical, lookup_angles
 from ..errors import InputError
 from ..geometry import Cosines
-from .env_lookup import BUILDS, c_build_available, c_environment  # noqa: F401 (BUILDS)
+from ..schemas import Lobes
+from ..spectra import cmf_weights
+from .env_lookup import c_build_available, c_environment
+from .environment import (channel_matrices, environment_xyz, substrate_environment_xyz,
+                          view_interpolation)
 
 #: View angles θv (degrees) of the per-material tables; 2° apart, then 89 and 89.9 so
 #: silhouette pixels (θv → 90°) interpolate rather than clamp.
@@ -204,8 +209,6 @@ def level_weights(psi: np.ndarray, mass: np.ndarray, levels: np.ndarray) -> np.n
 
 def lobe_table(component: Component, wavelength_nm, levels: np.ndarray) -> LobeTable:
     """The :class:`LobeTable` of one lobe for the chain's exponents ``levels`` (L,)."""
-    from ..spectra import cmf_weights
-
     ybar = cmf_weights(wavelength_nm)[:, 1]
     rows, n_wl = len(VIEW_ANGLES_DEG), len(wavelength_nm)
     albedo = np.zeros((rows, n_wl))
@@ -247,8 +250,6 @@ def tables_for(environment, material, wavelength_nm) -> list[LobeTable]:
     (keyed by the material's model and parameters, the grid and the chain's exponents:
     :mod:`gonio_cli.cache`), computed and stored on a miss; kept per environment."""
     import hashlib
-
-    from ..cache import cached_arrays
 
     levels = np.asarray(environment.exponents, dtype=float)
     wl = np.asarray(wavelength_nm, dtype=float)
@@ -301,12 +302,10 @@ def model_environment_xyz(environment, tables: list[LobeTable], normal: np.ndarr
     levels, :meth:`~gonio_cli.render.environment.Environment.level`); ``tables``:
     :func:`material_tables` for the environment's exponents; ``normal``, ``view``: (n, 3)
     unit N and V; ``observer`` as in :func:`gonio_cli.render.environment.environment_xyz`.
-    ``build``: one of :data:`BUILDS`, None for the first available (C where it was built):
+    ``build``: one of :data:`.env_lookup.BUILDS`, None for the first available (C where it was built):
     the C build runs every pixel in one pass on :func:`gonio_cli.machine.cpu_count`
     threads; the numpy build in blocks of :data:`BLOCK` pixels.
     """
-    from .environment import channel_matrices
-
     n = np.shape(normal)[0]
     channels = 3 if observer is None else np.shape(observer)[1]
     out = np.zeros((n, channels))
@@ -327,8 +326,6 @@ def _block_xyz(environment, tables, matrices, normal, view) -> np.ndarray:
     """:func:`model_environment_xyz` of one block: per lobe, its axis d_k, the levels it
     mixes at each pixel's view angle (the pixels sorted by view interval, so each level
     reads one slice), then its colour matrices, interpolated in θv."""
-    from .environment import view_interpolation
-
     n = normal.shape[0]
     cos_v = np.clip(np.einsum("ij,ij->i", normal, view), 0.0, 1.0)
     i0, _, t = view_interpolation(cos_v, VIEW_ANGLES_DEG)
@@ -388,7 +385,7 @@ def surface_environment_xyz(environment, surface, where: str, normal: np.ndarray
                             view: np.ndarray, cov: np.ndarray | None, wavelength_nm,
                             observer: np.ndarray | None = None,
                             visibility: np.ndarray | None = None) -> np.ndarray:
-    """Environment light (n, C) of one object (a :class:`gonio_cli.render.shade.Surface`)
+    """Environment light (n, C) of one object (a :class:`gonio_cli.render.surface.Surface`)
     by its method: its model's lobes (``env_tables``, :func:`model_environment_xyz`) or
     seed 001's lobe weights (``lobes``, :func:`~.environment.environment_xyz`); a printed
     object's inks weighted by their coverage ``cov`` (n, 3), and its substrate's Phong
@@ -396,9 +393,6 @@ def surface_environment_xyz(environment, surface, where: str, normal: np.ndarray
     ``visibility`` (n,) or None: the share of each pixel's diffuse irradiance the scene
     lets through (:mod:`gonio_cli.render.occlusion`), applied to the diffuse lobes only
     (the model's Lambertian bodies, seed 001's K_D, the substrate's kd)."""
-    from ..schemas import Lobes
-    from .environment import environment_xyz, substrate_environment_xyz
-
     def one(j: int, n, v, vis=visibility):
         if surface.env_method == "model":
             return _occluded_model_xyz(environment, surface.env_tables[j], n, v,

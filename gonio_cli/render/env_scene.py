@@ -6,8 +6,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..envmap import direction_to_spherical, lookup_angles
 from ..errors import InputError
-from .scene import Scene
+from .env_model import tables_for, warn_blurred
+from .environment import sun_light
+from .raster import pixel_rays
+from .scene_types import Scene
 
 
 def environment_method(scene: Scene, o) -> str:
@@ -28,8 +32,6 @@ def environment_method(scene: Scene, o) -> str:
 def environment_tables(scene: Scene, surfaces: list, environment) -> None:
     """The lobe tables (:mod:`.env_model`) of every object lit by method ``model``,
     from gonio's disk cache after the first render of a material with a chain."""
-    from .env_model import tables_for, warn_blurred
-
     for o, s in zip(scene.objects, surfaces):
         if s.env_method != "model":
             continue
@@ -48,9 +50,6 @@ def background_rgb(scene: Scene, environment) -> np.ndarray | None:
     or with ``background = "environment"`` the environment seen through each pixel centre
     (H, W, 3) float32 (its sharpest prefiltered map: the map itself, less a split sun)."""
     if isinstance(scene.output.background, str):
-        from ..envmap import direction_to_spherical, lookup_angles
-        from .raster import pixel_rays
-
         theta, phi = direction_to_spherical(pixel_rays(scene.camera))
         return lookup_angles(environment.level(len(environment.exponents) - 1), theta, phi)
     background = np.asarray(scene.output.background, float)
@@ -61,7 +60,5 @@ def shading_lights(scene: Scene, environment) -> list:
     """The scene's lights and the environment's sun (``gonio prefilter --sun``), if any:
     what lights the surfaces. The sun is the environment's, so it does not enter the
     scene white (a scene lit only by an environment is not adapted)."""
-    from .environment import sun_light
-
     sun = None if environment is None else sun_light(environment, scene.grid_nm)
     return list(scene.lights) + ([sun] if sun is not None else [])

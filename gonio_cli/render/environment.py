@@ -39,9 +39,12 @@ from .. import log
 from ..envmap import lookup
 from ..errors import ArtifactError, InputError
 from ..geometry import reflect
+from ..imageio import read_image
 from ..lobes import lobe_integral, phong_normalisation
-from ..schemas import MAX_MAGNITUDE, Lobes
-from ..spectra import rgb_spectral_basis
+from ..lobes.energy import lobe_energy
+from ..schemas import Lobes, MAX_MAGNITUDE, PrefilterIndex, read_prefilter_index
+from ..spectra import cmf_weights, luminance, rgb_spectral_basis, same_grid
+from . import Light
 
 #: Pixels per block of :func:`environment_xyz`, so the lookups' temporaries (4 corners ×
 #: 3 channels × lobes) stay in cache: 0.43 s instead of 0.9 s at 512² (8 lobes).
@@ -128,8 +131,6 @@ class Environment:
 
 def _read_map(path: str, shape: tuple[int, int]) -> np.ndarray:
     """Read one prefiltered map; refuse a wrong size, an 8-bit image, NaN or negatives."""
-    from ..imageio import read_image
-
     img = read_image(path)
     px = img.pixels
     if not img.is_float:
@@ -156,8 +157,6 @@ def load_environment(index_json_path: str | os.PathLike) -> Environment:
     object uses cost nothing. Missing files, a missing diffuse map (E = 1), duplicate or
     non-positive exponents are refused here, naming the file.
     """
-    from ..schemas import PrefilterIndex, read_prefilter_index
-
     path = Path(index_json_path)
     index = read_prefilter_index(path)  # types, ranges and unknown keys (docs/schemas/)
     exps, files, shapes = [], [], []
@@ -199,9 +198,6 @@ def sun_light(environment: Environment, wavelength_nm):
     irradiance E_rgb becomes the spectrum D65 Σ_c E_c B_c (docs/conventions.md), scaled
     to Σ S ȳ / Σ ȳ = 1 with ``irradiance`` its luminance; it casts shadows whose penumbrae
     are as wide as the sun's ``angular_diameter_deg`` makes them."""
-    from . import Light
-    from ..spectra import luminance
-
     if environment.sun is None:
         return None
     wl = np.asarray(wavelength_nm, dtype=float)
@@ -229,10 +225,8 @@ def channel_matrices(weights: np.ndarray, channel_kind: str, wavelength_nm,
 
     ``spectral``: Σλ K(λ) D65 B_c cmf_j / Σ ȳ. ``xyz``: K_j X_j(D65 B_c) / X_j(E) (module
     docstring). ``observer`` (n_λ, C) replaces cmf / Σ ȳ (spectral weights only:
-    :func:`gonio_cli.render.shade.xyz_weights`): the last axis then has C channels.
+    :func:`gonio_cli.render.kernels.xyz_weights`): the last axis then has C channels.
     """
-    from ..spectra import cmf_weights
-
     cm = cmf_weights(wavelength_nm) if observer is None else observer   # (n_λ, C)
     basis = rgb_basis(wavelength_nm)                         # (3, n_λ)
     k = np.asarray(weights, dtype=float)
@@ -251,8 +245,6 @@ def channel_matrices(weights: np.ndarray, channel_kind: str, wavelength_nm,
 def check_lobes(lobes: Lobes, wavelength_nm: np.ndarray) -> None:
     """Refuse lobe weights whose channels the render cannot use (another spectral grid)."""
     if lobes.channel_kind == "spectral":
-        from ..spectra import same_grid
-
         if not same_grid(np.asarray(lobes.channels, dtype=float), wavelength_nm):
             raise InputError(f"lobe weights are on a {len(lobes.channels)}-sample grid, the "
                              f"render on {np.size(wavelength_nm)}",
@@ -276,8 +268,6 @@ def check_lobe_energy(lobes: Lobes) -> None:
     """Refuse a lobe table that reflects more than :data:`LOBE_ALBEDO_MAX` × the light it
     receives at some view angle (:func:`gonio_cli.lobes.energy.lobe_energy` summed over its
     terms), naming the lobe that carries most of it."""
-    from ..lobes.energy import lobe_energy
-
     terms = lobe_energy(lobes.exponents, lobes.view_angle_deg, lobes.diffuse,
                         lobes.directional_diffuse, lobes.gloss)         # (V, 1 + 2m, C)
     if not np.nanmax(terms.sum(axis=1)) > LOBE_ALBEDO_MAX:

@@ -30,7 +30,10 @@ import numpy as np
 from ..brdf import COS_EPS, beckmann_d, vgroove_g
 from ..errors import InputError
 from ..geometry import Cosines
-from ..glint import MAX_STRETCH, MIN_GLINTS, cone_area
+from ..glint import GlintLayer, MAX_STRETCH, MIN_GLINTS, check_layer, cone_area, glint_ratio
+from ..spectra import luminance
+from .direct import incident
+from .mesh import rotation_matrix
 
 #: Entries of the lobe tables over cos θh ∈ [0, 1].
 TABLE_SIZE = 4097
@@ -74,8 +77,6 @@ def flake_lobe(material, where: str) -> tuple[np.ndarray, np.ndarray, np.ndarray
 
 def flake_slope(material, wavelength_nm, where: str) -> float:
     """The flakes' Beckmann m: the ȳ-weighted mean of the lobe's m(λ)."""
-    from ..spectra import luminance
-
     _, m, _ = flake_lobe(material, where)
     return float(luminance(m, wavelength_nm))
 
@@ -116,9 +117,6 @@ def light_cone(layer, light) -> tuple[float, float]:
 def glint_xyz(surface, where: str, rows: np.ndarray, flat: dict, lights, light_weights,
               wl: np.ndarray, counts: dict, channels: int = 3) -> np.ndarray:
     """XYZ (n, C) the glints add to one object's rows (module docstring)."""
-    from ..glint import glint_ratio
-    from .shade import incident
-
     layer, view = surface.glint, surface.glint_view
     out = np.zeros((rows.size, channels))
     if flat["position"] is None:
@@ -179,9 +177,6 @@ def glint_xyz(surface, where: str, rows: np.ndarray, flat: dict, lights, light_w
 def glint_surface(surface, o, scene, where: str) -> None:
     """Give ``surface`` the glint layer of scene object ``o`` (``glint_density`` …) and the
     view of ``scene``'s camera at its supersampling; nothing when ``o`` has no glints."""
-    from ..glint import GlintLayer, check_layer
-    from .mesh import rotation_matrix
-
     if o.glint_density is None:
         return
     layer = GlintLayer(o.glint_density, o.glint_share, float(np.radians(o.glint_angle_deg)),

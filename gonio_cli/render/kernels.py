@@ -19,7 +19,9 @@ import numpy as np
 from ..brdf import (cook_torrance_specular_geometry, goniochromatic_d4_into,
                     goniochromatic_exponent_arg_into, schlick_fresnel, torrance_sparrow)
 from ..geometry import Cosines, reflect
+from ..lobes import phong_lobe
 from ..schemas import Material
+from ..spectra import cmf_weights
 
 # ------------------------------------------------------------------------ constants --
 
@@ -82,8 +84,6 @@ def xyz_weights(spectrum: np.ndarray, wavelength_nm: np.ndarray,
     and returns C channels, so columns of the identity give the radiance at C
     wavelengths (the spectral image, :func:`gonio_cli.render.spectral_pass.spectral_radiance`)."""
     if observer is None:
-        from ..spectra import cmf_weights
-
         observer = cmf_weights(wavelength_nm)
     return np.asarray(spectrum, dtype=float)[:, None] * np.asarray(observer, dtype=float)
 
@@ -342,8 +342,6 @@ def make_kernel(material, weights: np.ndarray, spectral: str = "table") -> Kerne
 def substrate_kernel(substrate: dict, weights: np.ndarray) -> Kernel:
     """The dim Phong substrate of seed 000 Figure 8 (normalised Phong, ref. 27:
     :func:`gonio_cli.lobes.phong_lobe`)."""
-    from ..lobes import phong_lobe
-
     spectrum = np.asarray(substrate.get("spectrum", 1.0), dtype=float)
     xyz = np.broadcast_to(spectrum, weights.shape[:1]) @ weights
     kd = float(substrate.get("kd", 0.0))

@@ -37,6 +37,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..schemas import Measurement
+from .measured_smooth import SmoothMeasured
 
 #: Two θi closer than this (degrees) are the same row of the measurement (CSV noise).
 THETA_ROW_TOL_DEG = 1e-6
@@ -175,8 +176,6 @@ class MeasuredMaterial:
 
 
 def _smooth(measurement: Measurement, name: str = ""):
-    from .measured_smooth import SmoothMeasured
-
     return SmoothMeasured(measurement, name)
 
 

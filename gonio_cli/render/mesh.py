@@ -36,9 +36,13 @@ from urllib.parse import parse_qsl
 import numpy as np
 
 from .. import log
+from ..cache import cached_arrays
 from ..envmap import spherical_to_direction
 from ..errors import InputError
+from ..schemas import MAX_MAGNITUDE
 from . import Mesh
+from .obj import read_obj
+from .solid import CLOSED_CHECK_MAX_FACES, closed_surface
 
 #: Default φ segments of ``builtin:sphere`` (rings = segments / 2): 2 · 144 · 71 = 20 448
 #: triangles, the target's ~20 000-triangle benchmark sphere.
@@ -192,14 +196,10 @@ def _load_obj(path: str):
     parse faster than a cache file loads. The parser's warnings are stored with the arrays
     and shown again on a hit.
     """
-    from .obj import read_obj
-
     data = Path(path).read_bytes()
     if len(data) < OBJ_CACHE_MIN_BYTES:
         return read_obj(path, data)
     import hashlib
-
-    from ..cache import cached_arrays
 
     def compute():
         warnings: list[str] = []
@@ -296,8 +296,6 @@ def validate(mesh: Mesh, source: str | None = None) -> Mesh:
     """
     where = source or mesh.name
     v = np.asarray(mesh.vertices, np.float64)
-    from ..schemas import MAX_MAGNITUDE
-
     bad = ~(np.abs(v) <= MAX_MAGNITUDE).all(axis=-1)    # NaN, inf or beyond Numeric ranges
     if bad.any():
         raise InputError(f"{int(bad.sum())} of {len(v)} vertices are not finite (NaN or inf) "
@@ -369,50 +367,6 @@ def load_mesh(spec: str, base_dir: str | os.PathLike | None = None) -> Mesh:
         while len(_LOADED) > LOADED_MESHES:
             _LOADED.pop(next(iter(_LOADED)))
     return mesh
-
-
-#: Largest mesh whose closedness is checked at load (:func:`closed_surface`, ~5 ms per
-#: 20 000 faces, two sorts): above, the check would cost more than the back faces it lets
-#: the rasterizer skip save in a frame, and the mesh is drawn as an open one.
-CLOSED_CHECK_MAX_FACES = 1 << 18
-
-
-def closed_surface(vertices: np.ndarray, faces: np.ndarray) -> bool:
-    """True when the faces form closed surfaces facing outwards.
-
-    Vertices at exactly the same position are one (an OBJ repeats a position for each
-    uv or normal it has there; the rasterizer's edges are watertight wherever two
-    triangles share the same numbers). Closed and consistently oriented: every directed
-    edge (a, b) of a face is used once, and (b, a) once by another face. Outwards: the
-    signed volume Σ p0 · (p1 × p2) / 6 is positive. From an eye outside such a surface
-    every ray that meets it enters through a front face before it leaves through a back
-    face, so no back face is ever the nearest hit.
-    """
-    v = np.asarray(vertices, np.float64)
-    f = np.asarray(faces, np.int64)
-    if len(f) == 0:
-        return False
-    order = np.lexsort(v.T[::-1])                             # by x, then y, then z
-    sv = v[order]
-    new = np.ones(len(v), bool)
-    new[1:] = (sv[1:] != sv[:-1]).any(axis=1)
-    ids = np.empty(len(v), np.int64)
-    ids[order] = np.cumsum(new) - 1
-    g = ids[f]
-    a, b = g.reshape(-1), g[:, [1, 2, 0]].reshape(-1)        # directed edges a → b
-    if (a == b).any():                                        # a face with a repeated corner
-        return False
-    # one sort of (edge, direction) codes: a closed, consistently oriented surface has
-    # each edge exactly twice, once a → b (code even) and once b → a (odd)
-    n = int(ids.max()) + 1
-    code = np.sort((np.minimum(a, b) * n + np.maximum(a, b)) * 2 + (a > b))
-    first, second = code[0::2], code[1::2]
-    if (first.size != second.size or (first >> 1 != second >> 1).any()
-            or (first & 1).any() or not (second & 1).all()
-            or (first[1:] >> 1 == second[:-1] >> 1).any()):   # an edge in 4 faces
-        return False
-    p0, p1, p2 = (v[f[:, k]] for k in range(3))
-    return bool(np.einsum("ij,ij->", p0, np.cross(p1, p2)) > 0.0)
 
 
 #: Meshes kept loaded in a process (most recently used): a turntable's frames and a batch

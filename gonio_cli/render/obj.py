@@ -242,38 +242,8 @@ def read_obj(path, data: bytes | None = None, warnings: list[str] | None = None
     path = str(path)
     data = Path(path).read_bytes() if data is None else data
     warn = warnings.append if warnings is not None else log.warn
-    if b"\0" in data[:BINARY_SNIFF_BYTES]:
-        raise InputError("is a binary file, not a text OBJ", path=path,
-                         fix="export the mesh as Wavefront OBJ (text)")
-    if b"\r" in data or b"\t" in data:
-        data = data.replace(b"\r", b" ").replace(b"\t", b" ")
-    if b"\n " in data or data.startswith(b" "):
-        data = re.sub(rb"(?m)^ +", b"", data)                  # leading blanks
-    L = _Lines(data)
-    if b"\\\n" in data or data.endswith(b"\\"):
-        i = int(np.searchsorted(L.starts, data.find(b"\\\n") if b"\\\n" in data
-                                else len(data) - 1, "right")) - 1
-        raise InputError("line continuation (\\ at the end of a line) is not supported",
-                         path=path, row=i + 1, fix="join the continued lines")
-    skipped: dict[str, int] = {}
-    for i in L.other.tolist():
-        keyword = data[L.starts[i]:L.ends[i]].split(None, 1)
-        word = keyword[0].decode("utf-8", "replace") if keyword else ""
-        if not word or word in IGNORED:
-            continue
-        if word in UNSUPPORTED:
-            skipped[word] = skipped.get(word, 0) + 1
-            continue
-        if word in ("v", "vt", "vn", "f"):
-            raise InputError(f"{word} line has no values", path=path, row=i + 1,
-                             fix="repair or re-export the mesh")
-        raise InputError(f"{word[:20]!r} is not an OBJ statement", path=path, row=i + 1,
-                         fix="is this an OBJ file? (v, vt, vn, f lines)")
-    if skipped:
-        warn(f"{path}: skipped " + ", ".join(f"{n} {w!r} line(s)" for w, n in
-                                                 sorted(skipped.items()))
-                 + " (gonio draws faces only)")
-
+    data, L = _lines(path, data)
+    _check_statements(path, data, L, warn)
     V, v_lines = _floats(path, data, L, 1, b"v", 3, 3)
     VT, vt_lines = _floats(path, data, L, 2, b"vt", 1, 2)
     VN, vn_lines = _floats(path, data, L, 3, b"vn", 3, 3)
@@ -297,28 +267,7 @@ def read_obj(path, data: bytes | None = None, warnings: list[str] | None = None
                  "normal; smooth normals are computed instead")
     t = _resolve(path, ti, tline, vt_lines, "texture") if use_t else None
     n = _resolve(path, ni, tline, vn_lines, "normal") if use_n else None
-
-    # one vertex per distinct (v, vt, vn) combination (identity when they all agree)
-    if (t is None or (VT.shape[0] == V.shape[0] and np.array_equal(t, v))) and \
-            (n is None or (VN.shape[0] == V.shape[0] and np.array_equal(n, v))):
-        corner = v
-        vertices = V
-        uvs = VT if t is not None else None
-        normals = VN if n is not None else None
-    else:
-        key = v.astype(np.int64)
-        for other, size in ((t, VT.shape[0]), (n, VN.shape[0])):
-            if other is None:
-                continue
-            if key.max(initial=0) >= np.iinfo(np.int64).max // (size + 1):
-                key = np.unique(key, return_inverse=True)[1].ravel()
-            key = key * (size + 1) + other
-        _, first_of, corner = np.unique(key, return_index=True, return_inverse=True)
-        corner = corner.ravel()
-        vertices = V[v[first_of]]
-        uvs = VT[t[first_of]] if t is not None else None
-        normals = VN[n[first_of]] if n is not None else None
-
+    corner, vertices, normals, uvs = _split_vertices(v, t, n, V, VT, VN)
     # fan split: face line k with m corners gives (c0, c_j, c_j+1), j = 1 … m − 2
     tris = ntok - 2
     face_of = np.repeat(np.arange(ntok.size), tris)
@@ -326,3 +275,64 @@ def read_obj(path, data: bytes | None = None, warnings: list[str] | None = None
     c0 = first_tok[face_of]
     faces = np.stack([corner[c0], corner[c0 + j], corner[c0 + j + 1]], axis=1).astype(np.int64)
     return vertices, faces, normals, uvs
+
+
+def _lines(path: str, data: bytes) -> tuple[bytes, _Lines]:
+    """The file's text made regular (CR and tabs as blanks, no leading blanks) and its
+    lines; a binary file or a line continuation is refused."""
+    if b"\0" in data[:BINARY_SNIFF_BYTES]:
+        raise InputError("is a binary file, not a text OBJ", path=path,
+                         fix="export the mesh as Wavefront OBJ (text)")
+    if b"\r" in data or b"\t" in data:
+        data = data.replace(b"\r", b" ").replace(b"\t", b" ")
+    if b"\n " in data or data.startswith(b" "):
+        data = re.sub(rb"(?m)^ +", b"", data)                  # leading blanks
+    L = _Lines(data)
+    if b"\\\n" in data or data.endswith(b"\\"):
+        i = int(np.searchsorted(L.starts, data.find(b"\\\n") if b"\\\n" in data
+                                else len(data) - 1, "right")) - 1
+        raise InputError("line continuation (\\ at the end of a line) is not supported",
+                         path=path, row=i + 1, fix="join the continued lines")
+    return data, L
+
+
+def _check_statements(path: str, data: bytes, L: _Lines, warn) -> None:
+    """The lines that are not v, vt, vn or f: ignored (:data:`IGNORED`), skipped with one
+    warning (:data:`UNSUPPORTED`), or refused (an empty v, vt, vn or f line, not OBJ)."""
+    skipped: dict[str, int] = {}
+    for i in L.other.tolist():
+        keyword = data[L.starts[i]:L.ends[i]].split(None, 1)
+        word = keyword[0].decode("utf-8", "replace") if keyword else ""
+        if not word or word in IGNORED:
+            continue
+        if word in UNSUPPORTED:
+            skipped[word] = skipped.get(word, 0) + 1
+            continue
+        if word in ("v", "vt", "vn", "f"):
+            raise InputError(f"{word} line has no values", path=path, row=i + 1,
+                             fix="repair or re-export the mesh")
+        raise InputError(f"{word[:20]!r} is not an OBJ statement", path=path, row=i + 1,
+                         fix="is this an OBJ file? (v, vt, vn, f lines)")
+    if skipped:
+        warn(f"{path}: skipped " + ", ".join(f"{n} {w!r} line(s)" for w, n in
+                                                 sorted(skipped.items()))
+                 + " (gonio draws faces only)")
+
+
+def _split_vertices(v, t, n, V, VT, VN):
+    """One vertex per distinct (v, vt, vn) combination of the face corners (identity when
+    they all agree): each corner's vertex, and the vertices, normals and uvs (None where
+    the corners have none)."""
+    if (t is None or (VT.shape[0] == V.shape[0] and np.array_equal(t, v))) and \
+            (n is None or (VN.shape[0] == V.shape[0] and np.array_equal(n, v))):
+        return v, V, VN if n is not None else None, VT if t is not None else None
+    key = v.astype(np.int64)
+    for other, size in ((t, VT.shape[0]), (n, VN.shape[0])):
+        if other is None:
+            continue
+        if key.max(initial=0) >= np.iinfo(np.int64).max // (size + 1):
+            key = np.unique(key, return_inverse=True)[1].ravel()
+        key = key * (size + 1) + other
+    _, first_of, corner = np.unique(key, return_index=True, return_inverse=True)
+    return (corner.ravel(), V[v[first_of]], VN[n[first_of]] if n is not None else None,
+            VT[t[first_of]] if t is not None else None)

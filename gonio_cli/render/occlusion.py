@@ -51,8 +51,9 @@ import numpy as np
 from . import GBuffer, Light, Mesh
 from .shadow import BLOCK as SHADOW_BLOCK
 from .shadow import light_visibility
-from .shadowmap import _light_basis, lone_convex
+from .shadowmap import light_basis, lone_convex
 from .skycut import SkyDirections
+from .solid import is_convex
 
 #: Directions (regions of the sky) when ``[environment] occlusion = true``: 24 regions of
 #: a 1k sky are ~0.5 sr each (~45° across, :data:`.skycut.MAX_SPREAD_DEG` at most), so the
@@ -139,8 +140,6 @@ def occludes_itself(mesh: Mesh) -> bool:
     """Whether a mesh can hide part of the sky from a point on itself: not a convex
     solid (:func:`.solid.is_convex`) and not flat (its vertices within
     :data:`FLAT_TOLERANCE` of its size of one plane: a floor)."""
-    from .solid import is_convex
-
     v = np.asarray(mesh.vertices, np.float64)
     if len(mesh.faces) == 0 or is_convex(mesh):
         return False
@@ -172,7 +171,7 @@ def _may_be_hidden(light: Light, p: np.ndarray, owner: np.ndarray, boxes, self_h
     (the top's height above the sample × tan(α/2)) + ``margin``. A mesh that cannot
     occlude itself (``self_hiding`` False) is no caster for its own samples."""
     L = np.asarray(light.direction, np.float64)
-    basis = _light_basis(-L)                                   # rows: right, up, forward
+    basis = light_basis(-L)                                   # rows: right, up, forward
     x, y = (np.float32(r[0]) * p[0] + np.float32(r[1]) * p[1] + np.float32(r[2]) * p[2]
             for r in basis[:2].tolist())
     h = L.astype(np.float32) @ p

@@ -1,29 +1,30 @@
 """Writing a rendered frame out: the images (EXR, PNG, gamut warning, spectral EXR) with
 their metadata, and the run report (``gonio render --report``).
 
-:func:`write_outputs` writes a :class:`~gonio_cli.render.pipeline.Frame` atomically
+:func:`write_outputs` writes a :class:`~gonio_cli.render.frame.Frame` atomically
 (:mod:`gonio_cli.imageio`, :mod:`gonio_cli.artifact`); :func:`exr_pixels` gives the colour
 EXR in its space; :func:`write_report` the ``gonio.render-report``. Kept apart from the
-core of :mod:`gonio_cli.render.pipeline` (scene → frame), which re-exports these names.
+core of :mod:`gonio_cli.render.pipeline` (scene → frame); both stand on :mod:`.frame`.
 """
 
 from __future__ import annotations
 
 import time
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
+from ..artifact import image_metadata, make_document, write_json
+from ..imageio import write_exr, write_png, write_spectral_exr
 # the run report's schema and version (its fields: schemas.render_report_spec)
 from ..schemas import RENDER_REPORT_SCHEMA as REPORT_SCHEMA
 from ..schemas import RENDER_REPORT_VERSION as REPORT_VERSION
+from ..spectra import grid_spec
 from . import Stats
-from .scene import Scene
-
-if TYPE_CHECKING:
-    from .pipeline import Frame
-# The pipeline's names (FRAME_STAGES, Stage, scene_white) are imported where used: the
-# pipeline re-exports this module, so importing it here at the top would be circular.
+from .frame import FRAME_STAGES, Frame, Stage, frame_time
+from .scene_types import Scene
+from .tonemap import (DEFAULT_EXR_ADAPTATION, get_adaptation, get_exr_space, scene_white,
+                      xyz_to_exr_matrix, xyz_to_linear)
 
 #: Schema of the rendered images' metadata (``gonio:schema`` of the PNG and the EXR).
 IMAGE_SCHEMA = "gonio.render"
@@ -35,8 +36,6 @@ TURNTABLE_SCHEMA_VERSION = 1
 
 def turntable_metadata(frames, **fields) -> dict:
     """The metadata of a turntable's animated PNG: its frames (hashed) and ``fields``."""
-    from ..artifact import image_metadata
-
     return image_metadata(TURNTABLE_SCHEMA, TURNTABLE_SCHEMA_VERSION, inputs=frames,
                           turntable_frames=len(frames), **fields)
 
@@ -45,8 +44,6 @@ def turntable_metadata(frames, **fields) -> dict:
 
 def settings(scene: Scene) -> dict[str, Any]:
     """The render settings, as written into the EXR metadata and the run report."""
-    from .pipeline import scene_white
-
     cam = scene.camera
     out = scene.output
     white = scene_white(scene)
@@ -102,10 +99,6 @@ def exr_pixels(frame: Frame, scene: Scene, space: str = "srgb",
     :data:`.tonemap.DEFAULT_EXR_ADAPTATION`, none: scene-referred) of the scene white to
     D65: the frame's XYZ through :func:`.tonemap.xyz_to_exr_matrix`, plus the background.
     Linear sRGB with the display's own adaptation is the frame's ``linear`` itself."""
-    from .pipeline import scene_white
-    from .tonemap import (DEFAULT_EXR_ADAPTATION, get_adaptation, get_exr_space,
-                          xyz_to_exr_matrix, xyz_to_linear)
-
     adapt = DEFAULT_EXR_ADAPTATION if adapt is None else adapt
     get_exr_space(space)
     get_adaptation(adapt)
@@ -142,11 +135,6 @@ def write_outputs(frame: Frame, scene: Scene, stats: Stats, *, png, exr=None,
     gamut-warning PNG and the spectral EXR (:func:`gonio_cli.imageio.write_spectral_exr`,
     the frame's ``spectra``; its R, G, B preview is the colour EXR's linear sRGB),
     atomically."""
-    from ..artifact import image_metadata
-    from ..imageio import write_exr, write_png
-    from .pipeline import Stage
-    from .tonemap import DEFAULT_EXR_ADAPTATION, get_exr_space
-
     exr_adapt = DEFAULT_EXR_ADAPTATION if exr_adapt is None else exr_adapt
     elapsed = time.perf_counter() - start if start is not None else None
     space = get_exr_space(exr_space)
@@ -167,11 +155,7 @@ def write_outputs(frame: Frame, scene: Scene, stats: Stats, *, png, exr=None,
     if spectral_exr is not None:
         if frame.spectra is None:
             raise ValueError("the frame has no spectra: render_scene(..., spectra=True)")
-        from ..spectra import grid_spec
-
         with Stage(stats, "write_spectral_exr"):
-            from ..imageio import write_spectral_exr
-
             write_spectral_exr(
                 spectral_exr, frame.spectra, scene.grid_nm,
                 exr_pixels(frame, scene, "srgb", exr_adapt),
@@ -191,20 +175,11 @@ def write_outputs(frame: Frame, scene: Scene, stats: Stats, *, png, exr=None,
                        "out_of_gamut_pixels": stats.counts.get("out_of_gamut_pixels")})
 
 
-def frame_time(stats: Stats) -> float:
-    from .pipeline import FRAME_STAGES
-
-    return float(sum(stats.time_s.get(k, 0.0) for k in FRAME_STAGES))
-
-
 def write_report(path, scene: Scene, stats: Stats, *, total_s: float, png, exr=None,
                  gamut_warning=None, spectral_exr=None) -> dict:
     """The run report (``gonio.render-report`` v1): each stage that ran with its
     ``time_s`` (in order), the frame time and the total (scene loading to images
     written), counters, settings and the inputs with their sha256."""
-    from ..artifact import make_document, write_json
-    from .pipeline import FRAME_STAGES
-
     order = ["scene", "meshes", "materials", "textures", "sparkles", "lobes", "environment",
              "rasterize", "shadows", "shade", "spectra", "downsample", "tonemap", "write_exr",
              "write_spectral_exr", "write_png"]

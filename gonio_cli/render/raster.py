@@ -49,6 +49,7 @@ interpolation share the per-triangle arrays of :func:`.visibility.setup`.
 
 from __future__ import annotations
 
+import functools
 import time
 
 import numpy as np
@@ -325,16 +326,7 @@ def _interpolate_block(gb, pix, k, st, table, attrs, risky, eye, basis, w, h, F,
     G-buffer); ``table`` holds the rows of the attributes ``attrs`` (:func:`_plane_table`
     numbering), ``risky`` is None when no triangle can have a short normal."""
     t = table.dtype.type
-    # image row and column: floor((pix + ½) / w) in float64 is exact (the fraction stays
-    # ≥ ½ / w from an integer) and much faster than an integer division
-    row = np.floor((pix + 0.5) * (1.0 / w))
-    col = pix - row * w
-    dx = col.astype(table.dtype)
-    dx += t(0.5 - w / 2.0)
-    dx *= t(1.0 / F)
-    dy = row.astype(table.dtype)
-    np.subtract(t(h / 2.0 - 0.5), dy, out=dy)
-    dy *= t(1.0 / F)
+    dx, dy = _pixel_offsets(pix, w, h, F, table.dtype)
     need_plane = 3 in attrs
     g = np.take(table, k, axis=1)                             # (3 · attrs, m) contiguous
     dot = {}
@@ -366,21 +358,7 @@ def _interpolate_block(gb, pix, k, st, table, attrs, risky, eye, basis, w, h, F,
             n[:, bad] = view[:, bad]
             ln[bad] = 1.0
     n /= ln
-    # compact: contiguous columns of this block; dense: the pixels' places in the image
-    compact = gb.pixels is not None
-
-    def store(name, v):
-        target = getattr(gb, name)
-        if compact:
-            if v.ndim == 1:
-                target[rows] = v
-            else:
-                target.T[:, rows] = v
-        elif v.ndim == 1:
-            target.reshape(-1)[pix] = v
-        else:
-            target.reshape(-1, v.shape[0])[pix] = v.T
-
+    store = functools.partial(_store, gb, pix, rows)
     store("normal", n)
     store("view", view)
     if gb.position is not None:
@@ -401,6 +379,38 @@ def _interpolate_block(gb, pix, k, st, table, attrs, risky, eye, basis, w, h, F,
         store("uv", uv)
         store("uv_footprint", np.sqrt(np.maximum(fx[0] ** 2 + fx[1] ** 2,
                                                  fy[0] ** 2 + fy[1] ** 2)))
+
+
+def _pixel_offsets(pix, w: int, h: int, F: float, dtype) -> tuple[np.ndarray, np.ndarray]:
+    """(dx, dy) of the flat pixels ``pix`` in ``dtype``: the direction (dx, dy, 1) through
+    their centres in camera space (x right, y up, focal length F pixels)."""
+    t = np.dtype(dtype).type
+    # image row and column: floor((pix + ½) / w) in float64 is exact (the fraction stays
+    # ≥ ½ / w from an integer) and much faster than an integer division
+    row = np.floor((pix + 0.5) * (1.0 / w))
+    col = pix - row * w
+    dx = col.astype(dtype)
+    dx += t(0.5 - w / 2.0)
+    dx *= t(1.0 / F)
+    dy = row.astype(dtype)
+    np.subtract(t(h / 2.0 - 0.5), dy, out=dy)
+    dy *= t(1.0 / F)
+    return dx, dy
+
+
+def _store(gb, pix, rows, name: str, v: np.ndarray) -> None:
+    """Put one attribute of a block into the G-buffer: (c, m) or (m,) values ``v``, at
+    the block's contiguous rows ``rows`` (compact) or at its pixels ``pix`` (dense)."""
+    target = getattr(gb, name)
+    if gb.pixels is not None:
+        if v.ndim == 1:
+            target[rows] = v
+        else:
+            target.T[:, rows] = v
+    elif v.ndim == 1:
+        target.reshape(-1)[pix] = v
+    else:
+        target.reshape(-1, v.shape[0])[pix] = v.T
 
 
 def downsample(image: np.ndarray, ssaa: int, dtype=np.float64) -> np.ndarray:

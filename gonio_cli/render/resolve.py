@@ -7,6 +7,8 @@ import numpy as np
 
 from .. import log
 from . import Stats
+from .raster import downsample
+from .tonemap import xyz_to_linear
 
 
 def resolve(rows: np.ndarray, pixels: np.ndarray, object_id: np.ndarray, ssaa: int,
@@ -58,8 +60,6 @@ def resolve(rows: np.ndarray, pixels: np.ndarray, object_id: np.ndarray, ssaa: i
             return xyz_image(), coverage
         linear = _scatter_rows(rows @ matrix.T.astype(rows.dtype), pixels, hh * ww)
         return xyz_image, coverage, linear.reshape(hh, ww, channels)
-    from .raster import downsample
-
     xyz = np.empty((hh // ssaa * (ww // ssaa), channels))
     # one channel at a time through one reused float32 image (the rows' columns are
     # contiguous: shade_rows stores them so), box-filtered by downsample's strided sums
@@ -73,8 +73,6 @@ def resolve(rows: np.ndarray, pixels: np.ndarray, object_id: np.ndarray, ssaa: i
     xyz = xyz.reshape(hh // ssaa, ww // ssaa, channels)
     if matrix is None:
         return xyz, coverage.astype(np.float64)
-    from .tonemap import xyz_to_linear
-
     return xyz, coverage.astype(np.float64), xyz_to_linear(xyz, matrix)
 
 

@@ -37,8 +37,9 @@ a CSV ``wavelength_nm,value``, resampled onto the working grid (with a warning w
 CSV is on another grid) and scaled so that Σ S ȳ / Σ ȳ = 1 (docs/conventions.md).
 
 Here the loader, section by section; beside it the checker every key goes through
-(:mod:`.scene_check`), the types it fills (:mod:`.scene_types`), the grid choice
-(:mod:`.scene_grid`) and the turntable (:mod:`.turntable`).
+(:mod:`.scene_check`), the types it fills (:mod:`.scene_types`), an ``[[object]]``
+(:mod:`.scene_object`), the grid choice (:mod:`.scene_grid`) and the turntable
+(:mod:`.turntable`).
 """
 
 from __future__ import annotations
@@ -50,32 +51,28 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from .. import log
 from ..artifact import read_toml
+from ..csvio import read_spectrum
 from ..errors import InputError
-from ..schemas import EXPONENT_RANGE, EXPOSURE_MAX_STOPS, MAX_MAGNITUDE
-from ..spectra import grid_spec
+from ..names import SPECTRAL_PATHS as SPECTRAL_MODES
+from ..schemas import EXPOSURE_MAX_STOPS, MAX_MAGNITUDE
+from ..spectra import (covers, grid_spec, illuminant, illuminant_names, luminance,
+                       parse_grid, resample, same_grid, unit_luminance)
 from . import ENVIRONMENT_METHODS, POINT_LIGHT_RADIUS, SUN_ANGULAR_DIAMETER_DEG, Camera, Light
+from .occlusion import DEFAULT_DIRECTIONS, MAX_DIRECTIONS
 from .scene_check import MIN_VECTOR_NORM, Checker, names_used, substitute, type_name
 from .scene_grid import choose_grid, spectral_ranges
-from .scene_types import (BUILTIN_MESHES, BUILTIN_PREFIX, Environment, Output, Scene,
-                          SceneObject, Substrate)
+from .scene_object import scene_object
+from .scene_types import Environment, Output, Scene
+from .tonemap import ADAPTATIONS, TONEMAPS
 
-from ..names import SPECTRAL_PATHS as SPECTRAL_MODES  # noqa: E402
 LIGHT_TYPES = ("directional", "point")
 
 #: Supersampling factors above this multiply memory by > 256 per pixel: refused.
 MAX_SSAA = 16
 
 CAMERA_KEYS = ("eye", "target", "up", "fov_deg", "width", "height")
-OBJECT_KEYS = ("name", "mesh", "translate", "rotate_deg", "scale", "material", "inks",
-               "mask", "substrate", "lobes", "measured", "sparkle", "sparkle_color",
-               "sparkle_exponent", "sparkle_scale", "wrap", "glint_density", "glint_share",
-               "glint_angle_deg", "glint_seed", "interpolation")
-#: Keys that belong to an object with a ``sparkle`` texture (seed 004 §6).
-SPARKLE_KEYS = ("sparkle_color", "sparkle_exponent", "sparkle_scale")
-#: Keys that belong to an object with ``glint_density`` (docs/render.md, "Glints").
-GLINT_KEYS = ("glint_share", "glint_angle_deg", "glint_seed")
-SUBSTRATE_KEYS = ("kd", "ks", "shininess")
 LIGHT_KEYS = ("type", "name", "direction", "irradiance", "position", "intensity", "spectrum",
               "shadow", "angular_diameter_deg", "radius")
 #: The keys each light type takes beyond the common ones (the others' are refused).
@@ -126,26 +123,12 @@ def load_scene(path: str | os.PathLike, *, variables: Mapping[str, str] | None =
     if doc is None:
         doc = read_scene_toml(path, display)
     chk.keys(doc, TOP_KEYS, "")
-
-    defaults = chk.table(doc.get("vars", {}), "[vars]")
-    merged = {}
-    for k, v in defaults.items():
-        merged[k] = chk.string(v, f"[vars] {k}")
-    used = sorted(set(names_used({k: v for k, v in doc.items() if k != "vars"})))
-    for name in variables or {}:
-        if name not in used:
-            raise chk.error("", f"--var {name}: the scene uses no ${{{name}}}",
-                            fix=(f"its variables are {', '.join(used)}" if used else
-                                 "it has no ${NAME} variables"))
-    merged.update(variables or {})
-    doc = substitute({k: v for k, v in doc.items() if k != "vars"}, merged, chk, "")
+    doc, merged = _substituted(chk, doc, variables or {})
     overrides = {k: v for k, v in (overrides or {}).items() if v is not None}
     overrides = _Overrides(overrides, flags or {})
 
     camera = _camera(chk, doc, overrides)
     output = _output(chk, doc, overrides)
-    from ..spectra import parse_grid
-
     explicit_grid = "grid_nm" in overrides
     try:
         grid = parse_grid(output.grid_nm)
@@ -159,12 +142,10 @@ def load_scene(path: str | os.PathLike, *, variables: Mapping[str, str] | None =
         raise chk.error("", "no [[object]]", fix="add at least one [[object]] with a mesh")
     if not isinstance(objects_raw, list):
         raise chk.error("object", "is a table, expected [[object]] (an array of tables)")
-    objects = [_object(chk, o, k + 1) for k, o in enumerate(objects_raw)]
+    objects = [scene_object(chk, o, k + 1) for k, o in enumerate(objects_raw)]
     if not explicit_grid:
         chosen, note = choose_grid(grid, spectral_ranges(objects), where=display)
         if note:
-            from .. import log
-
             log.warn(note)
             grid = chosen
             output = replace(output, grid_nm=grid_spec(grid))
@@ -173,24 +154,50 @@ def load_scene(path: str | os.PathLike, *, variables: Mapping[str, str] | None =
     if not isinstance(lights_raw, list):
         raise chk.error("light", "is a table, expected [[light]] (an array of tables)")
     lights = [_light(chk, l, k + 1, grid) for k, l in enumerate(lights_raw)]
-
-    environment = None
-    if "environment" in doc:
-        env = chk.table(doc["environment"], "[environment]")
-        chk.keys(env, ENVIRONMENT_KEYS, "[environment]")
-        environment = Environment(
-            chk.file(chk.required(env, "prefiltered", "[environment]"),
-                     "[environment] prefiltered"),
-            chk.choice(env.get("method", "auto"), "[environment] method",
-                       tuple(ENVIRONMENT_METHODS)),
-            _occlusion(chk, env.get("occlusion", True)))
+    environment = _environment(chk, doc) if "environment" in doc else None
     if isinstance(output.background, str) and environment is None:
         raise chk.error("[output] background", "is 'environment' but the scene has no "
                         "[environment]", fix="add an [environment] or give 3 numbers")
     if not lights and environment is None:
         raise chk.error("", "no [[light]] and no [environment]: the picture would be black",
                         fix="add a [[light]] or an [environment]")
+    return Scene(chk.path, camera, objects, lights, environment, output, grid,
+                 dict(merged), _inputs(chk, objects, environment, lights_raw), display)
 
+
+def _substituted(chk: Checker, doc, variables: Mapping[str, str]) -> tuple[dict, dict]:
+    """The scene without ``[vars]``, every ``${NAME}`` replaced, and the variables used:
+    ``[vars]`` overridden by ``variables`` (``--var``), each of which the scene must use."""
+    defaults = chk.table(doc.get("vars", {}), "[vars]")
+    merged = {}
+    for k, v in defaults.items():
+        merged[k] = chk.string(v, f"[vars] {k}")
+    used = sorted(set(names_used({k: v for k, v in doc.items() if k != "vars"})))
+    for name in variables:
+        if name not in used:
+            raise chk.error("", f"--var {name}: the scene uses no ${{{name}}}",
+                            fix=(f"its variables are {', '.join(used)}" if used else
+                                 "it has no ${NAME} variables"))
+    merged.update(variables)
+    return substitute({k: v for k, v in doc.items() if k != "vars"}, merged, chk, ""), merged
+
+
+def _environment(chk: Checker, doc) -> Environment:
+    """``[environment]``: the prefiltered index, the method, the occlusion."""
+    env = chk.table(doc["environment"], "[environment]")
+    chk.keys(env, ENVIRONMENT_KEYS, "[environment]")
+    return Environment(
+        chk.file(chk.required(env, "prefiltered", "[environment]"),
+                 "[environment] prefiltered"),
+        chk.choice(env.get("method", "auto"), "[environment] method",
+                   tuple(ENVIRONMENT_METHODS)),
+        _occlusion(chk, env.get("occlusion", True)))
+
+
+def _inputs(chk: Checker, objects: list, environment, lights_raw: list) -> list[Path]:
+    """Every file the scene reads, once each in order: the scene, each object's mesh,
+    materials, mask, measurement, sparkle texture and lobes, the environment, the lights'
+    spectrum files."""
     inputs = [chk.path]
     for o in objects:
         if not o.is_builtin:
@@ -206,8 +213,7 @@ def load_scene(path: str | os.PathLike, *, variables: Mapping[str, str] | None =
         s = l.get("spectrum")
         if isinstance(s, str) and s.lower().endswith(".csv"):
             inputs.append(chk.file(s, "spectrum"))
-    return Scene(chk.path, camera, objects, lights, environment, output, grid,
-                 dict(merged), list(dict.fromkeys(inputs)), display)
+    return list(dict.fromkeys(inputs))
 
 
 class _Overrides(dict):
@@ -248,8 +254,6 @@ def _camera(chk: Checker, doc, overrides) -> Camera:
 
 
 def _output(chk: Checker, doc, overrides) -> Output:
-    from .tonemap import ADAPTATIONS, TONEMAPS
-
     where = "[output]"
     out = chk.table(doc.get("output", {}), where)
     chk.keys(out, OUTPUT_KEYS, where)
@@ -282,8 +286,6 @@ def _background(chk: Checker, out: dict, where: str, default):
 def _occlusion(chk: Checker, value) -> int:
     """``[environment] occlusion``: true (:data:`~.occlusion.DEFAULT_DIRECTIONS` sky
     regions), false (none: 0) or a number of regions in [1, :data:`~.occlusion.MAX_DIRECTIONS`]."""
-    from .occlusion import DEFAULT_DIRECTIONS, MAX_DIRECTIONS
-
     if isinstance(value, bool):
         return DEFAULT_DIRECTIONS if value else 0
     if not isinstance(value, int):
@@ -291,128 +293,6 @@ def _occlusion(chk: Checker, value) -> int:
                         "expected true, false or a number of directions",
                         fix=f"use true, false or an integer in [1, {MAX_DIRECTIONS}]")
     return chk.integer(value, "[environment] occlusion", lo=1, hi=MAX_DIRECTIONS)
-
-
-def _object(chk: Checker, raw, number: int) -> SceneObject:
-    where = f"[[object]] {number}"
-    o = chk.table(raw, where)
-    chk.keys(o, OBJECT_KEYS, where)
-    mesh = chk.string(chk.required(o, "mesh", where), f"{where} mesh")
-    if mesh.startswith(BUILTIN_PREFIX):
-        if mesh[len(BUILTIN_PREFIX):].partition("?")[0] not in BUILTIN_MESHES:
-            raise chk.error(f"{where} mesh", f"{mesh!r} is not a built-in mesh",
-                            fix="use " + ", ".join(BUILTIN_PREFIX + m for m in BUILTIN_MESHES)
-                            + " or an OBJ file")
-    else:
-        mesh = os.fspath(chk.file(mesh, f"{where} mesh"))
-    scale = o.get("scale", 1.0)
-    if isinstance(scale, list):
-        scale = chk.vector(scale, f"{where} scale")
-    else:
-        scale = np.full(3, chk.number(scale, f"{where} scale", lo=-MAX_MAGNITUDE,
-                                      hi=MAX_MAGNITUDE))
-    if np.any(scale == 0.0):
-        raise chk.error(f"{where} scale", "is zero: the object would be flat or a point")
-    obj = SceneObject(
-        number - 1, mesh,
-        chk.vector(o.get("translate", [0.0, 0.0, 0.0]), f"{where} translate"),
-        chk.vector(o.get("rotate_deg", [0.0, 0.0, 0.0]), f"{where} rotate_deg"),
-        scale, name=chk.string(o.get("name", f"object{number}"), f"{where} name"))
-
-    kinds = [k for k in ("material", "inks", "measured") if k in o]
-    if len(kinds) != 1:
-        raise chk.error(where, ("needs one of" if not kinds else "has more than one of")
-                        + " material, inks (with mask) or measured",
-                        fix="a plain object names a material, a print names inks and a mask")
-    if "material" in o:
-        obj.material = chk.file(o["material"], f"{where} material")
-    elif "measured" in o:
-        obj.measured = chk.file(o["measured"], f"{where} measured")
-        from .measured import DEFAULT_INTERPOLATION, INTERPOLATIONS
-
-        obj.interpolation = chk.choice(o.get("interpolation", DEFAULT_INTERPOLATION),
-                                       f"{where} interpolation", tuple(INTERPOLATIONS))
-    else:
-        inks = o["inks"]
-        if not isinstance(inks, list) or len(inks) != 3:
-            raise chk.error(f"{where} inks", f"{inks!r} is not a list of 3 material paths "
-                            "(R, G, B)")
-        obj.inks = [chk.file(p, f"{where} inks[{k}]") for k, p in enumerate(inks)]
-        obj.mask = chk.file(chk.required(o, "mask", where), f"{where} mask")
-        sub = chk.table(o.get("substrate", {}), f"{where} substrate")
-        chk.keys(sub, SUBSTRATE_KEYS, f"{where} substrate")
-        obj.substrate = Substrate(
-            chk.number(sub.get("kd", 0.0), f"{where} substrate.kd", lo=0.0, hi=1.0),
-            chk.number(sub.get("ks", 0.0), f"{where} substrate.ks", lo=0.0, hi=1.0),
-            chk.number(sub.get("shininess", 1.0), f"{where} substrate.shininess", lo=0.0,
-                       hi=EXPONENT_RANGE[1]))
-        from .texture import DEFAULT_WRAP, WRAP_MODES
-
-        obj.wrap = chk.choice(o.get("wrap", DEFAULT_WRAP), f"{where} wrap", tuple(WRAP_MODES))
-    if "interpolation" in o and obj.measured is None:
-        raise chk.error(f"{where} interpolation", "belongs to a measured object")
-    for key in ("mask", "substrate", "wrap"):
-        if key in o and obj.inks is None:
-            raise chk.error(f"{where} {key}", "belongs to a printed object (with inks)")
-    if "lobes" in o:
-        lobes = o["lobes"]
-        if obj.inks is not None:
-            if not isinstance(lobes, list) or len(lobes) != 3:
-                raise chk.error(f"{where} lobes", "a printed object needs 3 lobes files "
-                                "(one per ink)")
-            obj.lobes = [chk.file(p, f"{where} lobes[{k}]") for k, p in enumerate(lobes)]
-        elif obj.material is not None:
-            obj.lobes = chk.file(lobes, f"{where} lobes")
-        else:
-            raise chk.error(f"{where} lobes", "a measured object has no lobes")
-    if "sparkle" in o:
-        if obj.inks is not None:
-            raise chk.error(f"{where} sparkle", "belongs to a material or measured object, "
-                            "not a print", fix="sparkles are for metallic paint")
-        obj.sparkle = chk.file(o["sparkle"], f"{where} sparkle")
-        if "sparkle_color" in o:
-            obj.sparkle_color = chk.vector(o["sparkle_color"], f"{where} sparkle_color")
-            if np.any(obj.sparkle_color < 0):
-                raise chk.error(f"{where} sparkle_color",
-                                f"{obj.sparkle_color.tolist()} has a negative channel")
-        obj.sparkle_exponent = chk.number(o.get("sparkle_exponent", 24.0),
-                                          f"{where} sparkle_exponent", lo=0.0, lo_open=True,
-                                          hi=EXPONENT_RANGE[1])
-        obj.sparkle_scale = chk.number(o.get("sparkle_scale", 1.0), f"{where} sparkle_scale",
-                                       lo=0.0, lo_open=True, hi=MAX_MAGNITUDE)
-    else:
-        for key in SPARKLE_KEYS:
-            if key in o:
-                raise chk.error(f"{where} {key}", "needs a sparkle texture",
-                                fix='add sparkle = "SPARKLE.png" (gonio sparkle)')
-    _glints(chk, o, obj, where)
-    return obj
-
-
-def _glints(chk: Checker, o: dict, obj: SceneObject, where: str) -> None:
-    """``glint_density`` and its keys (docs/render.md, "Glints"): a material object only,
-    not beside a sparkle texture (both would draw the same flakes)."""
-    if "glint_density" not in o:
-        for key in GLINT_KEYS:
-            if key in o:
-                raise chk.error(f"{where} {key}", "needs glint_density",
-                                fix="add glint_density = FLAKES_PER_SQUARE_UNIT")
-        return
-    if obj.material is None:
-        raise chk.error(f"{where} glint_density", "belongs to a material object",
-                        fix="glints draw the flake lobe of a fitted cook-torrance paint")
-    if obj.sparkle is not None:
-        raise chk.error(f"{where} glint_density", "and sparkle both draw the flakes",
-                        fix="keep glint_density (glints) or sparkle (seed 004 eq. 17), "
-                            "not both")
-    obj.glint_density = chk.number(o["glint_density"], f"{where} glint_density", lo=0.0,
-                                   lo_open=True, hi=MAX_MAGNITUDE)
-    obj.glint_share = chk.number(o.get("glint_share", obj.glint_share),
-                                 f"{where} glint_share", lo=0.0, hi=1.0)
-    obj.glint_angle_deg = chk.number(o.get("glint_angle_deg", obj.glint_angle_deg),
-                                     f"{where} glint_angle_deg", lo=0.0, hi=10.0)
-    obj.glint_seed = chk.integer(o.get("glint_seed", 0), f"{where} glint_seed", lo=0,
-                                 hi=2 ** 32 - 1)
 
 
 def _light(chk: Checker, raw, number: int, grid: np.ndarray) -> Light:
@@ -452,10 +332,6 @@ def light_spectrum(chk: Checker, value, where: str, grid: np.ndarray) -> np.ndar
     the scene file), read by :func:`gonio_cli.csvio.read_spectrum` (the reader of
     ``gonio ingest``'s white standard and dark: the same delimiters, comments and errors
     naming the CSV's line)."""
-    from ..csvio import read_spectrum
-    from ..spectra import (covers, illuminant, illuminant_names, luminance, resample,
-                           same_grid, unit_luminance)
-
     s = chk.string(value, where)
     if not s.lower().endswith(".csv"):
         if s not in illuminant_names():
@@ -479,8 +355,6 @@ def light_spectrum(chk: Checker, value, where: str, grid: np.ndarray) -> np.ndar
                         f"grid {grid[0]:g}-{grid[-1]:g} nm",
                         fix="extend the CSV or choose [output] grid_nm")
     if not same_grid(w, grid):
-        from .. import log
-
         log.warn(f"{path}: light spectrum resampled from {w.size} wavelengths onto the "
                  f"working grid ({grid.size} samples)")
     spec = resample(w, v, grid)

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..spectra import grid_spec
+from ..spectra import WAVELENGTH_TOL_NM, covers, grid_spec
 from .scene_types import SceneObject
 
 
@@ -63,8 +63,6 @@ def choose_grid(grid_nm: np.ndarray, ranges, where: str = "") -> tuple[np.ndarra
     ------
     InputError : the materials share less than one step of the grid.
     """
-    from ..spectra import WAVELENGTH_TOL_NM, covers
-
     g = np.asarray(grid_nm, dtype=float)
     short = [r for r in ranges if not covers([r[1], r[2]], g)]
     if not short:

@@ -79,11 +79,13 @@ light, inks with coverage, and no environment work without an environment
 (:mod:`.environment`), no sparkle work without a sparkle texture.
 
 The spectral kernels (the ``"table"`` forms above) and their registry are
-:mod:`gonio_cli.render.kernels`, re-exported here; what covers an object is
-:mod:`.surface`, the sparkle term :mod:`.sparkle_term`, an object's environment term
-:func:`gonio_cli.render.env_model.surface_environment_xyz`. Here: the lights and the
-direct term, the one per-pixel loop of :func:`shade_rows`.
+:mod:`gonio_cli.render.kernels`; the direct term's block loop over pixels and lights
+:mod:`gonio_cli.render.direct`; what covers an object :mod:`.surface`, the sparkle term
+:mod:`.sparkle_term`, the glints :mod:`.glint_term`, an object's environment term
+:func:`gonio_cli.render.env_model.surface_environment_xyz`. Here: :func:`shade_rows`,
+which gives each object its terms and sums them.
 """
+
 
 from __future__ import annotations
 
@@ -93,101 +95,14 @@ from typing import Any, Sequence
 import numpy as np
 
 from ..errors import InputError
-from ..geometry import Cosines, cosines_from_dots_into
+from ..names import SPECTRAL_PATHS, pick
 from . import GBuffer, Light, Stats
+from .direct import Pixels, direct_xyz, rows_buffer
+from .env_model import surface_environment_xyz
+from .glint_term import glint_xyz
+from .kernels import Kernel, make_kernel, substrate_kernel, work_dtype, xyz_weights
+from .sparkle_term import sparkle_xyz
 from .surface import Surface, check_surface
-# The spectral kernels and their registry (gonio_cli.render.kernels), importable from here.
-from .kernels import (EXACT_BLOCK, FLOAT32_MIN_ALPHA, SINGLE_PRECISION, TABLE_KERNELS,
-                      TABLE_MAX_SIZE, TABLE_MIN_SIZE, TABLE_REL_TOL, Directions, Kernel,
-                      Scratch, TableLookup, goniochromatic_table, make_kernel,
-                      substrate_kernel, table_lookup, work_dtype, xyz_weights)
-
-#: The spectral paths of :func:`shade` (STYLE 3: a registry, named in errors).
-from ..names import SPECTRAL_PATHS, pick  # noqa: E402  (the names, spelled once)
-
-#: Pixels per block of the direct-light loop: its ~16 reused scratch arrays of 16 384
-#: float32 (1 MB; 2 MB in float64) stay in a typical L2 cache, whole-image arrays (262k
-#: pixels, 1 M at ssaa 2) do not, and a block's ~60 array operations amortise the ~1 µs
-#: Python cost of each (measured on the 512² sphere: 8192 and 32 768 are ~10 % slower).
-BLOCK = 16384
-
-#: A point light closer than this (scene units) to a shaded point is treated as at this
-#: distance, so E = I / d² stays finite on a surface that touches the light.
-MIN_LIGHT_DISTANCE = 1e-6
-
-# -------------------------------------------------------------------------------- lights --
-
-def incident(light: Light, position: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """ωi towards the light and the irradiance at normal incidence E per pixel.
-
-    Directional: ωi (3,) the unit ``direction`` (the same for every pixel) and
-    E = ``irradiance`` (a scalar array); point: ωi (n, 3) and E = I / d² (n,)
-    (docs/conventions.md), d floored at :data:`MIN_LIGHT_DISTANCE`. ``position``: (n, 3).
-    """
-    if light.kind == "directional":
-        d = np.asarray(light.direction, dtype=float)
-        norm = np.linalg.norm(d)
-        if not (np.isfinite(norm) and norm > 0):
-            raise InputError(f"light {light.name or ''} has direction {d.tolist()}, not a "
-                             "non-zero vector")
-        return d / norm, np.asarray(float(light.irradiance))
-    if light.kind == "point":
-        d = np.asarray(light.position, dtype=float) - position
-        dist2 = np.maximum(np.einsum("ij,ij->i", d, d), MIN_LIGHT_DISTANCE ** 2)
-        return d / np.sqrt(dist2)[:, None], float(light.intensity) / dist2
-    raise InputError(f"light kind {light.kind!r} is unknown", fix="use directional or point")
-
-
-# ------------------------------------------------------------- per-pixel forms in place --
-#
-# The direct-light loop evaluates per pixel and light seed 000 eq. 1 (the half-vector
-# cosines from three dot products), eq. 6 (the argument of the goniochromatic exponent)
-# and eq. 3 (GGX D). :mod:`gonio_cli.geometry` and :mod:`gonio_cli.brdf` hold them for the
-# fits: float64 whatever comes in, fresh temporaries, log forms for α down to 1e-150. The
-# ``*_into`` forms the loop uses are the same expressions in the dtype of their inputs
-# (float32 on the render's G-buffer) written into reused buffers (``Scratch``, in
-# :mod:`.kernels`) — measured 6× faster on a 512² frame — and tests/test_render_shade.py
-# checks them against the shared functions.
-
-
-# --------------------------------------------------------------------------------- shade --
-
-class _Pixels:
-    """Some pixels of one object: ``sel`` (n_obj,) bool or None (all of them).
-
-    ``flat_index`` (n,) indexes the flattened GBuffer (None: the object covers the whole
-    image, so its arrays are views). :meth:`get` gathers a whole array (cached, for the
-    environment term); :meth:`block` gathers one block for the direct-light loop, so the
-    gather itself runs in cache.
-    """
-
-    def __init__(self, flat: dict, index: np.ndarray | None, size: int,
-                 sel: np.ndarray | None = None):
-        self.flat, self.sel = flat, sel
-        self.flat_index = index if sel is None else index[sel] if index is not None \
-            else np.flatnonzero(sel)
-        self.size = size if sel is None else int(np.count_nonzero(sel))
-        self._cache: dict[str, np.ndarray] = {}
-
-    def block(self, name: str, b: slice) -> np.ndarray:
-        a = self.flat[name]
-        return a[b] if self.flat_index is None else a[self.flat_index[b]]
-
-    def block_rows(self, name: str, b: slice, dtype) -> np.ndarray:
-        """One block of an attribute as (c, m) contiguous component rows in ``dtype``: a
-        view when the G-buffer stores it so (compact rows from the rasterizer) and the
-        object covers every row, else one gather or copy."""
-        t = self.flat[name].T                                 # (c, rows)
-        rows = t[:, b] if self.flat_index is None else t[:, self.flat_index[b]]
-        return np.ascontiguousarray(rows, dtype=dtype)
-
-    def get(self, name: str) -> np.ndarray:
-        if name not in self._cache:
-            self._cache[name] = self.block(name, slice(None))
-        return self._cache[name]
-
-    def take(self, sel: np.ndarray) -> "_Pixels":
-        return _Pixels(self.flat, self.flat_index, self.size, sel)
 
 
 def shade(gbuffer: GBuffer, surfaces: Sequence[Surface], lights: Sequence[Light],
@@ -244,41 +159,82 @@ def shade_rows(gbuffer: GBuffer, surfaces: Sequence[Surface], lights: Sequence[L
     """
     start = time.perf_counter()
     pick(SPECTRAL_PATHS, spectral, "spectral path")
-    wl = np.asarray(wavelength_nm, dtype=float)
-    channels = 3 if observer is None else np.shape(observer)[1]
-    out = _rows_buffer(gbuffer.rows, dtype, channels)
-    counts: dict[str, Any] = {"spectral": spectral, "pixels": 0, "lit_pixel_lights": 0,
-                              "ink_pixels": {}, "inks_skipped": 0, "table_sizes": [],
-                              "environment_pixels": 0}
-    env_time = 0.0
-    sparkle_time = 0.0
-    glint_time = 0.0
-    weights_of: dict[bytes, np.ndarray] = {}
-
-    def light_weights(light: Light) -> np.ndarray:
-        s = np.asarray(light.spectrum, dtype=float)
-        if s.shape != wl.shape:
-            raise InputError(f"light {light.name or ''} has {s.size} spectral samples, the "
-                             f"render {wl.size}", fix="resample the spectrum onto the grid")
-        key = s.tobytes()
-        if key not in weights_of:
-            weights_of[key] = xyz_weights(s, wl, observer)
-        return weights_of[key]
-
-    kernels: dict[tuple[int, bytes], Kernel] = {}
-
-    def kernel_of(material, light: Light, substrate: bool = False) -> Kernel:
-        key = (id(material), np.asarray(light.spectrum, dtype=float).tobytes())
-        if key not in kernels:
-            weights = light_weights(light)
-            kernels[key] = (substrate_kernel(material, weights) if substrate
-                            else make_kernel(material, weights, spectral))
-            size = getattr(kernels[key], "table_size", None)
-            if size is not None:
-                counts["table_sizes"].append(int(size))
-        return kernels[key]
-
+    sh = _Shading(np.asarray(wavelength_nm, dtype=float), spectral, observer)
+    out = rows_buffer(gbuffer.rows, dtype, sh.channels)
     obj = gbuffer.row_object_id()
+    flat = _flat_rows(gbuffer, lights, visibility, env_visibility)
+    if obj.size and obj.max() >= len(surfaces):
+        raise InputError(f"the GBuffer names object {int(obj.max())} but the scene has "
+                         f"{len(surfaces)} surfaces")
+    for k, surface in enumerate(surfaces):
+        check_surface(surface, k, sh.wl)
+        index = np.flatnonzero(obj == k)
+        if index.size == 0:
+            continue
+        sh.counts["pixels"] += int(index.size)
+        px = Pixels(flat, None if index.size == obj.size else index, index.size)
+        whole = px.flat_index is None                     # the object covers every row
+        obj_xyz = out if whole else rows_buffer(index.size, dtype, sh.channels)
+        _object_xyz(sh, obj_xyz, surface, k, gbuffer, index, px, flat, lights, environment)
+        if not whole:
+            out[index] = obj_xyz                              # objects never share a pixel
+    if stats is not None:
+        stats.time_s["shade"] = time.perf_counter() - start
+        if environment is not None:
+            stats.time_s["shade.environment"] = sh.time_s["environment"]
+        if "sparkle_pixels" in sh.counts:
+            stats.time_s["shade.sparkle"] = sh.time_s["sparkle"]
+        if "glint_samples" in sh.counts:
+            stats.time_s["shade.glint"] = sh.time_s["glint"]
+        stats.counts["shade"] = sh.counts
+    return out
+
+
+class _Shading:
+    """What :func:`shade_rows` shares across objects: the grid ``wl``, the ``spectral``
+    path, the channels' ``observer``, the light weights and kernels made once per light
+    spectrum and material, the counts of ``stats.counts["shade"]`` and the sub-stages'
+    times."""
+
+    def __init__(self, wl: np.ndarray, spectral: str, observer: np.ndarray | None):
+        self.wl, self.spectral, self.observer = wl, spectral, observer
+        self.channels = 3 if observer is None else np.shape(observer)[1]
+        self.counts: dict[str, Any] = {"spectral": spectral, "pixels": 0,
+                                       "lit_pixel_lights": 0, "ink_pixels": {},
+                                       "inks_skipped": 0, "table_sizes": [],
+                                       "environment_pixels": 0}
+        self.time_s = {"environment": 0.0, "sparkle": 0.0, "glint": 0.0}
+        self._weights: dict[bytes, np.ndarray] = {}
+        self._kernels: dict[tuple[int, bytes], Kernel] = {}
+
+    def light_weights(self, light: Light) -> np.ndarray:
+        """The (n_λ, C) weights of the light's spectrum (:func:`xyz_weights`), once each."""
+        s = np.asarray(light.spectrum, dtype=float)
+        if s.shape != self.wl.shape:
+            raise InputError(f"light {light.name or ''} has {s.size} spectral samples, the "
+                             f"render {self.wl.size}", fix="resample the spectrum onto the grid")
+        key = s.tobytes()
+        if key not in self._weights:
+            self._weights[key] = xyz_weights(s, self.wl, self.observer)
+        return self._weights[key]
+
+    def kernel_of(self, material, light: Light, substrate: bool = False) -> Kernel:
+        """The spectral kernel of ``material`` under ``light``, once per pair."""
+        key = (id(material), np.asarray(light.spectrum, dtype=float).tobytes())
+        if key not in self._kernels:
+            weights = self.light_weights(light)
+            self._kernels[key] = (substrate_kernel(material, weights) if substrate
+                                  else make_kernel(material, weights, self.spectral))
+            size = getattr(self._kernels[key], "table_size", None)
+            if size is not None:
+                self.counts["table_sizes"].append(int(size))
+        return self._kernels[key]
+
+
+def _flat_rows(gbuffer: GBuffer, lights: Sequence[Light], visibility,
+               env_visibility) -> dict[str, np.ndarray | None]:
+    """The G-buffer's attributes as rows (position, normal, view), with each shadowing
+    light's visibility (``visibility{i}``) and the environment's (``env_visibility``)."""
     flat = {"position": (None if gbuffer.position is None
                          else gbuffer.position.reshape(-1, 3)),
             "normal": gbuffer.normal.reshape(-1, 3), "view": gbuffer.view.reshape(-1, 3)}
@@ -293,199 +249,88 @@ def shade_rows(gbuffer: GBuffer, surfaces: Sequence[Surface], lights: Sequence[L
     if flat["position"] is None and any(L.kind == "point" for L in lights):
         raise InputError("point lights need the G-buffer's positions",
                          fix="rasterize with position=True")
-    n_objects = len(surfaces)
-    if obj.size and obj.max() >= n_objects:
-        raise InputError(f"the GBuffer names object {int(obj.max())} but the scene has "
-                         f"{n_objects} surfaces")
-    for k, surface in enumerate(surfaces):
-        check_surface(surface, k, wl)
-        index = np.flatnonzero(obj == k)
-        if index.size == 0:
+    return flat
+
+
+def _object_xyz(sh: _Shading, obj_xyz: np.ndarray, surface: Surface, k: int,
+                gbuffer: GBuffer, index: np.ndarray, px: Pixels, flat: dict,
+                lights: Sequence[Light], environment) -> None:
+    """Add object ``k``'s light to its rows ``obj_xyz``: each term of f under the lights,
+    weighted by its coverage, then its sparkles, glints and the environment."""
+    terms, cov = _terms(sh.counts, surface, k, gbuffer, index, px)
+    for material, is_substrate, weight, tp in terms:
+        work = work_dtype(material, sh.spectral, gbuffer.normal.dtype, is_substrate)
+        if weight is None and tp.sel is None:         # accumulate in place
+            direct_xyz(material, is_substrate, tp, lights, sh.kernel_of, sh.counts, obj_xyz,
+                       dtype=work, channels=sh.channels)
             continue
-        counts["pixels"] += int(index.size)
-        px = _Pixels(flat, None if index.size == obj.size else index, index.size)
-        cov = None
-
-        # (material, is it the substrate, per-pixel weight or None, its pixels) per term
-        terms: list[tuple[Any, bool, np.ndarray | None, _Pixels]] = []
-        if surface.printed:
-            if gbuffer.uv is None:
-                raise InputError(f"object {k} is printed but the GBuffer has no uv",
-                                 fix="give the mesh texture coordinates")
-            uv = gbuffer.uv.reshape(-1, 2)[index]
-            fp = (np.zeros(index.size) if gbuffer.uv_footprint is None
-                  else gbuffer.uv_footprint.reshape(-1)[index])
-            cov = np.clip(np.asarray(surface.coverage(uv, fp), dtype=float), 0.0, 1.0)
-            for j, ink in enumerate(surface.inks):
-                sel = cov[:, j] > 0
-                n_sel = int(np.count_nonzero(sel))
-                counts["ink_pixels"][f"{k}.{j}"] = n_sel
-                if n_sel == 0:
-                    counts["inks_skipped"] += 1
-                    continue
-                terms.append((ink, False, cov[sel, j], px.take(sel)))
-            bare = np.clip(1.0 - cov.sum(axis=1), 0.0, 1.0)
-            if surface.substrate is not None:
-                sel = bare > 0
-                if np.any(sel):
-                    terms.append((surface.substrate, True, bare[sel], px.take(sel)))
+        acc = direct_xyz(material, is_substrate, tp, lights, sh.kernel_of, sh.counts,
+                         dtype=work, channels=sh.channels)
+        if weight is not None:
+            acc *= weight[:, None]
+        if tp.sel is None:
+            obj_xyz += acc
         else:
-            terms.append((surface.material, False, None, px))
-
-        whole = px.flat_index is None                     # the object covers every row
-        obj_xyz = out if whole else _rows_buffer(index.size, dtype, channels)
-        for material, is_substrate, weight, tp in terms:
-            work = work_dtype(material, spectral, gbuffer.normal.dtype, is_substrate)
-            if weight is None and tp.sel is None:         # accumulate in place
-                _direct(material, is_substrate, tp, lights, kernel_of, counts, obj_xyz,
-                        dtype=work, channels=channels)
-                continue
-            acc = _direct(material, is_substrate, tp, lights, kernel_of, counts, dtype=work,
-                          channels=channels)
-            if weight is not None:
-                acc *= weight[:, None]
-            if tp.sel is None:
-                obj_xyz += acc
-            else:
-                obj_xyz[tp.sel] += acc
-
-        if surface.sparkle is not None:
-            from .sparkle_term import sparkle_xyz
-
-            t0 = time.perf_counter()
-            if "sparkle_pixels" not in counts:
-                counts.update(sparkle_pixels=0, sparkle_lit_pixel_lights=0,
-                              sparkle_minified_pixels=0)
-            obj_xyz += sparkle_xyz(surface, k, gbuffer, index, flat, lights,
-                                   light_weights, wl, counts, channels)
-            sparkle_time += time.perf_counter() - t0
-
-        if surface.glint is not None:
-            from .glint_term import glint_xyz
-
-            t0 = time.perf_counter()
-            if "glint_samples" not in counts:
-                counts.update(glint_samples=0, glint_flakes=0, glint_glints=0)
-            obj_xyz += glint_xyz(surface, f"object {k} ({surface.name})", index, flat,
-                                 lights, light_weights, wl, counts, channels)
-            glint_time += time.perf_counter() - t0
-
-        if environment is not None:
-            t0 = time.perf_counter()
-            obj_xyz += _environment_term(environment, surface, k, px, cov, wl, observer)
-            counts["environment_pixels"] += int(index.size)
-            env_time += time.perf_counter() - t0
-        if not whole:
-            out[index] = obj_xyz                              # objects never share a pixel
-
-    if stats is not None:
-        stats.time_s["shade"] = time.perf_counter() - start
-        if environment is not None:
-            stats.time_s["shade.environment"] = env_time
-        if "sparkle_pixels" in counts:
-            stats.time_s["shade.sparkle"] = sparkle_time
-        if "glint_samples" in counts:
-            stats.time_s["shade.glint"] = glint_time
-        stats.counts["shade"] = counts
-    return out
+            obj_xyz[tp.sel] += acc
+    if surface.sparkle is not None:
+        t0 = time.perf_counter()
+        if "sparkle_pixels" not in sh.counts:
+            sh.counts.update(sparkle_pixels=0, sparkle_lit_pixel_lights=0,
+                             sparkle_minified_pixels=0)
+        obj_xyz += sparkle_xyz(surface, k, gbuffer, index, flat, lights,
+                               sh.light_weights, sh.wl, sh.counts, sh.channels)
+        sh.time_s["sparkle"] += time.perf_counter() - t0
+    if surface.glint is not None:
+        t0 = time.perf_counter()
+        if "glint_samples" not in sh.counts:
+            sh.counts.update(glint_samples=0, glint_flakes=0, glint_glints=0)
+        obj_xyz += glint_xyz(surface, f"object {k} ({surface.name})", index, flat,
+                             lights, sh.light_weights, sh.wl, sh.counts, sh.channels)
+        sh.time_s["glint"] += time.perf_counter() - t0
+    if environment is not None:
+        t0 = time.perf_counter()
+        obj_xyz += _environment_term(environment, surface, k, px, cov, sh.wl, sh.observer)
+        sh.counts["environment_pixels"] += int(index.size)
+        sh.time_s["environment"] += time.perf_counter() - t0
 
 
-def _direct(material, is_substrate: bool, tp: _Pixels, lights: Sequence[Light],
-            kernel_of, counts: dict, acc: np.ndarray | None = None,
-            dtype=np.float64, channels: int = 3) -> np.ndarray:
-    """XYZ (n, 3) of one term of f (a material, an ink or the substrate) under the lights,
-    added to ``acc`` (a new array if None: the (3, n) rows of :func:`_rows_buffer`).
-
-    Computed in ``dtype`` (:func:`work_dtype`) from the G-buffer's normal, view (and
-    position) as (3, m) component rows, in blocks of :data:`BLOCK` pixels whose
-    temporaries are :class:`Scratch` buffers reused by every block, so they stay in the
-    CPU cache. Kernels with ``accumulate`` add into ``acc`` in place.
-    """
-    dtype = np.dtype(dtype)
-    if acc is None:
-        acc = _rows_buffer(tp.size, dtype, channels)
-    acc_t = acc.T                                             # (3, n): contiguous rows
-    scratch = Scratch(dtype, min(BLOCK, tp.size))
-    point = any(L.kind == "point" for L in lights)
-    light_kernels: dict[int, Kernel] = {}     # per light, made at its first lit pixel
-    for start in range(0, tp.size, BLOCK):
-        b = slice(start, start + BLOCK)
-        n_b, v_b = tp.block_rows("normal", b, dtype), tp.block_rows("view", b, dtype)
-        m = n_b.shape[1]
-        co_b = _dot_rows(n_b, v_b, scratch("dot_o", m), scratch)
-        seen = np.greater(co_b, 0, out=scratch("seen", m))  # 1 where N·ωo > 0, else 0
-        p_b = tp.block_rows("position", b, np.float64) if point else None
-        for li, light in enumerate(lights):
-            wi, e = incident(light, None if p_b is None else p_b.T)
-            if wi.ndim == 1:                                  # directional: one ωi
-                wi_b = wi.astype(dtype)
-                cos_i = np.dot(wi_b, n_b, out=scratch("dot_i", m))
-                cos_io = np.dot(wi_b, v_b, out=scratch("dot_io", m))
-                e = dtype.type(e)
-            else:                                             # point: ωi per pixel
-                wi_b = np.ascontiguousarray(wi.T, dtype)
-                cos_i = _dot_rows(n_b, wi_b, scratch("dot_i", m), scratch)
-                cos_io = _dot_rows(v_b, wi_b, scratch("dot_io", m), scratch)
-                e = e.astype(dtype)
-            # E cos θi where lit (N·ωi > 0) and seen (N·ωo > 0), else 0 (fmax: NaN → 0)
-            scale = np.fmax(cos_i, 0, out=scratch("scale", m))
-            scale *= e
-            scale *= seen
-            if f"visibility{li}" in tp.flat:                  # shadows: V E cos θi
-                scale *= tp.block(f"visibility{li}", b)
-            lit = np.greater(scale, 0, out=scratch("lit", m, np.bool_))
-            n_lit = int(np.count_nonzero(lit))
-            counts["lit_pixel_lights"] += n_lit
-            if n_lit == 0:
-                continue
-            kernel = light_kernels.get(li)
-            if kernel is None:
-                kernel = light_kernels[li] = kernel_of(material, light, is_substrate)
-            cos = cosines_from_dots_into(cos_i, co_b, cos_io, scratch,
-                                cos_d=getattr(kernel, "needs_cos_d", True))
-            accumulate = getattr(kernel, "accumulate", None)
-            if accumulate is not None:
-                accumulate(cos, scale, acc_t[:, b], scratch)
-                continue
-
-            def directions(sel=None, wi=wi_b, n_b=n_b, v_b=v_b):
-                w = np.broadcast_to(wi.T, n_b.T.shape) if wi.ndim == 2 else \
-                    np.broadcast_to(wi, n_b.T.shape)
-                if sel is None:
-                    return w, v_b.T, n_b.T
-                return w[sel], v_b.T[sel], n_b.T[sel]
-
-            if kernel.cheap or n_lit == m:
-                acc_t[:, b] += kernel(cos, scale, directions).T
-            else:
-                acc[b][lit] += kernel(Cosines(*(a[lit] for a in cos)), scale[lit],
-                                      lambda lit=lit, d=directions: d(lit))
-    return acc
+def _terms(counts: dict, surface: Surface, k: int, gbuffer: GBuffer, index: np.ndarray,
+           px: Pixels):
+    """The terms of object ``k``'s f, each (material, is it the substrate, per-pixel
+    weight or None, its :class:`~gonio_cli.render.direct.Pixels`), and the coverage of
+    its inks ((n, 3), None unless printed): a printed object's inks where they cover
+    (counted in ``counts``) and its substrate where bare, else its material."""
+    if not surface.printed:
+        return [(surface.material, False, None, px)], None
+    if gbuffer.uv is None:
+        raise InputError(f"object {k} is printed but the GBuffer has no uv",
+                         fix="give the mesh texture coordinates")
+    uv = gbuffer.uv.reshape(-1, 2)[index]
+    fp = (np.zeros(index.size) if gbuffer.uv_footprint is None
+          else gbuffer.uv_footprint.reshape(-1)[index])
+    cov = np.clip(np.asarray(surface.coverage(uv, fp), dtype=float), 0.0, 1.0)
+    terms: list[tuple[Any, bool, np.ndarray | None, Pixels]] = []
+    for j, ink in enumerate(surface.inks):
+        sel = cov[:, j] > 0
+        n_sel = int(np.count_nonzero(sel))
+        counts["ink_pixels"][f"{k}.{j}"] = n_sel
+        if n_sel == 0:
+            counts["inks_skipped"] += 1
+            continue
+        terms.append((ink, False, cov[sel, j], px.take(sel)))
+    bare = np.clip(1.0 - cov.sum(axis=1), 0.0, 1.0)
+    if surface.substrate is not None:
+        sel = bare > 0
+        if np.any(sel):
+            terms.append((surface.substrate, True, bare[sel], px.take(sel)))
+    return terms, cov
 
 
-def _rows_buffer(n: int, dtype, channels: int = 3) -> np.ndarray:
-    """Zeros (n, channels) whose columns are contiguous: the transpose of a (channels, n)
-    array, so per-channel accumulation runs on contiguous rows (``.T`` gives them back)."""
-    return np.zeros((channels, n), dtype).T
-
-
-def _dot_rows(a: np.ndarray, b: np.ndarray, out: np.ndarray, scratch) -> np.ndarray:
-    """Σ_k a[k] b[k] of (3, m) component rows into ``out`` (m,)."""
-    tmp = scratch("dot_tmp", a.shape[1])
-    np.multiply(a[0], b[0], out=out)
-    for k in (1, 2):
-        np.multiply(a[k], b[k], out=tmp)
-        out += tmp
-    return out
-
-
-def _environment_term(environment, surface: Surface, k: int, px: _Pixels,
+def _environment_term(environment, surface: Surface, k: int, px: Pixels,
                       cov: np.ndarray | None, wl: np.ndarray,
                       observer: np.ndarray | None = None) -> np.ndarray:
     """Environment light of one object's pixels (n, C) XYZ; printed: coverage-weighted
     (:func:`gonio_cli.render.env_model.surface_environment_xyz`)."""
-    from .env_model import surface_environment_xyz
-
     where = f"object {k}" + (f" ({surface.name})" if surface.name else "")
     vis = px.get("env_visibility") if "env_visibility" in px.flat else None
     return surface_environment_xyz(environment, surface, where, px.get("normal"),

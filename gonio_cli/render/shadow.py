@@ -56,9 +56,7 @@ import time
 import numpy as np
 
 from . import GBuffer, Light, Mesh
-from .shadowmap import (MAX_MAP_SIDE, MAX_SLOPE, MIN_FILTER_TEXELS,  # noqa: F401 (the docs'
-                        TEXELS_PER_SAMPLE, View, directional_view,  # and the memory
-                        lone_convex, point_views)                   # estimate's names)
+from .shadowmap import MIN_FILTER_TEXELS, View, directional_view, lone_convex, point_views
 
 #: A filter wider than this many texels reads every 2^L-th texel (the map 2^L times
 #: coarser), so 16 taps still cover it and its cost does not grow: the coarse texels are

@@ -25,6 +25,7 @@ import numpy as np
 
 from . import Light, Mesh
 from .depthmap import clip_near, dilate, empty_map, rasterize_depth
+from .solid import is_convex
 
 #: Texels per lit sample: a map side is √(2 n) for n samples in a square, ~1.4 texels
 #: across a sample, so a shadow edge (located to ±½ texel by the map, smoothed over ≥ 1
@@ -62,7 +63,7 @@ def _rotate(basis: np.ndarray, v: np.ndarray) -> np.ndarray:
     return np.stack([r[0] * v[0] + r[1] * v[1] + r[2] * v[2] for r in b])
 
 
-def _light_basis(forward: np.ndarray) -> np.ndarray:
+def light_basis(forward: np.ndarray) -> np.ndarray:
     """(3, 3) rows right, up, forward: an orthonormal frame around ``forward``."""
     f = forward / np.linalg.norm(forward)
     helper = np.array([0.0, 1.0, 0.0]) if abs(f[1]) < 0.9 else np.array([1.0, 0.0, 0.0])
@@ -261,7 +262,7 @@ def directional_view(light: Light, p: np.ndarray, meshes: list[Mesh], local: boo
     :class:`View` and the samples in its frame (3, m); ``local``: as :func:`_make_view`."""
     L = np.asarray(light.direction, np.float64)
     L = L / np.linalg.norm(L)
-    basis = _light_basis(-L)
+    basis = light_basis(-L)
     q = _rotate(basis, p)
     far = float(q[2].max())                       # d = far − z ≥ 0 at every sample
     tan_half = np.tan(np.radians(light.angular_diameter_deg) / 2.0)
@@ -316,7 +317,7 @@ def point_views(light: Light, p: np.ndarray, meshes: list[Mesh]):
     face = 2 * axis + (np.take_along_axis(q, axis[None, :], 0)[0] < 0)
     views = []
     for k in np.unique(face):
-        basis = _light_basis(_FACES[k])
+        basis = light_basis(_FACES[k])
         sel = np.flatnonzero(face == k)
         qs = _rotate(basis, np.take(q, sel, axis=1))
         su, sv = qs[0] / qs[2], qs[1] / qs[2]
@@ -351,7 +352,5 @@ def lone_convex(meshes: list[Mesh]) -> bool:
     """True when the scene holds one mesh with faces and it is a convex solid
     (:func:`.solid.is_convex`): no lit point of it can be shadowed (every ray from its
     surface towards a light it faces leaves the solid for good), so no map is needed."""
-    from .solid import is_convex
-
     solid = [m for m in meshes if len(m.faces)]
     return len(solid) == 1 and is_convex(solid[0])

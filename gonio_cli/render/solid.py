@@ -1,4 +1,6 @@
-"""Whether a closed mesh is convex: a convex solid cannot shadow itself.
+"""Whether a mesh is a closed surface facing outwards (:func:`closed_surface`: the
+rasterizer then skips its back faces), and whether such a closed mesh is convex: a convex
+solid cannot shadow itself.
 
 The shadow stage (:mod:`.shadow`) skips its maps when a scene is one such solid (a
 material previewed on a sphere): every ray from a lit point of a convex surface towards
@@ -25,6 +27,50 @@ CONVEX_TOLERANCE = 1e-5
 #: Largest mesh checked (~0.5 µs a face); larger ones are taken as not convex, so their
 #: shadows are computed (the check would cost about what the maps do).
 CONVEX_CHECK_MAX_FACES = 1 << 18
+
+#: Largest mesh whose closedness is checked at load (:func:`closed_surface`, ~5 ms per
+#: 20 000 faces, two sorts): above, the check would cost more than the back faces it lets
+#: the rasterizer skip save in a frame, and the mesh is drawn as an open one.
+CLOSED_CHECK_MAX_FACES = 1 << 18
+
+
+def closed_surface(vertices: np.ndarray, faces: np.ndarray) -> bool:
+    """True when the faces form closed surfaces facing outwards.
+
+    Vertices at exactly the same position are one (an OBJ repeats a position for each
+    uv or normal it has there; the rasterizer's edges are watertight wherever two
+    triangles share the same numbers). Closed and consistently oriented: every directed
+    edge (a, b) of a face is used once, and (b, a) once by another face. Outwards: the
+    signed volume Σ p0 · (p1 × p2) / 6 is positive. From an eye outside such a surface
+    every ray that meets it enters through a front face before it leaves through a back
+    face, so no back face is ever the nearest hit.
+    """
+    v = np.asarray(vertices, np.float64)
+    f = np.asarray(faces, np.int64)
+    if len(f) == 0:
+        return False
+    order = np.lexsort(v.T[::-1])                             # by x, then y, then z
+    sv = v[order]
+    new = np.ones(len(v), bool)
+    new[1:] = (sv[1:] != sv[:-1]).any(axis=1)
+    ids = np.empty(len(v), np.int64)
+    ids[order] = np.cumsum(new) - 1
+    g = ids[f]
+    a, b = g.reshape(-1), g[:, [1, 2, 0]].reshape(-1)        # directed edges a → b
+    if (a == b).any():                                        # a face with a repeated corner
+        return False
+    # one sort of (edge, direction) codes: a closed, consistently oriented surface has
+    # each edge exactly twice, once a → b (code even) and once b → a (odd)
+    n = int(ids.max()) + 1
+    code = np.sort((np.minimum(a, b) * n + np.maximum(a, b)) * 2 + (a > b))
+    first, second = code[0::2], code[1::2]
+    if (first.size != second.size or (first >> 1 != second >> 1).any()
+            or (first & 1).any() or not (second & 1).all()
+            or (first[1:] >> 1 == second[:-1] >> 1).any()):   # an edge in 4 faces
+        return False
+    p0, p1, p2 = (v[f[:, k]] for k in range(3))
+    return bool(np.einsum("ij,ij->", p0, np.cross(p1, p2)) > 0.0)
+
 
 _KNOWN: dict[int, tuple[weakref.ref, bool]] = {}
 

@@ -11,8 +11,10 @@ import numpy as np
 from ..errors import InputError
 from ..geometry import Cosines, cosines_from_dots
 from ..schemas import Material
+from ..sparkle import sample_texture
+from ..spectra import luminance, rgb_reflectance_basis
 from . import GBuffer, Light
-from .shade import BLOCK, incident
+from .direct import BLOCK, incident
 from .surface import Surface
 
 
@@ -32,8 +34,6 @@ def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def mirror_peak(material, wavelength_nm: np.ndarray) -> float:
     """f_mirror: the ȳ-weighted mean over λ of ``material``'s BRDF (sr⁻¹) at the mirror
     configuration at normal incidence (θi = θo = 0), the scale of the sparkle lobe."""
-    from ..spectra import luminance
-
     if isinstance(material, Material):
         one = np.ones(1)
         f = material.evaluate(Cosines(one, one, one, one))
@@ -48,8 +48,6 @@ def mirror_peak(material, wavelength_nm: np.ndarray) -> float:
 def sparkle_reflectance(rgb: np.ndarray, wavelength_nm: np.ndarray) -> np.ndarray:
     """C_s(λ) (n_λ,): a linear-sRGB reflectance colour through the Mallett–Yuksel basis
     (the conventions' RGB → spectrum without its D65 factor; (1, 1, 1) → 1)."""
-    from ..spectra import rgb_reflectance_basis
-
     return rgb_reflectance_basis(wavelength_nm) @ np.asarray(rgb, dtype=float)
 
 
@@ -58,8 +56,6 @@ def sparkle_xyz(surface: Surface, k: int, gbuffer: GBuffer, index: np.ndarray,
                   counts: dict, channels: int = 3) -> np.ndarray:
     """XYZ (n, 3) of the sparkle lobe of one object's pixels (module docstring): work
     only at samples whose texel has a bit set, and per light only where it is lit."""
-    from ..sparkle import sample_texture
-
     sp = surface.sparkle
     out = np.zeros((index.size, channels))
     if gbuffer.uv is None:

@@ -8,9 +8,11 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..spectra import rgb_spectral_basis
 from .budget import bands_per_pass
 from .resolve import resolve
-from .scene import Scene
+from .scene_types import Scene
+from .shade import shade_rows
 
 
 def check_spectral_lobes(scene: Scene, surfaces: list) -> None:
@@ -50,8 +52,6 @@ def spectral_radiance(gbuffer, surfaces: list, scene: Scene, lights: list, envir
     Background pixels hold the background's spectrum (docs/conventions.md's RGB →
     spectrum) times the uncovered fraction, as the colour image does.
     """
-    from .shade import shade_rows
-
     wl = np.asarray(scene.grid_nm, dtype=float)
     n, ssaa, cam = wl.size, scene.output.ssaa, scene.camera
     out = np.empty((cam.height, cam.width, n), np.float32)
@@ -66,8 +66,6 @@ def spectral_radiance(gbuffer, surfaces: list, scene: Scene, lights: list, envir
         del rows
         out[..., start:start + step] = band
     if background is not None:
-        from ..spectra import rgb_spectral_basis
-
         out += ((1.0 - coverage)[..., None]
                 * (background @ rgb_spectral_basis(wl).T)).astype(np.float32)
     return out

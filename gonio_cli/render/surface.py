@@ -10,6 +10,7 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from ..errors import InputError
+from ..spectra import same_grid
 
 
 #: Keys of a substrate dict (seed 000 Figure 8's Phong term).
@@ -102,6 +103,4 @@ def check_surface(surface: Surface, index: int, wavelength_nm: np.ndarray) -> No
 
 
 def _same_grid(a, b) -> bool:
-    from ..spectra import same_grid
-
     return same_grid(a, b)

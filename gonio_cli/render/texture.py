@@ -25,6 +25,7 @@ import os
 import numpy as np
 
 from ..errors import InputError
+from ..imageio import read_image
 from ..names import pick
 
 #: A mask value counts as 0 or 1 when within this of it: 8- and 16-bit PNGs decode to
@@ -176,8 +177,6 @@ class MaskPyramid:
     @classmethod
     def from_file(cls, path: str | os.PathLike) -> "MaskPyramid":
         """Read a mask image (PNG …) with :func:`gonio_cli.imageio.read_image`."""
-        from ..imageio import read_image
-
         return cls(read_image(path).pixels, path)
 
     @property

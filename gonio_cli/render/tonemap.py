@@ -37,6 +37,9 @@ from typing import Callable
 import numpy as np
 
 from ..names import pick
+from ..spectra import (chromatic_adaptation_matrix, rgb_space_chromaticities,
+                       rgb_space_matrix, rgb_space_white_xyz, spectrum_to_xyz, srgb_encode,
+                       srgb_white_xyz, xyz_to_linear_srgb)
 
 
 def clip(x: np.ndarray) -> np.ndarray:
@@ -119,8 +122,6 @@ def get_tonemap(name: str) -> Callable[[np.ndarray], np.ndarray]:
 
 def _von_kries(method: str) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
     def matrix(white_src_xyz, white_dst_xyz):
-        from ..spectra import chromatic_adaptation_matrix
-
         return chromatic_adaptation_matrix(white_src_xyz, white_dst_xyz, method)
     return matrix
 
@@ -162,8 +163,6 @@ def scene_white_xyz(lights, grid_nm, target) -> np.ndarray | None:
     the camera's ``target`` (3,). None when there is no light with power (a scene lit
     only by an environment map, whose linear sRGB already has the display's white).
     """
-    from ..spectra import spectrum_to_xyz
-
     total = np.zeros(3)
     for light in lights:
         if light.kind == "directional":
@@ -175,6 +174,12 @@ def scene_white_xyz(lights, grid_nm, target) -> np.ndarray | None:
     if not total[1] > 0:
         return None
     return total / total[1]
+
+
+def scene_white(scene) -> np.ndarray | None:
+    """The white of a :class:`~gonio_cli.render.scene.Scene`, XYZ (3,) with Y = 1: its
+    lights' irradiance-weighted spectra (:func:`scene_white_xyz`); None without lights."""
+    return scene_white_xyz(scene.lights, scene.grid_nm, scene.camera.target)
 
 
 #: Squared distance floor (scene units²) for a point light sitting on the camera target:
@@ -211,9 +216,6 @@ class ExrSpace:
 
 def _rgb_space(key: str) -> Callable[[], np.ndarray]:
     def matrix():
-        from ..spectra import (chromatic_adaptation_matrix, rgb_space_matrix,
-                               rgb_space_white_xyz, srgb_white_xyz)
-
         m = rgb_space_matrix(key)
         white = rgb_space_white_xyz(key)
         if np.allclose(white, srgb_white_xyz(), rtol=0, atol=1e-9):
@@ -226,8 +228,6 @@ def _rgb_space(key: str) -> Callable[[], np.ndarray]:
 
 def _chromaticities(key: str) -> Callable[[], tuple]:
     def chromaticities():
-        from ..spectra import rgb_space_chromaticities
-
         return rgb_space_chromaticities(key)
     return chromaticities
 
@@ -262,8 +262,6 @@ def xyz_to_exr_matrix(space: str = DEFAULT_EXR_SPACE, adapt: str = DEFAULT_ADAPT
                       white_xyz: np.ndarray | None = None) -> np.ndarray:
     """(3, 3): XYZ → the EXR's channels in ``space`` (:data:`EXR_SPACES`), after adapting
     ``white_xyz`` (the scene white) to the display white as :func:`xyz_to_linear_matrix`."""
-    from ..spectra import srgb_white_xyz
-
     m = get_exr_space(space).matrix()
     if white_xyz is None:
         return m
@@ -273,8 +271,6 @@ def xyz_to_exr_matrix(space: str = DEFAULT_EXR_SPACE, adapt: str = DEFAULT_ADAPT
 def xyz_to_linear(xyz: np.ndarray, matrix: np.ndarray | None = None) -> np.ndarray:
     """XYZ (..., 3) → linear sRGB (..., 3) float32 (what the EXR holds); ``matrix`` from
     :func:`xyz_to_linear_matrix` (default: the IEC matrix, no adaptation)."""
-    from ..spectra import xyz_to_linear_srgb
-
     if matrix is None:
         return xyz_to_linear_srgb(xyz).astype(np.float32)
     return (np.asarray(xyz, dtype=float) @ matrix.T).astype(np.float32)
@@ -291,8 +287,6 @@ ENCODE_TABLE_SIZE = 1 << 16
 @functools.lru_cache(maxsize=1)
 def encode_table() -> np.ndarray:
     """round(255 · srgb_encode(k / (N − 1))), k = 0 … N − 1: (N,) uint8."""
-    from ..spectra import srgb_encode
-
     y = np.arange(ENCODE_TABLE_SIZE) / (ENCODE_TABLE_SIZE - 1)
     return np.round(srgb_encode(y) * 255.0).astype(np.uint8)
 

@@ -8,6 +8,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..names import pick
+from .mesh import rotation_matrix
 from .scene_types import Scene
 
 
@@ -49,8 +50,6 @@ def orbit(scene: Scene, frame: int, frames: int, mode: str = "camera") -> Scene:
     R·(s⊙p)+t becomes Q·R·(s⊙p) + Q·(t − target) + target), so the camera sees the
     object's far side come round in the same direction.
     """
-    from .mesh import rotation_matrix
-
     pick(ORBITS, mode, "orbit")
     cam = scene.camera
     angle = 360.0 * frame / frames

@@ -154,6 +154,7 @@ def visible_keys(st, w, h, F, hiz: bool = True, culled: np.ndarray | None = None
 def c_build_available() -> bool:
     """Whether the C build (``_rasterscan.c``) was compiled when gonio was installed."""
     try:
+        # lazy: whether the C build is there is the question (an ImportError when not)
         from . import _rasterscan  # noqa: F401
     except ImportError:
         return False
@@ -290,89 +291,17 @@ def _scan(st, keys, sel, coef, hits, w, h, F) -> None:
         return
     C, inv_z, tri_bits = coef
     f32 = np.float32
-    cx, cy = f32(w / 2.0 - 0.5), f32(h / 2.0 - 0.5)
+    cy = f32(h / 2.0 - 0.5)
     inv_f = f32(1.0 / F)
-    dx_col = hits.dx_col
-    # column of the root of e_k on row y: cx − (F C.z + (cy − y) C.y) / C.x = A + B y,
-    # and the round-off of the test in columns, TOL (F |dx|max + |root − cx|), bounded
-    # over the box's rows; a lower edge (C.x > 0: col ≥ root) surely passes from root +
-    # slack and surely fails below root − slack, an upper edge (C.x < 0) the mirror
-    # image; ±inf offsets leave the other role's bounds alone, and flat edges (C.x = 0,
-    # e constant along the row) are handled apart
-    Cx, Cy, Cz = (C[:, i].astype(np.float64) for i in range(3))   # (3 edges, n)
-    lower, upper = Cx > 0, Cx < 0
-    flat = ~(lower | upper)
-    safe_cx = np.where(flat, 1.0, Cx)
-    A = float(cx) - (F * Cz + float(cy) * Cy) / safe_cx
-    B = np.where(flat, 0.0, Cy / safe_cx)
-    y0, y1 = st["y0"], st["y0"] + st["bh"] - 1
-    slack = (FLOAT32_FORM_TOLERANCE * np.maximum(np.abs(A + B * y0 - float(cx)),
-                                                 np.abs(A + B * y1 - float(cx)))
-             + FLOAT32_FORM_TOLERANCE * (w / 2.0 + 1.0))
-    A_sure_lo = np.where(lower, A + slack, -np.inf)
-    A_out_lo = np.where(lower, A - slack, -np.inf)
-    A_sure_hi = np.where(upper, A - slack, np.inf)
-    A_out_hi = np.where(upper, A + slack, np.inf)
-    any_flat = flat.any(axis=0)
+    roots = _edge_roots(st, C, w, h, F)
     bh_all = st["bh"][sel]
     for part in _chunks(bh_all, CHUNK_ROWS):
         tris, bh = sel[part], bh_all[part]
         n_pairs = int(bh.sum())
         tri_p = np.repeat(tris, bh)                               # (triangle, row) pairs
         row_p = np.arange(n_pairs) - np.repeat(np.cumsum(bh) - bh - st["y0"][tris], bh)
-        x0 = st["x0"][tri_p].astype(np.float64)
-        sure_lo, out_lo = x0, x0.copy()
-        sure_hi = x0 + (st["bw"][tri_p] - 1)
-        out_hi = sure_hi.copy()
-        row_f = row_p.astype(np.float64)
-        by, t = np.empty(n_pairs), np.empty(n_pairs)
-        for k in range(3):
-            np.take(B[k], tri_p, out=by, mode="clip")
-            by *= row_f
-            for A_k, bound, op in ((A_sure_lo, sure_lo, np.maximum), (A_out_lo, out_lo, np.maximum),
-                                   (A_sure_hi, sure_hi, np.minimum), (A_out_hi, out_hi, np.minimum)):
-                np.take(A_k[k], tri_p, out=t, mode="clip")
-                t += by
-                op(bound, t, out=bound)
-        empty = None
-        flat_p = np.flatnonzero(any_flat[tri_p])
-        for k in range(3) if flat_p.size else ():
-            at = flat_p[flat[k][tri_p[flat_p]]]
-            if at.size:                          # e = r exactly on the row: pass iff r ≥ 0
-                dy = (cy - row_p[at].astype(f32)) * inv_f
-                r = dy * C[k, 1][tri_p[at]] + C[k, 2][tri_p[at]]
-                bad = at[r < 0]
-                empty = bad if empty is None else np.concatenate([empty, bad])
-        lo, hi = np.ceil(out_lo, out=out_lo), np.floor(out_hi, out=out_hi)
-        li = np.maximum(np.ceil(sure_lo, out=sure_lo), lo, out=sure_lo)
-        ui = np.minimum(np.floor(sure_hi, out=sure_hi), hi, out=sure_hi)
-        none = lo > hi
-        if empty is not None:
-            none[empty] = True
-        lo[none], hi[none] = 1.0, 0.0
-        no_sure = none | (li > ui)
-        li[no_sure], ui[no_sure] = hi[no_sure] + 1, hi[no_sure]   # test the whole span
-        # the tested runs [lo, li) and (ui, hi], then hits: the sure runs [li, ui]
-        left_n, right_n = (li - lo).astype(np.int64), (hi - ui).astype(np.int64)
-        tested = np.flatnonzero(left_n + right_n)
-        pair_t = col_t = np.zeros(0, np.int64)
-        if tested.size:
-            pair_t = np.concatenate([np.repeat(tested, left_n[tested]),
-                                     np.repeat(tested, right_n[tested])])
-            first = np.concatenate([lo[tested], ui[tested] + 1]).astype(np.int64)
-            n_t = np.concatenate([left_n[tested], right_n[tested]])
-            col_t = (np.arange(len(pair_t)) - np.repeat(np.cumsum(n_t) - n_t, n_t)
-                     + np.repeat(first, n_t))
-            tp = tri_p[pair_t]
-            dy = (cy - row_p[pair_t].astype(f32)) * inv_f
-            dx = dx_col[col_t]
-            m = None
-            for k in range(3):                                    # the float32 test
-                e = dx * C[k, 0][tp]
-                e += dy * C[k, 1][tp] + C[k, 2][tp]
-                m = e if m is None else np.minimum(m, e, out=m)
-            keep = m >= 0.0
-            pair_t, col_t = pair_t[keep], col_t[keep]
+        lo, li, ui, hi = _row_spans(st, C, roots, tri_p, row_p, cy, inv_f)
+        pair_t, col_t = _tested_hits(C, tri_p, row_p, lo, li, ui, hi, hits.dx_col, cy, inv_f)
         # per pair: the 1/z row constant (dy iz.y + iz.z, as each hit adds it), the
         # pixel of column 0, the key's low bits
         dy_p = (cy - row_p.astype(f32)) * inv_f
@@ -390,6 +319,101 @@ def _scan(st, keys, sel, coef, hits, w, h, F) -> None:
             hits.scatter(keys, run, col, pairs)
         if pair_t.size:
             hits.scatter(keys, pair_t, col_t, pairs)
+
+
+def _edge_roots(st, C, w, h, F) -> dict:
+    """Per edge (3, n) and triangle, the column of the edge function's root on row y as
+    A + B y, with the bounds of :func:`_scan`'s sure and tested runs.
+
+    The root of e_k on row y is cx − (F C.z + (cy − y) C.y) / C.x = A + B y, and the
+    round-off of the test in columns, TOL (F |dx|max + |root − cx|), is bounded over the
+    box's rows; a lower edge (C.x > 0: col ≥ root) surely passes from root + slack and
+    surely fails below root − slack, an upper edge (C.x < 0) the mirror image; ±inf
+    offsets leave the other role's bounds alone, and flat edges (C.x = 0, e constant
+    along the row: ``flat``, ``any_flat`` per triangle) are handled apart."""
+    cx, cy = np.float32(w / 2.0 - 0.5), np.float32(h / 2.0 - 0.5)
+    Cx, Cy, Cz = (C[:, i].astype(np.float64) for i in range(3))   # (3 edges, n)
+    lower, upper = Cx > 0, Cx < 0
+    flat = ~(lower | upper)
+    safe_cx = np.where(flat, 1.0, Cx)
+    A = float(cx) - (F * Cz + float(cy) * Cy) / safe_cx
+    B = np.where(flat, 0.0, Cy / safe_cx)
+    y0, y1 = st["y0"], st["y0"] + st["bh"] - 1
+    slack = (FLOAT32_FORM_TOLERANCE * np.maximum(np.abs(A + B * y0 - float(cx)),
+                                                 np.abs(A + B * y1 - float(cx)))
+             + FLOAT32_FORM_TOLERANCE * (w / 2.0 + 1.0))
+    return {"B": B, "flat": flat, "any_flat": flat.any(axis=0),
+            "sure_lo": np.where(lower, A + slack, -np.inf),
+            "out_lo": np.where(lower, A - slack, -np.inf),
+            "sure_hi": np.where(upper, A - slack, np.inf),
+            "out_hi": np.where(upper, A + slack, np.inf)}
+
+
+def _row_spans(st, C, roots: dict, tri_p, row_p, cy, inv_f):
+    """Per (triangle, row) pair, the columns (float64, whole numbers) of its span
+    [lo, hi] and of its sure run [li, ui] inside it (:func:`_scan`); an empty span has
+    lo > hi, one without a sure run li = hi + 1, ui = hi (the whole span tested)."""
+    n_pairs = tri_p.size
+    x0 = st["x0"][tri_p].astype(np.float64)
+    sure_lo, out_lo = x0, x0.copy()
+    sure_hi = x0 + (st["bw"][tri_p] - 1)
+    out_hi = sure_hi.copy()
+    row_f = row_p.astype(np.float64)
+    by, t = np.empty(n_pairs), np.empty(n_pairs)
+    for k in range(3):
+        np.take(roots["B"][k], tri_p, out=by, mode="clip")
+        by *= row_f
+        for A_k, bound, op in ((roots["sure_lo"], sure_lo, np.maximum),
+                               (roots["out_lo"], out_lo, np.maximum),
+                               (roots["sure_hi"], sure_hi, np.minimum),
+                               (roots["out_hi"], out_hi, np.minimum)):
+            np.take(A_k[k], tri_p, out=t, mode="clip")
+            t += by
+            op(bound, t, out=bound)
+    empty = None
+    flat, flat_p = roots["flat"], np.flatnonzero(roots["any_flat"][tri_p])
+    for k in range(3) if flat_p.size else ():
+        at = flat_p[flat[k][tri_p[flat_p]]]
+        if at.size:                          # e = r exactly on the row: pass iff r ≥ 0
+            dy = (cy - row_p[at].astype(np.float32)) * inv_f
+            r = dy * C[k, 1][tri_p[at]] + C[k, 2][tri_p[at]]
+            bad = at[r < 0]
+            empty = bad if empty is None else np.concatenate([empty, bad])
+    lo, hi = np.ceil(out_lo, out=out_lo), np.floor(out_hi, out=out_hi)
+    li = np.maximum(np.ceil(sure_lo, out=sure_lo), lo, out=sure_lo)
+    ui = np.minimum(np.floor(sure_hi, out=sure_hi), hi, out=sure_hi)
+    none = lo > hi
+    if empty is not None:
+        none[empty] = True
+    lo[none], hi[none] = 1.0, 0.0
+    no_sure = none | (li > ui)
+    li[no_sure], ui[no_sure] = hi[no_sure] + 1, hi[no_sure]   # test the whole span
+    return lo, li, ui, hi
+
+
+def _tested_hits(C, tri_p, row_p, lo, li, ui, hi, dx_col, cy, inv_f):
+    """The hits (pair, column) of the tested runs [lo, li) and (ui, hi] of each pair:
+    the columns within the float32 round-off of an edge, by the float32 test itself."""
+    left_n, right_n = (li - lo).astype(np.int64), (hi - ui).astype(np.int64)
+    tested = np.flatnonzero(left_n + right_n)
+    if not tested.size:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    pair_t = np.concatenate([np.repeat(tested, left_n[tested]),
+                             np.repeat(tested, right_n[tested])])
+    first = np.concatenate([lo[tested], ui[tested] + 1]).astype(np.int64)
+    n_t = np.concatenate([left_n[tested], right_n[tested]])
+    col_t = (np.arange(len(pair_t)) - np.repeat(np.cumsum(n_t) - n_t, n_t)
+             + np.repeat(first, n_t))
+    tp = tri_p[pair_t]
+    dy = (cy - row_p[pair_t].astype(np.float32)) * inv_f
+    dx = dx_col[col_t]
+    m = None
+    for k in range(3):                                    # the float32 test
+        e = dx * C[k, 0][tp]
+        e += dy * C[k, 1][tp] + C[k, 2][tp]
+        m = e if m is None else np.minimum(m, e, out=m)
+    keep = m >= 0.0
+    return pair_t[keep], col_t[keep]
 
 
 class _HitBuffers:

@@ -19,7 +19,8 @@ from ..prefilter import brute, inputs as prefilter_inputs, methods as prefilter_
     prefilter, ring
 from ..render import Stats
 from ..render.environment import Environment, environment_xyz
-from ..render.pipeline import frame_time, render_scene
+from ..render.frame import frame_time
+from ..render.pipeline import render_scene
 from ..render.scene import load_scene
 from ..schemas import Lobes, Material
 from ..synthetic import ink_spectra
