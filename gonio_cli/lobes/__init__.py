@@ -32,6 +32,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
+from ..schemas import EXPONENT_RANGE
 
 # ------------------------------------------------------------------------ constants --
 
@@ -208,8 +209,6 @@ def check_exponents(exponents, where: str = "basis") -> np.ndarray:
     if e.size == 0:
         raise InputError(f"{where}: the basis is empty (no exponents)",
                          fix="choose one with gonio lobes basis or pass --exponents 1,10,100")
-    from ..schemas import EXPONENT_RANGE
-
     lo, hi = EXPONENT_RANGE
     bad = e[~(np.isfinite(e) & (e >= lo) & (e <= hi))]
     if bad.size:
@@ -217,23 +216,3 @@ def check_exponents(exponents, where: str = "basis") -> np.ndarray:
                          fix="a cosine-lobe exponent E is at least 1 (the diffuse lobe, "
                              "seed 001 eq. 2) and at most 1e6")
     return e
-
-
-# ----------------------------------------------------------------- re-exports --
-# Samples, solvers and the basis search live in their own modules (they import the
-# constants and lobes above, hence these imports at the end); every name stays importable
-# from ``gonio_cli.lobes``.
-
-from .samples import (CHANNELS, SAMPLE_SETS, HemispherePattern, SamplePattern,  # noqa: E402
-                      Samples, check_channels, directional_albedo, mirror_rings,
-                      parse_view_angles, read_sample_csv, sample_set, target_values)
-from .solvers import (DEFAULT_SOLVER, FINISHED, STATUSES,  # noqa: E402
-                      WARM_SIMPLEX_MAX_SAMPLES, WEIGHT_SOLVERS, WeightFit, WeightSolver,
-                      check_solver, relative_weights, residual_errors)
-from .energy import check_energy, energy_excess, energy_note, lobe_energy  # noqa: E402
-from .solve import (WeightTable, check_design, default_time_limit_s,  # noqa: E402
-                    fit_weight_table, fit_weights, lobe_columns, lobe_half_width_deg,
-                    resolved_lobes, unresolved_notes)
-from .basis import (BASIS_EVALS_PER_LOBE, BASIS_FLAT_REL, BASIS_FTOL_REL,  # noqa: E402
-                    BASIS_PIN_LOG, BASIS_SOLVERS, BASIS_XTOL_LOG, BasisResult, BasisStep,
-                    basis_notes, basis_objective, resolvable_exponent, select_basis)
