@@ -28,6 +28,16 @@ from .solve import WeightTable, default_time_limit_s, fit_weight_table, unresolv
 from .solvers import FINISHED, WEIGHT_SOLVERS, check_solver
 
 
+@dataclass(kw_only=True)
+class StageRun:
+    """What either command records and says: the artifact's parameters, the time (s) and
+    the sentences to warn about (``notes``)."""
+
+    parameters: dict
+    time_s: float
+    notes: list[str] = field(default_factory=list)
+
+
 # ------------------------------------------------------------------------- basis --
 
 @dataclass(frozen=True)
@@ -42,17 +52,14 @@ class BasisOptions:
 
 
 @dataclass
-class BasisRun:
-    """What :func:`basis` found: the artifact, the search's result, the sample set, the
-    time (s) and what to warn about (``notes``)."""
+class BasisRun(StageRun):
+    """What :func:`basis` found: the artifact, the search's result, the sample set and the
+    material files."""
 
     document: LobeBasis
     result: BasisResult
     samples: Samples
     inputs: list
-    parameters: dict
-    time_s: float
-    notes: list[str] = field(default_factory=list)
 
     def summary(self) -> str:
         """The line a run ends with (after the output's name)."""
@@ -95,8 +102,8 @@ def basis(materials: Sequence[str | os.PathLike], options: BasisOptions = BasisO
                     s.name, options.channels, options.solver,
                     [float(v) for v in result.exponent_range],
                     [float(v) for v in s.view_angle_deg])
-    return BasisRun(doc, result, s, list(materials), asdict(options), time_s,
-                    basis_notes(result))
+    return BasisRun(doc, result, s, list(materials), parameters=asdict(options),
+                    time_s=time_s, notes=basis_notes(result))
 
 
 def write_basis(output: Path, run: BasisRun) -> None:
@@ -125,22 +132,17 @@ class FitOptions:
 
 
 @dataclass
-class LobesFit:
-    """What :func:`fit` made: the artifact, the weight table, the sample set, the time (s)
-    and what to warn about (``notes``)."""
+class LobesFit(StageRun):
+    """What :func:`fit` made: the artifact and the weight table."""
 
     lobes: Lobes
     table: WeightTable
-    samples: Samples
-    parameters: dict
-    time_s: float
-    notes: list[str] = field(default_factory=list)
 
     def summary(self) -> str:
         """The line a run ends with (after the output's name)."""
         t = self.table
         return (f"{t.exponents.size} lobes, {len(t.view_angle_deg)} view angles, "
-                f"{len(t.channels)} channels; " + error_text(t.errors, self.samples.name))
+                f"{len(t.channels)} channels; " + error_text(t.errors, self.lobes.sample_set))
 
 
 def check_fit_options(options: FitOptions) -> None:
@@ -206,8 +208,8 @@ def fit(material: str | os.PathLike, exponents: Sequence[float],
                   # JSON holds no inf: null is "no check"
                   "max_energy_ratio": (options.max_energy_ratio
                                        if options.max_energy_ratio < math.inf else None)}
-    return LobesFit(lobes, table, s, parameters, time_s,
-                    fit_notes(table, options.samples, options.solver))
+    return LobesFit(lobes, table, parameters=parameters, time_s=time_s,
+                    notes=fit_notes(table, options.samples, options.solver))
 
 
 def fit_notes(table: WeightTable, samples: str, solver: str) -> list[str]:
