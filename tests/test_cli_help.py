@@ -175,7 +175,7 @@ def _registries():
     """(command path, flag, the names the shell shows, the core registry's keys): the
     cores are imported here, never by the shells' help."""
     from gonio_cli import fit, imageio, names, prefilter, report, sparkle
-    from gonio_cli.commands import halftone as halftone_shell
+    from gonio_cli.halftone import run as halftone_run
     from gonio_cli.fit import common, gains, goniochromatic
     from gonio_cli.halftone import METHODS, coverage
     from gonio_cli.lobes import basis, samples, solvers
@@ -200,7 +200,7 @@ def _registries():
         ("halftone", "--input-encoding", names.INPUT_ENCODING_NAMES, coverage.INPUT_ENCODINGS),
         ("halftone", "--compress", names.COMPRESSION_NAMES, tuple(imageio.COMPRESSION)),
         ("halftone", "--mask-format", names.MASK_FORMAT_NAMES,
-         tuple(halftone_shell.MASK_WRITERS)),
+         tuple(halftone_run.MASK_WRITERS)),
         ("lobes basis", "--samples", names.SAMPLE_SET_NAMES + ("FILE.csv",),
          tuple(samples.SAMPLE_SETS) + ("FILE.csv",)),
         ("lobes fit", "--samples", names.SAMPLE_SET_NAMES + ("FILE.csv",),
