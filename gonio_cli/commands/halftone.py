@@ -68,7 +68,7 @@ def halftone(
       gonio halftone photo.png -o print.png --method floyd-steinberg --report print.json
       gonio halftone photo.exr -o print.png --dpi 300 --print-width-mm 120 --split
     """
-    # lazy: gonio --help and the other commands do not load halftone.run (benchmarks/bench_startup.py)
+    # lazy: gonio --help and other commands do not load halftone.run (benchmarks/bench_startup.py)
     from .. import log
     from ..halftone import run as stage
     from ..outputs import declare
