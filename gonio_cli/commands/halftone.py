@@ -7,9 +7,11 @@ from typing import Optional
 
 import typer
 
+from .. import log
 from ..names import COMPRESSION_NAMES, GAMUT_NAMES, INPUT_ENCODING_NAMES, MASK_FORMAT_NAMES
 from ..names import HALFTONE_METHOD_NAMES as METHOD_NAMES
 from ..names import metavar
+from ..outputs import declare
 
 
 def _method_option(flag: str, help: str):
@@ -69,9 +71,7 @@ def halftone(
       gonio halftone photo.exr -o print.png --dpi 300 --print-width-mm 120 --split
     """
     # lazy: gonio --help and other commands do not load halftone.run (benchmarks/bench_startup.py)
-    from .. import log
     from ..halftone import run as stage
-    from ..outputs import declare
 
     options = stage.HalftoneOptions(method, input_encoding, gamut, size, dpi, print_width_mm,
                                     bayer_size, cell_size, mask_size, split, report is not None,

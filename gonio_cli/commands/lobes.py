@@ -7,8 +7,12 @@ from typing import List, Optional
 
 import typer
 
+from .. import log
+from ..errors import InputError
 from ..names import (BASIS_SOLVER_NAMES, CHANNEL_NAMES, SAMPLE_SET_NAMES, WEIGHT_SOLVER_NAMES,
                      metavar)
+from ..outputs import declare
+from . import read_as
 
 SAMPLE_SET_HELP = ("seed001 (default, seed 001 §4), dense, hemisphere (lights off the plane too: "
                    "use it for lobes rendered under an environment), or a CSV with "
@@ -61,9 +65,7 @@ def basis(
       gonio lobes basis red.material.json green.material.json --max-lobes 11 -o basis.json
     """
     # lazy: gonio --help and the other commands do not load lobes.run (benchmarks/bench_startup.py)
-    from .. import log
     from ..lobes import run as stage
-    from ..outputs import declare
 
     options = stage.BasisOptions(max_lobes, samples, mirror_dense, channels, solver)
     stage.check_basis_options(options)
@@ -125,12 +127,8 @@ def fit(
       gonio lobes fit red.material.json --basis basis.json -o red.lobes.json
     """
     # lazy: gonio --help and the other commands do not load lobes.run (benchmarks/bench_startup.py)
-    from .. import log
-    from ..errors import InputError
     from ..lobes import run as stage
-    from ..outputs import declare
-    from ..schemas import read_lobe_basis
-    from . import read_as
+    from ..schemas import read_lobe_basis  # lazy: schemas loads numpy
 
     options = stage.FitOptions(samples, mirror_dense, view_angles, channels, solver, compare,
                                max_energy_ratio, time_limit_s, n_lobes)

@@ -17,12 +17,15 @@ from typing import Optional
 
 import typer
 
+from .. import log
+from ..errors import InputError
 from ..names import PREFILTER_AUTO, PREFILTER_METHOD_NAMES, metavar
+from ..outputs import declare
+from . import read_as, require_files
 
 
 def parse_exponents(text: str) -> list[float]:
     """``"1,8,64"`` → [1.0, 8.0, 64.0]; a bad item is an error naming it."""
-    from ..errors import InputError
 
     values = []
     for item in text.split(","):
@@ -80,12 +83,8 @@ def prefilter(
       gonio prefilter sky.exr --lobes paint.lobes.json -o sky.prefiltered
     """
     # lazy: gonio --help and other commands do not load prefilter_files (benchmarks/bench_startup.py)
-    from .. import log
     from .. import prefilter_files as stage
-    from ..errors import InputError
-    from ..outputs import declare
-    from ..schemas import read_lobe_exponents
-    from . import read_as, require_files
+    from ..schemas import read_lobe_exponents  # lazy: schemas loads numpy
 
     require_files([envmap_path], what="image file")
     require_files([lobes] if lobes is not None else [], schema="gonio.lobes")
