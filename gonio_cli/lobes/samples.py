@@ -13,14 +13,14 @@ from typing import Sequence
 
 import numpy as np
 
+from ..csvio import THETA_I, THETA_O, read_columns
 from ..errors import InputError
-from ..names import choices_fix, pick
 from ..geometry import cosines, in_plane_directions, reflect
+from ..names import choices_fix, pick
+from ..spectra import spectrum_to_xyz
 from . import (GLOBAL_VIEW_ANGLES_DEG, HEMISPHERE_POINTS, HORIZON_DEG, MIRROR_BLEND_DEG,
                MIRROR_RING_AZIMUTHS, MIRROR_RING_GAUSS, MIRROR_RING_INNER_DEG,
                MIRROR_RING_RATIO, MIRROR_RING_SPACING_DEG)
-from ..csvio import THETA_I, THETA_O, read_columns
-from ..spectra import spectrum_to_xyz
 
 # -------------------------------------------------------------------- sample sets --
 
