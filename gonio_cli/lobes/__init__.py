@@ -14,10 +14,14 @@ seed's equations are written for reflected light, which does). A pure Lambertian
 f = ρ/π is exactly K_D = ρ/π with every lobe weight 0. Negative dot products are clamped
 to zero, as seed 001 notes under eq. 1: (R·V) ≤ 0 gives a lobe value of exactly 0.
 
-Choosing exponents (seed 001 §3.2, eq. 4): :func:`select_basis`. Fitting weights
-(seed 001 §4, eqs. 5-6): :func:`fit_weights` with a solver of :data:`WEIGHT_SOLVERS`.
-Samples (seed 001 §4): :data:`SAMPLE_SETS`. Angle-dependent weights (seed 001 §5.2):
-:func:`fit_weight_table`, one fit per view angle, a table the renderer interpolates.
+Here: the constants and the lobes themselves (eqs. 1-3). Each step has its module, which
+its callers import it from: choosing exponents (seed 001 §3.2, eq. 4):
+:func:`.basis.select_basis`; fitting weights (seed 001 §4, eqs. 5-6):
+:func:`.solve.fit_weights` with a solver of :data:`.solvers.WEIGHT_SOLVERS`; samples (seed
+001 §4): :data:`.samples.SAMPLE_SETS`; angle-dependent weights (seed 001 §5.2):
+:func:`.solve.fit_weight_table`, one fit per view angle, a table the renderer
+interpolates; what the lobes hold against the material: :mod:`.energy`. ``gonio lobes``
+as library calls: :mod:`.run`.
 
 Rendering with prefiltered maps (docs/conventions.md: P_E is the *normalised* average
 ∫ L max(0, r·ω)^E dω / ∫ max(0, r·ω)^E dω, and ∫_sphere max(0, r·ω)^E dω = 2π/(E+1)):
