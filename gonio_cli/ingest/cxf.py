@@ -29,7 +29,7 @@ from ..errors import InputError
 from ..schemas import Measurement
 from ..spectra import DEFAULT_GRID_NM, covers, parse_grid, resample, same_grid
 from .quantities import QUANTITIES
-from .rgl import _summary
+from .rgl import single_file_summary
 
 FORMAT = "cxf3"
 
@@ -158,7 +158,7 @@ def ingest(paths: Sequence[str | os.PathLike], *, grid_nm: str | None = None,
                     "reflectance-factor")
     info = {"format": FORMAT, "path": path, "object": name, "geometries": int(ti.size),
             "wavelength_nm": f"{wl[0]:g}-{wl[-1]:g} nm ({wl.size} wavelengths)"}
-    m.summary = {**_summary(m, info, params, resampled, 0, notes),
+    m.summary = {**single_file_summary(m, info, params, resampled, 0, notes),
                  "quantity": quantity.name, "conversion": quantity.formula}
     for note in notes:
         log.warn(note)

@@ -363,7 +363,7 @@ def ingest(paths: Sequence[str | os.PathLike], *, theta_i_deg: str | None = None
             "jacobian": bool(np.asarray(meta["jacobian"])[0]),
             "wavelength_nm": file_grid, "rgb_to_spectrum": params["rgb_to_spectrum"],
             "mitsuba_variant": kind.variant, "mitsuba_version": params["mitsuba_version"]}
-    m.summary = _summary(m, info, params, resampled, negative, notes)
+    m.summary = single_file_summary(m, info, params, resampled, negative, notes)
     for note in notes:
         log.warn(note)
     return m
@@ -406,9 +406,11 @@ def _rgb_brdf(path: str, kind: Kind, theta_i_deg, theta_o_deg, grid: np.ndarray,
     return rgb @ rgb_reflectance_basis(grid).T, False, "linear sRGB"
 
 
-def _summary(m: Measurement, info: dict, params: dict, resampled: bool, clipped: int,
-             notes: list[str]) -> dict[str, Any]:
-    """The summary of :func:`gonio_cli.ingest.ingest`'s shape for an RGL input."""
+def single_file_summary(m: Measurement, info: dict, params: dict, resampled: bool,
+                        clipped: int, notes: list[str]) -> dict[str, Any]:
+    """The summary of :func:`gonio_cli.ingest.ingest`'s shape for one input file of
+    another format (an RGL ``.bsdf`` here, a CxF3 file in :mod:`.cxf`): ``info`` is the
+    file's entry, ``clipped`` the values clipped to 0."""
     per_theta_i = []
     for t in distinct(m.theta_i_deg):
         sel = m.theta_i_deg == t
