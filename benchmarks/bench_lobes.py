@@ -29,6 +29,10 @@ use_blas_threads()  # before numpy: kernels timed as in a gonio process
 import numpy as np
 
 from gonio_cli import lobes as L
+from gonio_cli.lobes.basis import select_basis
+from gonio_cli.lobes.samples import sample_set, target_values
+from gonio_cli.lobes.solve import fit_weight_table, fit_weights
+from gonio_cli.lobes.solvers import WEIGHT_SOLVERS
 from gonio_cli.artifact import read_artifact
 from gonio_cli.report.sweeps import lobe_test_materials, median_time
 
@@ -43,11 +47,11 @@ def main() -> None:
     repeats = 5 if quick else 25
     max_lobes = 6 if quick else 11
     mats = materials()
-    s = L.sample_set("seed001")
-    targets = {name: L.target_values(m, s, "xyz")[0] for name, m in mats.items()}
+    s = sample_set("seed001")
+    targets = {name: target_values(m, s, "xyz")[0] for name, m in mats.items()}
 
     t = time.perf_counter()
-    result = L.select_basis(list(targets.values()), s, max_lobes)
+    result = select_basis(list(targets.values()), s, max_lobes)
     basis_s = time.perf_counter() - t
     print(f"## Basis search (seed 001 §3.2, eq. 4), {len(mats)} materials, {s.n_samples} "
           f"samples × 3 views, XYZ, nnls inside, nlopt LN_SBPLX\n")
@@ -61,10 +65,10 @@ def main() -> None:
     print(f"\nTotal {basis_s:.1f} s; error non-increasing with lobe count: "
           f"{all(b <= a + 1e-9 for a, b in zip(errors, errors[1:]))}\n")
 
-    L.fit_weights(np.eye(3), np.ones((3, 1)), "lp-simplex")   # compile (numba) outside the timing
+    fit_weights(np.eye(3), np.ones((3, 1)), "lp-simplex")   # compile (numba) outside the timing
     counts = (1, 3, max_lobes) if quick else tuple(range(1, max_lobes + 1))
-    one = L.sample_set("dense", [40.0])       # one view angle, ~60 samples
-    one_targets = [L.target_values(m, one, "xyz")[0] for m in mats.values()]
+    one = sample_set("dense", [40.0])       # one view angle, ~60 samples
+    one_targets = [target_values(m, one, "xyz")[0] for m in mats.values()]
     print(f"## One weight fit (seed 001 eqs. 5-6): {one.n_samples} samples (dense set, view "
           f"40°) × 3 channels (XYZ); L1 summed and relative RMS worst over the "
           f"{len(mats)} materials; median time of {repeats}\n")
@@ -75,23 +79,23 @@ def main() -> None:
             continue
         e = result.steps[m - 1].exponents
         M = L.design_matrix(one.cos_theta_i(), one.cos_rv(), e)
-        for solver in L.WEIGHT_SOLVERS:
-            fits = [L.fit_weights(M, B, solver) for B in one_targets]
-            ms = 1e3 * np.median([median_time(lambda B=B: L.fit_weights(M, B, solver), repeats)
+        for solver in WEIGHT_SOLVERS:
+            fits = [fit_weights(M, B, solver) for B in one_targets]
+            ms = 1e3 * np.median([median_time(lambda B=B: fit_weights(M, B, solver), repeats)
                                   for B in one_targets])
             print(f"| {m} | {M.shape[1]} | {solver} | {sum(f.l1 for f in fits):.4g} | "
                   f"{max(f.rms_relative for f in fits):.4g} | {ms:.3f} |")
 
     mat = mats["red ink"]
-    sv = L.sample_set("seed001", L.DEFAULT_VIEW_ANGLES_DEG)
+    sv = sample_set("seed001", L.DEFAULT_VIEW_ANGLES_DEG)
     e8 = result.steps[min(8, len(result.steps)) - 1].exponents
     print(f"\n## Weight table for the red ink: {sv.view_angle_deg.size} view angles × "
           f"{sv.n_samples // sv.view_angle_deg.size} samples, 41 spectral channels, "
           f"{e8.size} lobes\n")
     print("| solver | rel. RMS (worst view) | time per view (ms) |")
     print("|---|---:|---:|")
-    L.fit_weights(np.eye(3), np.ones((3, 1)), "lp")              # first-call costs outside
-    table = L.fit_weight_table(mat, e8, sv, "spectral", compare=tuple(L.WEIGHT_SOLVERS))
+    fit_weights(np.eye(3), np.ones((3, 1)), "lp")              # first-call costs outside
+    table = fit_weight_table(mat, e8, sv, "spectral", compare=tuple(WEIGHT_SOLVERS))
     for solver, r in table.errors.items():
         print(f"| {solver} | {max(r['rms_relative']):.4f} | {1e3 * np.median(r['time_s']):.2f} |")
 

@@ -174,10 +174,11 @@ def test_argument_label(metavar, nargs, label):
 def _registries():
     """(command path, flag, the names the shell shows, the core registry's keys): the
     cores are imported here, never by the shells' help."""
-    from gonio_cli import fit, imageio, lobes, names, prefilter, report, sparkle
-    from gonio_cli.commands import halftone as halftone_shell
+    from gonio_cli import fit, imageio, names, prefilter, report, sparkle
+    from gonio_cli.halftone import run as halftone_run
     from gonio_cli.fit import common, gains, goniochromatic
     from gonio_cli.halftone import METHODS, coverage
+    from gonio_cli.lobes import basis, samples, solvers
     from gonio_cli.render import shade, scene, tonemap
 
     assert scene.SPECTRAL_MODES is names.SPECTRAL_PATHS is shade.SPECTRAL_PATHS
@@ -199,15 +200,15 @@ def _registries():
         ("halftone", "--input-encoding", names.INPUT_ENCODING_NAMES, coverage.INPUT_ENCODINGS),
         ("halftone", "--compress", names.COMPRESSION_NAMES, tuple(imageio.COMPRESSION)),
         ("halftone", "--mask-format", names.MASK_FORMAT_NAMES,
-         tuple(halftone_shell.MASK_WRITERS)),
+         tuple(halftone_run.MASK_WRITERS)),
         ("lobes basis", "--samples", names.SAMPLE_SET_NAMES + ("FILE.csv",),
-         tuple(lobes.SAMPLE_SETS) + ("FILE.csv",)),
+         tuple(samples.SAMPLE_SETS) + ("FILE.csv",)),
         ("lobes fit", "--samples", names.SAMPLE_SET_NAMES + ("FILE.csv",),
-         tuple(lobes.SAMPLE_SETS) + ("FILE.csv",)),
-        ("lobes basis", "--channels", names.CHANNEL_NAMES, tuple(lobes.CHANNELS)),
-        ("lobes fit", "--channels", names.CHANNEL_NAMES, tuple(lobes.CHANNELS)),
-        ("lobes basis", "--solver", names.BASIS_SOLVER_NAMES, tuple(lobes.BASIS_SOLVERS)),
-        ("lobes fit", "--solver", names.WEIGHT_SOLVER_NAMES, tuple(lobes.WEIGHT_SOLVERS)),
+         tuple(samples.SAMPLE_SETS) + ("FILE.csv",)),
+        ("lobes basis", "--channels", names.CHANNEL_NAMES, tuple(samples.CHANNELS)),
+        ("lobes fit", "--channels", names.CHANNEL_NAMES, tuple(samples.CHANNELS)),
+        ("lobes basis", "--solver", names.BASIS_SOLVER_NAMES, tuple(basis.BASIS_SOLVERS)),
+        ("lobes fit", "--solver", names.WEIGHT_SOLVER_NAMES, tuple(solvers.WEIGHT_SOLVERS)),
         ("prefilter", "--method", (names.PREFILTER_AUTO,) + names.PREFILTER_METHOD_NAMES,
          ("auto",) + tuple(prefilter.METHODS)),
         ("sparkle", "--rule", names.SPARKLE_RULE_NAMES, tuple(sparkle.SEGMENTATION_RULES)),

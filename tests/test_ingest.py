@@ -519,3 +519,19 @@ def test_reading_a_few_thousand_rows_is_vectorised(tmp_path):
     assert spectra.values.shape == (60, 41)
     # Line of value (k, j) is 2 + 41 k + j (header on line 1, rows in file order).
     assert spectra.lines[5, 7] == 2 + 41 * 5 + 7
+
+
+# ------------------------------------------------------------ the library call --
+
+def test_the_library_call_writes_what_gonio_ingest_writes(run_gonio, tmp_path):
+    """``gonio batch`` calls :func:`gonio_cli.ingest.run` and ``write`` directly: the same
+    artifact as the command, byte for byte (its times live in the side record)."""
+    ti, to, v = table()
+    csv = write(tmp_path, "w.csv", wide_text(ti, to, v))
+    r = run_gonio("ingest", csv, "--grid-nm", "400:700:20", "-o", tmp_path / "cli.json")
+    assert r.exit_code == 0, r.stderr
+    result = core.run([csv], grid_nm="400:700:20")
+    core.write(result, tmp_path / "lib.json")
+    assert (tmp_path / "lib.json").read_bytes() == (tmp_path / "cli.json").read_bytes()
+    said = result.summary_line(tmp_path / "cli.json")
+    assert r.stderr.splitlines()[-1].rsplit(", ", 1)[0] == said.rsplit(", ", 1)[0]  # but time

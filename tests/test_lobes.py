@@ -11,6 +11,10 @@ import numpy as np
 import pytest
 
 from gonio_cli import lobes as L
+from gonio_cli.lobes.basis import select_basis
+from gonio_cli.lobes.samples import sample_set, target_values
+from gonio_cli.lobes.solve import fit_weight_table, fit_weights
+from gonio_cli.lobes.solvers import WARM_SIMPLEX_MAX_SAMPLES, WEIGHT_SOLVERS, WeightSolver
 from gonio_cli.errors import FitError, InputError
 from gonio_cli.geometry import reflect
 from gonio_cli.schemas import Material
@@ -73,7 +77,7 @@ def test_cosine_lobe_broadcasts():
 
 
 def test_reflect_gives_in_plane_rv():
-    s = L.sample_set("seed001", [0.0, 35.0, 70.0])
+    s = sample_set("seed001", [0.0, 35.0, 70.0])
     np.testing.assert_allclose(s.cos_rv(), np.cos(np.radians(s.view_deg - s.light_deg)),
                                atol=1e-14)
     r = reflect(np.array([[-np.sin(0.3), 0.0, np.cos(0.3)]]))
@@ -95,38 +99,38 @@ def test_bad_exponents_are_refused(bad):
 # --------------------------------------------------------------------- sample sets --
 
 def test_sample_sets():
-    s = L.sample_set("seed001")
+    s = sample_set("seed001")
     assert 50 <= s.n_samples <= 70                          # seed 001 §4: a few dozen
     assert np.all(np.abs(s.light_deg) <= L.HORIZON_DEG)
     assert set(s.role) == {"diffuse", "directional", "mirror"}
     for k, tv in enumerate(s.view_angle_deg):                 # each view has its mirror
         rows = s.view_index == k
         assert np.any(s.light_deg[rows] == tv) and np.all(s.view_deg[rows] == tv)
-    assert L.sample_set("dense", [40.0]).n_samples > 2 * L.sample_set("seed001", [40.0]).n_samples
+    assert sample_set("dense", [40.0]).n_samples > 2 * sample_set("seed001", [40.0]).n_samples
     with pytest.raises(InputError, match="unknown"):
-        L.sample_set("nope")
+        sample_set("nope")
     with pytest.raises(InputError, match="outside"):
-        L.sample_set("seed001", [90.0])
+        sample_set("seed001", [90.0])
 
 
 def test_sample_csv(tmp_path):
     p = tmp_path / "s.csv"
     p.write_text("theta_i_deg,theta_o_deg\n30,30\n20,30\n45,10\n89,10\n")
-    s = L.sample_set(str(p))
+    s = sample_set(str(p))
     assert s.n_samples == 3 and s.view_angle_deg.tolist() == [10.0, 30.0]
     p.write_text("theta_i_deg,theta_o_deg\n89,10\n")
     with pytest.raises(InputError, match="nothing to fit"):
-        L.sample_set(str(p))
+        sample_set(str(p))
     p.write_text("a,b\n1,2\n")
     with pytest.raises(InputError, match="header"):
-        L.sample_set(str(p))
+        sample_set(str(p))
 
 
 def test_sample_set_that_sees_no_lobe_is_refused(tmp_path):
     p = tmp_path / "retro.csv"          # light and detector on the same side: R·V < 0
     p.write_text("theta_i_deg,theta_o_deg\n60,-60\n50,-60\n70,-60\n")
     with pytest.raises(FitError, match="no sample sees"):
-        L.fit_weight_table(gonio_material(), [5.0, 50.0], L.sample_set(str(p)), "xyz")
+        fit_weight_table(gonio_material(), [5.0, 50.0], sample_set(str(p)), "xyz")
 
 
 # ------------------------------------------------------------------- weight solvers --
@@ -134,7 +138,7 @@ def test_sample_set_that_sees_no_lobe_is_refused(tmp_path):
 def random_problems(n=120, seed=7):
     """(M, B) pairs from the real design matrix with random non-negative targets."""
     rng = np.random.default_rng(seed)
-    s = L.sample_set("seed001")
+    s = sample_set("seed001")
     for _ in range(n):
         m = int(rng.integers(1, 9))
         e = np.sort(np.exp(rng.uniform(0.0, np.log(2e3), m)))
@@ -151,7 +155,7 @@ def random_problems(n=120, seed=7):
 
 def test_weights_non_negative_and_lp_never_worse_than_clamped_lsq():
     for M, B in random_problems():
-        fits = {name: L.fit_weights(M, B, name) for name in L.WEIGHT_SOLVERS}
+        fits = {name: fit_weights(M, B, name) for name in WEIGHT_SOLVERS}
         for r in fits.values():
             assert r.weights.shape == (M.shape[1], 3) and np.all(r.weights >= 0)
         lp = fits["highs"].l1
@@ -167,7 +171,7 @@ def test_weights_non_negative_and_lp_never_worse_than_clamped_lsq():
 
 def test_clamping_fails_as_seed_001_says():
     """Clamping negative least-squares weights can be far worse than the LP (seed 001 §4)."""
-    worse = [L.fit_weights(M, B, "lsq-clamp").l1 / max(L.fit_weights(M, B, "highs").l1, 1e-12)
+    worse = [fit_weights(M, B, "lsq-clamp").l1 / max(fit_weights(M, B, "highs").l1, 1e-12)
              for M, B in random_problems(30, seed=3)]
     assert max(worse) > 2.0
 
@@ -175,13 +179,13 @@ def test_clamping_fails_as_seed_001_says():
 @pytest.mark.parametrize("solver,tol", [("highs", HIGHS_TOL), ("lp", SIMPLEX_TOL),
                                         ("lp-simplex", SIMPLEX_TOL), ("nnls", SIMPLEX_TOL)])
 def test_exact_sum_of_lobes_is_recovered(solver, tol):
-    s = L.sample_set("seed001")
+    s = sample_set("seed001")
     e = np.array([1.0, 10.0, 100.0, 1000.0])
     M = L.design_matrix(s.cos_theta_i(), s.cos_rv(), e)
     rng = np.random.default_rng(11)
     x = rng.random((M.shape[1], 3))
     x[rng.random(x.shape) < 0.4] = 0.0
-    r = L.fit_weights(M, M @ x, solver)
+    r = fit_weights(M, M @ x, solver)
     np.testing.assert_allclose(r.weights, x, atol=tol * x.max())
     assert r.rms_relative < tol
 
@@ -189,8 +193,8 @@ def test_exact_sum_of_lobes_is_recovered(solver, tol):
 @pytest.mark.parametrize("solver", ["lp", "highs", "lp-simplex", "nnls"])
 @pytest.mark.parametrize("channels", ["spectral", "xyz"])
 def test_lambertian_puts_all_weight_on_kd(solver, channels):
-    table = L.fit_weight_table(lambertian_material(0.6), [2.0, 20.0, 200.0],
-                               L.sample_set("seed001", [0.0, 40.0, 80.0]), channels, solver)
+    table = fit_weight_table(lambertian_material(0.6), [2.0, 20.0, 200.0],
+                               sample_set("seed001", [0.0, 40.0, 80.0]), channels, solver)
     kd = table.diffuse
     want = 0.6 / np.pi if channels == "spectral" else None
     if want is not None:
@@ -204,8 +208,8 @@ def test_lambertian_puts_all_weight_on_kd(solver, channels):
 
 def test_weight_table_of_an_ink():
     mat = gonio_material("green")
-    s = L.sample_set("seed001", [0.0, 30.0, 60.0])
-    t = L.fit_weight_table(mat, [2.0, 8.0, 30.0, 120.0], s, "spectral")
+    s = sample_set("seed001", [0.0, 30.0, 60.0])
+    t = fit_weight_table(mat, [2.0, 8.0, 30.0, 120.0], s, "spectral")
     assert t.diffuse.shape == (3, WL.size) and t.gloss.shape == (3, 4, WL.size)
     assert t.directional_diffuse.shape == (3, 4, WL.size)
     for arr in (t.diffuse, t.directional_diffuse, t.gloss):
@@ -213,9 +217,9 @@ def test_weight_table_of_an_ink():
     assert list(t.errors) == ["lp"]                         # comparisons only when asked
     assert t.errors["lp"]["status"] == ["optimal"] * 3
     assert max(t.errors["lp"]["rms_relative"]) < 0.1      # ~5 % on a rough (α 0.18) ink
-    both = L.fit_weight_table(mat, [2.0, 8.0, 30.0, 120.0], s, "spectral",
-                              compare=tuple(L.WEIGHT_SOLVERS))
-    assert list(both.errors) == list(L.WEIGHT_SOLVERS)     # the written solver first
+    both = fit_weight_table(mat, [2.0, 8.0, 30.0, 120.0], s, "spectral",
+                              compare=tuple(WEIGHT_SOLVERS))
+    assert list(both.errors) == list(WEIGHT_SOLVERS)     # the written solver first
     # the same LP: the L1 of the default equals HiGHS's at every view, and it is exact
     np.testing.assert_allclose(both.errors["lp"]["l1"], both.errors["highs"]["l1"],
                                rtol=HIGHS_TOL)
@@ -234,7 +238,7 @@ def test_warm_start_reuses_the_basis_across_channels():
     assert status.tolist() == [0, 0, 0, 0]
     assert iterations[0] > 0 and iterations[1:].tolist() == [0, 0, 0]
     np.testing.assert_allclose(X, X[:, :1] * [1.0, 2.0, 0.5, 7.0], rtol=1e-12, atol=1e-15)
-    assert L.fit_weights(M, b, "lp").l1 == pytest.approx(L.fit_weights(M, b, "highs").l1,
+    assert fit_weights(M, b, "lp").l1 == pytest.approx(fit_weights(M, b, "highs").l1,
                                                           rel=HIGHS_TOL)
 
 
@@ -242,7 +246,7 @@ def test_warm_start_reuses_the_basis_across_channels():
 def test_time_limit_is_a_status_not_an_error(solver):
     rng = np.random.default_rng(0)
     M, B = rng.random((60, 17)), rng.random((60, 41))
-    r = L.fit_weights(M, B, solver, time_limit_s=1e-9)
+    r = fit_weights(M, B, solver, time_limit_s=1e-9)
     assert r.status == "time_limit" and not r.success
     assert "time limit" in r.message
     assert r.weights.shape == (17, 41) and np.all(r.weights >= 0)
@@ -254,8 +258,8 @@ def test_time_limit_in_a_table_is_recorded_per_view():
     """The chosen solver and a comparison stopped by the time limit: the table is still
     made, each view's status says so (what ``gonio lobes fit`` writes)."""
     mat = gonio_material("green")
-    s = L.sample_set("seed001", [0.0, 40.0])
-    t = L.fit_weight_table(mat, [2.0, 30.0], s, "spectral", "lp", compare=("highs",),
+    s = sample_set("seed001", [0.0, 40.0])
+    t = fit_weight_table(mat, [2.0, 30.0], s, "spectral", "lp", compare=("highs",),
                            time_limit_s=1e-9)
     assert t.errors["lp"]["status"] == ["time_limit"] * 2
     assert t.errors["highs"]["status"] == ["time_limit"] * 2
@@ -266,31 +270,31 @@ def test_a_failed_comparison_is_a_note_and_a_failed_choice_an_error(monkeypatch)
     def broken(M, B, time_limit_s):
         return np.zeros((M.shape[1], B.shape[1])), "failed", "no solution (test)"
 
-    monkeypatch.setitem(L.WEIGHT_SOLVERS, "highs", L.WeightSolver(broken, "broken"))
+    monkeypatch.setitem(WEIGHT_SOLVERS, "highs", WeightSolver(broken, "broken"))
     mat = gonio_material("green")
-    s = L.sample_set("seed001", [40.0])
-    t = L.fit_weight_table(mat, [2.0, 30.0], s, "spectral", "lp", compare=("highs",))
+    s = sample_set("seed001", [40.0])
+    t = fit_weight_table(mat, [2.0, 30.0], s, "spectral", "lp", compare=("highs",))
     assert t.errors["highs"]["status"] == ["failed"]
     assert t.errors["highs"]["message"] == ["no solution (test)"]
     assert t.errors["lp"]["status"] == ["optimal"]
     with pytest.raises(FitError, match="highs weight solver failed"):
-        L.fit_weight_table(mat, [2.0, 30.0], s, "spectral", "highs")
+        fit_weight_table(mat, [2.0, 30.0], s, "spectral", "highs")
 
 
 def test_non_finite_target_is_refused():
     M = np.ones((3, 2))
     with pytest.raises(FitError, match="NaN"):
-        L.fit_weights(M, np.array([[1.0], [np.nan], [0.0]]))
+        fit_weights(M, np.array([[1.0], [np.nan], [0.0]]))
 
 
 # -------------------------------------------------------------------- basis search --
 
 def test_basis_error_never_rises_with_lobe_count():
-    s = L.sample_set("seed001")
+    s = sample_set("seed001")
     mats = [gonio_material("red"), gonio_material("blue", 0.08), lambertian_material(0.3),
             Material("torrance-sparrow", WL, {"alpha": 0.3, "f0": np.full_like(WL, 0.04)})]
-    targets = [L.target_values(m, s, "xyz")[0] for m in mats]
-    result = L.select_basis(targets, s, max_lobes=4)
+    targets = [target_values(m, s, "xyz")[0] for m in mats]
+    result = select_basis(targets, s, max_lobes=4)
     errors = [step.error for step in result.steps]
     assert [step.n_lobes for step in result.steps] == [1, 2, 3, 4]
     # nnls's residual cannot grow when a column is added and each search starts from the
@@ -306,13 +310,13 @@ def test_basis_error_never_rises_with_lobe_count():
 
 
 def test_basis_bad_options():
-    s = L.sample_set("seed001")
+    s = sample_set("seed001")
     with pytest.raises(InputError):
-        L.select_basis([], s)
+        select_basis([], s)
     with pytest.raises(InputError):
-        L.select_basis([np.ones((s.n_samples, 3))], s, max_lobes=0)
+        select_basis([np.ones((s.n_samples, 3))], s, max_lobes=0)
     with pytest.raises(InputError):
-        L.select_basis([np.ones((s.n_samples, 3))], s, solver="lsq-clamp")
+        select_basis([np.ones((s.n_samples, 3))], s, solver="lsq-clamp")
 
 
 @pytest.mark.parametrize("solver", EXACT_LP)
@@ -320,9 +324,9 @@ def test_simplex_falls_back_to_highs_at_its_iteration_cap(monkeypatch, solver):
     from gonio_cli.lobes import simplex
 
     M, B = next(random_problems(1, seed=5))
-    want = L.fit_weights(M, B, "highs")
+    want = fit_weights(M, B, "highs")
     monkeypatch.setattr(simplex, "MAX_ITER_PER_VARIABLE", 0)   # every channel stops at once
-    got = L.fit_weights(M, B, solver)
+    got = fit_weights(M, B, solver)
     assert "3 channels re-solved by HiGHS" in got.message and got.status == "optimal"
     assert got.l1 == pytest.approx(want.l1, rel=HIGHS_TOL)
 
@@ -349,26 +353,26 @@ class _StoppingOpt:
 def test_basis_search_keeps_the_best_point_only_on_roundoff(monkeypatch):
     import nlopt
 
-    s = L.sample_set("seed001")
-    targets = [L.target_values(gonio_material("red"), s, "xyz")[0]]
+    s = sample_set("seed001")
+    targets = [target_values(gonio_material("red"), s, "xyz")[0]]
 
     class Roundoff(_StoppingOpt):
         error = nlopt.RoundoffLimited
 
     monkeypatch.setattr(nlopt, "opt", Roundoff)
-    result = L.select_basis(targets, s, max_lobes=1)
+    result = select_basis(targets, s, max_lobes=1)
     assert "round-off" in result.steps[0].message and np.isfinite(result.steps[0].error)
     # any other exception (a bug, a bad argument, a forced stop) surfaces
     monkeypatch.setattr(nlopt, "opt", _StoppingOpt)
     with pytest.raises(RuntimeError, match="stop \\(test\\)"):
-        L.select_basis(targets, s, max_lobes=1)
+        select_basis(targets, s, max_lobes=1)
 
 
 def test_hemisphere_sample_set_covers_the_half_hemisphere_evenly():
     # 200 lights per view, all above the 85° horizon, on the y ≥ 0 half (an isotropic BRDF
     # repeats itself in the other half); uniform in solid angle: mean cos θi of a uniform
     # density on the cap up to 85° is (1 + cos 85°)/2.
-    s = L.sample_set("hemisphere", [0.0, 40.0])
+    s = sample_set("hemisphere", [0.0, 40.0])
     assert s.n_samples == 2 * L.HEMISPHERE_POINTS
     wi, wo = s.directions()
     np.testing.assert_allclose(np.linalg.norm(wi, axis=1), 1.0, atol=1e-12)
@@ -380,10 +384,10 @@ def test_hemisphere_sample_set_covers_the_half_hemisphere_evenly():
 
 
 def test_lp_hands_large_sample_sets_to_highs():
-    s = L.sample_set("hemisphere", [40.0])
+    s = sample_set("hemisphere", [40.0])
     M = L.design_matrix(s.cos_theta_i(), s.cos_rv(), [3.0, 30.0])
-    B = L.target_values(gonio_material("green"), s, "xyz")[0]
-    assert M.shape[0] > L.WARM_SIMPLEX_MAX_SAMPLES
-    r = L.fit_weights(M, B, "lp")
+    B = target_values(gonio_material("green"), s, "xyz")[0]
+    assert M.shape[0] > WARM_SIMPLEX_MAX_SAMPLES
+    r = fit_weights(M, B, "lp")
     assert r.status == "optimal" and "by HiGHS" in r.message
-    assert r.l1 == pytest.approx(L.fit_weights(M, B, "highs").l1, rel=1e-12)
+    assert r.l1 == pytest.approx(fit_weights(M, B, "highs").l1, rel=1e-12)

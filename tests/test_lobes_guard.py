@@ -17,6 +17,11 @@ import numpy as np
 import pytest
 
 from gonio_cli import lobes as L
+from gonio_cli.lobes.basis import BasisResult, BasisStep, basis_notes, resolvable_exponent, select_basis
+from gonio_cli.lobes.energy import energy_excess, energy_note
+from gonio_cli.lobes.samples import parse_view_angles, sample_set, target_values
+from gonio_cli.lobes.solve import fit_weight_table, fit_weights, lobe_half_width_deg, resolved_lobes, unresolved_notes
+from gonio_cli.lobes.solvers import residual_errors
 from gonio_cli.errors import FitError, InputError
 from gonio_cli.geometry import cosines
 from gonio_cli.lobes import solve
@@ -132,31 +137,31 @@ def test_blow_up_is_reproduced_without_the_guard_and_gone_with_it(monkeypatch, p
     """The user's case, made synthetic: hemisphere lights that miss the axis of an E = 1e4
     lobe by 1.2-5° see it at ~1e-17, and least squares gives it an astronomical weight."""
     mat = glossy_paint()
-    samples = L.sample_set("hemisphere", VIEWS)
+    samples = sample_set("hemisphere", VIEWS)
     albedo = paint_albedo                                                   # (V, 3)
 
     # before: only a column below 1e-300 was refused, and no energy check
     monkeypatch.setattr(solve, "LOBE_RESOLVED_MIN", 1e-300)
-    old = L.fit_weight_table(mat, SHARP_BASIS, samples, "xyz", "nnls",
+    old = fit_weight_table(mat, SHARP_BASIS, samples, "xyz", "nnls",
                              max_energy_ratio=np.inf)
     assert lobe_energies(old).max(axis=1).max() / albedo.max() > 1e6
     assert max(old.gloss[:, 3].max(), old.directional_diffuse[:, 3].max()) > 1e6
     # the energy check alone (the backstop) refuses those weights, naming the lobe
     with pytest.raises(FitError, match=r"E=10000 \(weight .*--max-energy-ratio"):
-        L.fit_weight_table(mat, SHARP_BASIS, samples, "xyz", "nnls")
+        fit_weight_table(mat, SHARP_BASIS, samples, "xyz", "nnls")
     monkeypatch.undo()
 
     # after: the lobe is left out where no light lies within its half-width, and what
     # the weights hold stays within the warning's 10x of the independent albedo (measured
     # 2.5x here: the E = 40 lobe stands for a gloss ~3x sharper than itself)
-    new = L.fit_weight_table(mat, SHARP_BASIS, samples, "xyz", "nnls")
+    new = fit_weight_table(mat, SHARP_BASIS, samples, "xyz", "nnls")
     assert new.unresolved[:, 3].all() and not new.unresolved[:, :3].any()
     assert np.all(new.gloss[:, 3] == 0) and np.all(new.directional_diffuse[:, 3] == 0)
     ratio = lobe_energies(new).sum(axis=1) / albedo
-    assert ratio.max() < L.ENERGY_EXCESS_WARN and L.energy_note(new) is None
+    assert ratio.max() < L.ENERGY_EXCESS_WARN and energy_note(new) is None
     # the table's own albedo (mirror-dense quadrature) agrees with the grid's
     np.testing.assert_allclose(new.albedo, albedo, rtol=0.01)
-    notes = L.unresolved_notes(new, "hemisphere")
+    notes = unresolved_notes(new, "hemisphere")
     assert len(notes) == 1 and "E=10000" in notes[0] and "--mirror-dense" in notes[0]
     assert "0, 20, 50 deg" in notes[0]
     # and the message says so in the file: the view's solver message
@@ -165,9 +170,9 @@ def test_blow_up_is_reproduced_without_the_guard_and_gone_with_it(monkeypatch, p
 
 def test_mirror_dense_samples_resolve_the_sharp_lobe_and_keep_the_energy(paint_albedo):
     mat = glossy_paint()
-    samples = L.sample_set("hemisphere", VIEWS, mirror_dense=True)
+    samples = sample_set("hemisphere", VIEWS, mirror_dense=True)
     assert samples.name == "hemisphere+mirror"
-    table = L.fit_weight_table(mat, SHARP_BASIS, samples, "xyz", "nnls")
+    table = fit_weight_table(mat, SHARP_BASIS, samples, "xyz", "nnls")
     assert not table.unresolved.any()
     assert np.all(table.lobe_peak > 0.99)          # a light within 0.07° of every axis
     albedo = paint_albedo
@@ -184,15 +189,15 @@ def test_energy_excess_of_in_plane_fits_is_a_note_or_refused_at_the_limit():
     the paint reflects there (measured 22.3x; the demo's own materials: at most 4.7x).
     That is a note (a warning), and an error only above --max-energy-ratio."""
     mat = glossy_paint()
-    samples = L.sample_set("seed001", L.parse_view_angles("0:80:10"))
-    table = L.fit_weight_table(mat, DEMO_BASIS, samples, "xyz", "lp")
-    ratio = L.energy_excess(table.energy, table.albedo)
+    samples = sample_set("seed001", parse_view_angles("0:80:10"))
+    table = fit_weight_table(mat, DEMO_BASIS, samples, "xyz", "lp")
+    ratio = energy_excess(table.energy, table.albedo)
     assert 10 < ratio.max() < 30 and np.argmax(ratio.max(axis=1)) == 8
-    note = L.energy_note(table)
+    note = energy_note(table)
     assert "view angle 80 deg" in note and "E=69.1" in note and "x the light" in note
     assert "--mirror-dense" in note
     with pytest.raises(FitError) as err:
-        L.fit_weight_table(mat, DEMO_BASIS, samples, "xyz", "lp", max_energy_ratio=15)
+        fit_weight_table(mat, DEMO_BASIS, samples, "xyz", "lp", max_energy_ratio=15)
     text = err.value.format()
     assert "(limit 15x)" in text and "--max-energy-ratio 23" in text and "E=69.1" in text
 
@@ -203,25 +208,25 @@ def test_energy_excess_of_sound_fits_is_near_one():
     one = np.ones_like(WL)
     lam = Material("cook-torrance", WL, {"kd": 0.6 * one, "ks": 0 * one, "m": 0.3 * one,
                                          "f0": 0 * one})
-    table = L.fit_weight_table(lam, DEMO_BASIS, L.sample_set("seed001", VIEWS), "xyz", "lp")
-    np.testing.assert_allclose(L.energy_excess(table.energy, table.albedo), 1.0, rtol=0.01)
+    table = fit_weight_table(lam, DEMO_BASIS, sample_set("seed001", VIEWS), "xyz", "lp")
+    np.testing.assert_allclose(energy_excess(table.energy, table.albedo), 1.0, rtol=0.01)
 
 
 def test_a_view_that_resolves_no_lobe_is_refused(tmp_path):
     p = tmp_path / "off.csv"             # every light 20° or more from the mirror: E=50
     p.write_text("theta_i_deg,theta_o_deg\n50,30\n60,30\n-10,30\n")   # needs 6.7°
     with pytest.raises(FitError, match="no sample sees any lobe within its half-width"):
-        L.fit_weight_table(glossy_paint(), [50.0, 200.0], L.sample_set(str(p)), "xyz")
+        fit_weight_table(glossy_paint(), [50.0, 200.0], sample_set(str(p)), "xyz")
 
 
 def test_criterion_is_the_half_width():
     # a lobe resolved at exactly half its peak, not beyond: cos θ = 2^(-1/E)
     for e in (1.0, 70.0, 1e4):
-        hw = float(L.lobe_half_width_deg(e))
+        hw = float(lobe_half_width_deg(e))
         assert np.cos(np.radians(hw)) ** e == pytest.approx(0.5, rel=1e-9)
         M = L.design_matrix([1.0, 1.0], np.cos(np.radians([hw * 0.999, hw * 1.001])), [e])
-        assert L.resolved_lobes(M[:1])[1][0] and not L.resolved_lobes(M[1:])[1][0]
-    assert L.lobe_half_width_deg(1e4) == pytest.approx(0.6745, abs=1e-3)
+        assert resolved_lobes(M[:1])[1][0] and not resolved_lobes(M[1:])[1][0]
+    assert lobe_half_width_deg(1e4) == pytest.approx(0.6745, abs=1e-3)
 
 
 # --------------------------------------------------------- the mirror-dense quadrature --
@@ -235,8 +240,8 @@ def test_mirror_dense_quadrature_integrates_cosine_lobes(view, grid):
     for E = 1 … 1e4. Measured worst: 0.25 % at 0-40° (3-point Gauss per panel on the
     sharpest lobes), 0.6 % at 70-80° (the spiral's rows where the horizon cuts a lobe of
     E ≈ 10-100): 1 % bounds both. The plain spiral is off by more than 50 % at E = 1e4."""
-    s = L.sample_set("hemisphere", [view], mirror_dense=True)
-    plain = L.sample_set("hemisphere", [view])
+    s = sample_set("hemisphere", [view], mirror_dense=True)
+    plain = sample_set("hemisphere", [view])
     area = np.pi * (1.0 - np.cos(HORIZON))
     assert s.weight.sum() == pytest.approx(area, rel=2e-3)    # E = 0: the half's area
     assert np.all(s.weight > 0) and np.all(s.directions()[0][:, 1] >= 0)
@@ -253,60 +258,60 @@ def test_mirror_dense_quadrature_integrates_cosine_lobes(view, grid):
 def test_mirror_dense_fit_is_weighted_by_solid_angle():
     # the quadrature weights enter the objective: with them, a constant target is fitted
     # by K_D alone and the relative error is the weighted one (0 here)
-    s = L.sample_set("hemisphere", [40.0], mirror_dense=True)
+    s = sample_set("hemisphere", [40.0], mirror_dense=True)
     M = L.design_matrix(s.cos_theta_i(), s.cos_rv(), [5.0, 500.0])
     B = M @ np.array([[0.1], [0.0], [0.2], [0.0], [3.0]])
     for solver in ("nnls", "lp"):
-        r = L.fit_weights(M, B, solver, weight=s.weight)
+        r = fit_weights(M, B, solver, weight=s.weight)
         np.testing.assert_allclose(r.weights[:, 0], [0.1, 0, 0.2, 0, 3.0], atol=1e-7)
         assert r.rms_relative < 1e-7
     # weights scale the rows: L1 is Σ w|r| with w of mean 1
     X = np.zeros((5, 1))
-    l1, _, rel = L.residual_errors(M, X, B, s.weight)
+    l1, _, rel = residual_errors(M, X, B, s.weight)
     w = s.weight / s.weight.mean()
     assert l1 == pytest.approx(np.sum(w * np.abs(B[:, 0]))) and rel == pytest.approx(1.0)
 
 
 def test_mirror_dense_is_for_the_hemisphere_only():
     with pytest.raises(InputError, match="--mirror-dense applies to --samples hemisphere"):
-        L.sample_set("seed001", mirror_dense=True)
+        sample_set("seed001", mirror_dense=True)
 
 
 # ------------------------------------------------------------------ the basis search --
 
 def test_basis_search_stays_within_what_the_samples_resolve():
     mat = glossy_paint()
-    s = L.sample_set("hemisphere")
-    result = L.select_basis([L.target_values(mat, s, "xyz")[0]], s, 2)
-    top = L.resolvable_exponent(s)
+    s = sample_set("hemisphere")
+    result = select_basis([target_values(mat, s, "xyz")[0]], s, 2)
+    top = resolvable_exponent(s)
     # the nearest light to a view's mirror direction is 5.1° away (view 70°): E ≤ 174
     assert result.exponent_range[1] == pytest.approx(top) and 150 < top < 200
     assert all(st.exponents.max() <= top * (1 + 1e-9) for st in result.steps)
-    notes = L.basis_notes(result)
+    notes = basis_notes(result)
     assert any("upper bound E=174" in n and "sharpest lobe these samples resolve" in n
                and "--mirror-dense" in n for n in notes), notes
     # in-plane sets have a light on every mirror direction: the full range
-    assert L.resolvable_exponent(L.sample_set("seed001")) > 1e15   # round-off of cos 0
+    assert resolvable_exponent(sample_set("seed001")) > 1e15   # round-off of cos 0
 
 
 def _step(n, exponents, error):
-    return L.BasisStep(n, np.array(exponents, float), error, error / 2, error / 2, [error],
+    return BasisStep(n, np.array(exponents, float), error, error / 2, error / 2, [error],
                        10, 0.0, "converged (ftol)")
 
 
 def test_basis_notes_name_the_bound_and_a_flat_error():
-    flat = L.BasisResult([_step(1, [1e4], 0.236), _step(2, [3.0, 1e4], 0.2355),
+    flat = BasisResult([_step(1, [1e4], 0.236), _step(2, [3.0, 1e4], 0.2355),
                           _step(3, [1.0, 3.0, 1e4], 0.2354)], mirror_offset_deg=np.zeros(3))
-    notes = L.basis_notes(flat)
+    notes = basis_notes(flat)
     assert len(notes) == 3
     assert "upper bound E=10000 of the search in the 1-3-lobe basis(es)" in notes[0]
     assert "sharper than any lobe" in notes[0]
     assert "lower bound E=1 of the search in the 3-lobe basis(es)" in notes[1]
     assert "lowered the error by only 0.04%: it adds nothing, and 2 lobes" in notes[1]
     assert "stays at 0.236 from 1 to 3 lobes" in notes[2]
-    falling = L.BasisResult([_step(1, [15.7], 0.236), _step(2, [5.1, 34.2], 0.049)],
+    falling = BasisResult([_step(1, [15.7], 0.236), _step(2, [5.1, 34.2], 0.049)],
                             mirror_offset_deg=np.zeros(3))
-    assert L.basis_notes(falling) == []
+    assert basis_notes(falling) == []
 
 
 # ------------------------------------------------------------------------- the CLI --

@@ -13,7 +13,7 @@ import textwrap
 import numpy as np
 import pytest
 
-from gonio_cli import lobes as L
+from gonio_cli.lobes.samples import sample_set
 from gonio_cli.errors import InputError
 from gonio_cli.csvio import read_spectrum
 from gonio_cli.render.scene import load_scene
@@ -120,13 +120,13 @@ def test_a_sample_set_reads_like_any_gonio_csv(tmp_path):
     plain.write_text("theta_i_deg,theta_o_deg\n30,30\n20,30\n45,10\n")
     export.write_bytes(b"\xef\xbb\xbf# light, view\r\ntheta_i_deg;theta_o_deg\r\n30;30\r\n"
                        b"\r\n20,0;30\r\n45;10\r\n")
-    a, b = L.sample_set(str(plain)), L.sample_set(str(export))
+    a, b = sample_set(str(plain)), sample_set(str(export))
     np.testing.assert_array_equal(a.light_deg, [30.0, 20.0, 45.0])
     np.testing.assert_array_equal(b.light_deg, a.light_deg)
     np.testing.assert_array_equal(b.view_angle_deg, a.view_angle_deg)
     export.write_text("theta_i_deg,theta_o_deg\n30,30\n20,inf\n")
     with pytest.raises(InputError) as exc:
-        L.sample_set(str(export))
+        sample_set(str(export))
     assert exc.value.format().startswith(f"{export}:3: column theta_o_deg:")
 
 

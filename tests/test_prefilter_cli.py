@@ -158,3 +158,18 @@ def test_the_sample_sky_regenerates_and_prefilters(run_gonio, tmp_path):
     toward = envmap.lookup(diffuse, sun)
     away = envmap.lookup(diffuse, -sun)
     assert toward.min() > 3 * away.max()  # the sun lights the side facing it
+
+
+def test_the_library_call_writes_what_gonio_prefilter_writes(run_gonio, sky, tmp_path):
+    """``gonio batch`` calls :func:`gonio_cli.prefilter_files.run` and ``write`` directly:
+    the same index.json, byte for byte, and the same maps as the command."""
+    from gonio_cli import prefilter_files as stage
+
+    cli_out, lib_out = tmp_path / "cli", tmp_path / "lib"
+    r = run_gonio("prefilter", sky, "--exponents", "8,64", "-o", cli_out)
+    assert r.exit_code == 0, r.stderr
+    stage.write(stage.run(sky, [8.0, 64.0]), lib_out)
+    assert (lib_out / "index.json").read_bytes() == (cli_out / "index.json").read_bytes()
+    for m in json.loads((cli_out / "index.json").read_text())["maps"]:
+        np.testing.assert_array_equal(read_image(lib_out / m["path"]).pixels,
+                                      read_image(cli_out / m["path"]).pixels)

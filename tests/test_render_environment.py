@@ -10,7 +10,8 @@ from gonio_cli.artifact import make_document, write_json
 from gonio_cli.errors import ArtifactError, InputError
 from gonio_cli.geometry import cosines
 from gonio_cli.imageio import write_exr
-from gonio_cli.lobes import fit_weight_table, sample_set
+from gonio_cli.lobes.samples import sample_set
+from gonio_cli.lobes.solve import fit_weight_table
 from gonio_cli.prefilter import prefilter
 from gonio_cli.render import Stats
 from gonio_cli.render.environment import (Environment, environment_xyz, load_environment,

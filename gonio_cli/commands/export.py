@@ -7,7 +7,11 @@ from typing import List, Optional
 
 import typer
 
-from ..export import TARGETS  # the registry (light: no renderer is imported here)
+from .. import log
+from ..errors import InputError
+from ..export import TARGETS, get_target  # the registry (light: no renderer is imported here)
+from ..outputs import declare
+from . import parse_vars, require_files
 
 
 def export(
@@ -48,43 +52,23 @@ def export(
       gonio export red.material.json -o red.mtlx --to openpbr
       gonio export red.material.json -o red.cxf --to cxf --at red.measurement.json
     """
-    from .. import log
-    from ..export import get_target
-    from ..schemas import read_material
+    # lazy: gonio --help and the other commands do not load export.run (benchmarks/bench_startup.py)
+    from ..export import run as stage
 
     target = get_target(to)
     variables = _checked_inputs(target, material, scene, var, at)
-    if target.output != "folder":
-        from ..export import check_file_output
-        from ..export.judge import report_path
-        from ..outputs import declare
-
-        check_file_output(output, target)
-        outs = {"-o": output}
-        if target.judged:
-            outs["-o (its report)"] = report_path(output)
+    outs = stage.outputs(target, output)
+    if outs is not None:
         declare(outs, [material] + ([at] if at is not None else []))
-    mat = read_material(material)
-    if mat.status == "failed":
-        log.warn(f"{material}: a fit with status {mat.status!r} is exported")
-    with log.timer() as t:
-        extra = {"at": at} if target.at else {}
-        written = target.write(mat, material, output, scene, variables or None, **extra)
-    log.info(f"{output}: {mat.model} for {target.name} ({len(written.files)} files, "
-             f"{t['time_s']:.2f} s)")
-    if written.report is not None:
-        from ..export.judge import sentence
-
-        log.info(sentence(output.name, target.label, written.report))
+    result = stage.run(target, material, output, scene, variables, at)
+    for line in result.lines(output):
+        log.info(line)
 
 
 def _checked_inputs(target, material: Path, scene: Optional[Path], var: List[str],
                     at: Optional[Path]) -> dict:
     """The input files checked and the --var values parsed; an option the target does not
     take (or lacks) is one line."""
-    from ..errors import InputError
-    from . import parse_vars, require_files
-
     require_files([material], schema="gonio.material")
     if scene is not None:
         require_files([scene], missing_fix="check the path of the scene file")

@@ -1,8 +1,9 @@
 """``gonio ingest``: the thin typer shell over :mod:`gonio_cli.ingest` (STYLE 1).
 
-It parses options, calls the core (imported on first use, so ``gonio --help`` stays fast),
-writes the measurement artifact atomically with its provenance and, with ``--summary``,
-prints what was read to stdout. Any error is raised before anything is written.
+It parses options and calls the stage (:func:`gonio_cli.ingest.run`, imported on first use,
+so ``gonio --help`` stays fast), writes the measurement artifact atomically with its
+provenance (:func:`gonio_cli.ingest.write`) and, with ``--summary``, prints what was read
+to stdout. Any error is raised before anything is written.
 """
 
 from __future__ import annotations
@@ -13,6 +14,10 @@ from typing import List, Optional
 
 import typer
 
+from .. import log
+from ..errors import InputError
+from ..outputs import declare
+from . import require_files
 HELP = """Read goniometer spectra (CSV) and write one measurement artifact (JSON).
 
 Layouts, detected from the header: long (theta_i_deg,theta_o_deg,wavelength_nm,value),
@@ -43,8 +48,52 @@ Example:
 """
 
 
-def _optional(flag: str, metavar: str, help: str):
-    """An option without a default value (the core fills it in and says so in ``help``)."""
+#: The options without a default value (the core fills them in and says so in ``help``):
+#: the parameter's name → flag, metavar, help.
+OPTIONAL = {
+    "quantity": (
+        "--quantity", "NAME",
+        "What the files hold: brdf (sr^-1), ratio-to-white (over a white standard), "
+        "reflectance-factor (pi x BRDF) or flux-ratio (reflected over incident flux) "
+        "[default: brdf, with a warning for a multi-angle file]."),
+    "white_reflectance": (
+        "--white-reflectance", "R|FILE.csv",
+        "ratio-to-white only: the white standard's reflectance, a number in (0, 1] or a "
+        "CSV wavelength_nm,value [default: 0.99]."),
+    "aperture_mm": (
+        "--aperture-mm", "MM", "flux-ratio only: diameter of the receptor aperture, in mm."),
+    "distance_mm": (
+        "--distance-mm", "MM",
+        "flux-ratio only: distance from the sample to the receptor aperture, in mm."),
+    "dark": (
+        "--dark", "FILE.csv",
+        "Dark/background spectrum (CSV wavelength_nm,value, in the units of the value "
+        "columns) subtracted from every row before the conversion."),
+    "grid_nm": (
+        "--grid-nm", "START:STOP:STEP", "Working spectral grid in nm [default: 380:780:10]."),
+    "scale": (
+        "--scale", "FACTOR",
+        "Multiply the values by FACTOR (after --dark, before the conversion): 0.01 reads "
+        "percent; 1 given explicitly confirms the values' units (no percent check) "
+        "[default: 1]."),
+    "sample": (
+        "--sample", "NAME",
+        "Of a file holding several samples (a Name, Sample or ID column), the one to read, "
+        "as the file writes it."),
+    "theta_i_deg": (
+        "--theta-i-deg", "LIST|START:STOP:STEP",
+        ".bsdf only: angles of incidence to evaluate at, degrees, e.g. 10,30,50 or "
+        "10:70:10 [default: 10:70:10]."),
+    "theta_o_deg": (
+        "--theta-o-deg", "LIST|START:STOP:STEP",
+        ".bsdf only: signed detector angles for every angle of incidence, degrees "
+        "[default: -80:85:5]."),
+}
+
+
+def _optional(name: str):
+    """The option :data:`OPTIONAL` names, without a default value."""
+    flag, metavar, help = OPTIONAL[name]
     return typer.Option(None, flag, metavar=metavar, show_default=False, help=help)
 
 
@@ -56,85 +105,34 @@ def ingest(
     output: Path = typer.Option(
         ..., "--output", "-o", metavar="MEASUREMENT.json", show_default=False,
         help="The measurement artifact to write (gonio.measurement v1)."),
-    quantity: Optional[str] = _optional(
-        "--quantity", "NAME",
-        "What the files hold: brdf (sr^-1), ratio-to-white (over a white standard), "
-        "reflectance-factor (pi x BRDF) or flux-ratio (reflected over incident flux) "
-        "[default: brdf, with a warning for a multi-angle file]."),
-    white_reflectance: Optional[str] = _optional(
-        "--white-reflectance", "R|FILE.csv",
-        "ratio-to-white only: the white standard's reflectance, a number in (0, 1] or a "
-        "CSV wavelength_nm,value [default: 0.99]."),
-    aperture_mm: Optional[float] = _optional(
-        "--aperture-mm", "MM", "flux-ratio only: diameter of the receptor aperture, in mm."),
-    distance_mm: Optional[float] = _optional(
-        "--distance-mm", "MM",
-        "flux-ratio only: distance from the sample to the receptor aperture, in mm."),
-    dark: Optional[Path] = _optional(
-        "--dark", "FILE.csv",
-        "Dark/background spectrum (CSV wavelength_nm,value, in the units of the value "
-        "columns) subtracted from every row before the conversion."),
-    grid_nm: Optional[str] = _optional(
-        "--grid-nm", "START:STOP:STEP", "Working spectral grid in nm [default: 380:780:10]."),
-    scale: Optional[float] = _optional(
-        "--scale", "FACTOR",
-        "Multiply the values by FACTOR (after --dark, before the conversion): 0.01 reads "
-        "percent; 1 given explicitly confirms the values' units (no percent check) "
-        "[default: 1]."),
-    sample: Optional[str] = _optional(
-        "--sample", "NAME",
-        "Of a file holding several samples (a Name, Sample or ID column), the one to read, "
-        "as the file writes it."),
-    theta_i_deg: Optional[str] = _optional(
-        "--theta-i-deg", "LIST|START:STOP:STEP",
-        ".bsdf only: angles of incidence to evaluate at, degrees, e.g. 10,30,50 or "
-        "10:70:10 [default: 10:70:10]."),
-    theta_o_deg: Optional[str] = _optional(
-        "--theta-o-deg", "LIST|START:STOP:STEP",
-        ".bsdf only: signed detector angles for every angle of incidence, degrees "
-        "[default: -80:85:5]."),
+    quantity: Optional[str] = _optional("quantity"),
+    white_reflectance: Optional[str] = _optional("white_reflectance"),
+    aperture_mm: Optional[float] = _optional("aperture_mm"),
+    distance_mm: Optional[float] = _optional("distance_mm"),
+    dark: Optional[Path] = _optional("dark"),
+    grid_nm: Optional[str] = _optional("grid_nm"),
+    scale: Optional[float] = _optional("scale"),
+    sample: Optional[str] = _optional("sample"),
+    theta_i_deg: Optional[str] = _optional("theta_i_deg"),
+    theta_o_deg: Optional[str] = _optional("theta_o_deg"),
     summary: bool = typer.Option(
         False, "--summary", help="Print what was read (angles, grid, repeats, values, "
                                  "anything dropped or clipped) to stdout."),
 ) -> None:
-    from .. import ingest as core
-    from ..ingest.quantities import resolve_parameters
-    from .. import log
-    from ..errors import InputError
-    from ..schemas import write_measurement
-    from . import require_files
+    # lazy: gonio --help and the other commands do not load ingest (benchmarks/bench_startup.py)
+    from .. import ingest as stage
 
     require_files(inputs)
     _refuse_overwriting_an_input(output, inputs, InputError)
-    from ..outputs import declare
     declare({"-o": output}, [*inputs, dark])
-    options = dict(quantity=quantity, white_reflectance=white_reflectance,
-                   aperture_mm=aperture_mm, distance_mm=distance_mm, dark=dark,
-                   grid_nm=grid_nm, scale=scale, sample=sample, theta_i_deg=theta_i_deg,
-                   theta_o_deg=theta_o_deg)
-    params = resolve_parameters(inputs, **options)  # refused before anything is read
-    with log.timer() as t:
-        # the options as given: the core warns about a default it had to choose
-        measurement = core.ingest(inputs, **options)
-    extra = [p for p in (params.get("dark"), params.get("white_reflectance"))
-             if isinstance(p, str)]
-    write_measurement(output, measurement, inputs=[*inputs, *extra], parameters=params,
-                      time_s=t["time_s"])
+    result = stage.run(inputs, quantity=quantity, white_reflectance=white_reflectance,
+                       aperture_mm=aperture_mm, distance_mm=distance_mm, dark=dark,
+                       grid_nm=grid_nm, scale=scale, sample=sample, theta_i_deg=theta_i_deg,
+                       theta_o_deg=theta_o_deg)
+    stage.write(result, output)
     if summary:
-        typer.echo(core.format_summary(measurement.summary))
-    log.info(summary_line(output, measurement, len(inputs), t["time_s"]))
-
-
-def summary_line(output: Path, measurement, n_files: int, time_s: float) -> str:
-    """The one line every run ends with (on stderr, unless --quiet)."""
-    def count(n: int, noun: str) -> str:
-        return f"{n} {noun}{'' if n == 1 else 's'}"
-
-    n_theta_i = len(set(measurement.theta_i_deg.tolist()))
-    return (f"{output}: {count(measurement.theta_i_deg.size, 'configuration')} "
-            f"({count(n_theta_i, 'angle')} of incidence) x "
-            f"{count(measurement.wavelength_nm.size, 'wavelength')}, {measurement.quantity} "
-            f"from {count(n_files, 'file')}, {time_s:.2f} s")
+        typer.echo(stage.format_summary(result.measurement.summary))
+    log.info(result.summary_line(output))
 
 
 def _refuse_overwriting_an_input(output: Path, inputs: List[Path], error) -> None:

@@ -7,9 +7,13 @@ from typing import List, Optional
 
 import typer
 
+from .. import log
+from ..errors import InputError
 from ..names import (BASIS_SOLVER_NAMES, CHANNEL_NAMES, SAMPLE_SET_NAMES, WEIGHT_SOLVER_NAMES,
                      metavar)
 from ..numbers import NumberList
+from ..outputs import declare
+from . import read_as
 
 #: ``lobes fit --exponents``: the lobes' exponents (their range is checked by the core).
 EXPONENTS = NumberList("--exponents", "1,10,100")
@@ -64,41 +68,23 @@ def basis(
     Example:
       gonio lobes basis red.material.json green.material.json --max-lobes 11 -o basis.json
     """
-    from .. import lobes as core
-    from .. import log
-    from ..schemas import LobeBasis, read_material, write_lobe_basis
+    # lazy: gonio --help and the other commands do not load lobes.run (benchmarks/bench_startup.py)
+    from ..lobes import run as stage
 
-    core.check_channels(channels)
-    from ..outputs import declare
+    options = stage.BasisOptions(max_lobes, samples, mirror_dense, channels, solver)
+    stage.check_basis_options(options)
     declare({"-o": output, "--plot": plot}, materials)
-    mats = [read_material(p) for p in materials]
-    s = core.sample_set(samples, mirror_dense=mirror_dense)
-    with log.timer() as t:
-        targets = [core.target_values(m, s, channels)[0] for m in mats]
-        result = core.select_basis(
-            targets, s, max_lobes, solver=solver,
-            progress=lambda counts: log.progress(counts, "lobe basis", total=len(counts)))
-    bases = [{"n_lobes": st.n_lobes, "exponents": st.exponents, "error": st.error,
-              "max_error": st.max_error, "mean_error": st.mean_error,
-              "per_material": st.per_material, "evaluations": st.evaluations,
-              "time_s": st.time_s, "message": st.message} for st in result.steps]
-    doc = LobeBasis(bases, [{"path": str(p), "model": m.model} for p, m in zip(materials, mats)],
-                    s.name, channels, solver, [float(v) for v in result.exponent_range],
-                    [float(v) for v in s.view_angle_deg])
-    write_lobe_basis(output, doc, inputs=materials, time_s=t["time_s"],
-                     parameters={"max_lobes": max_lobes, "samples": samples,
-                                 "mirror_dense": mirror_dense, "channels": channels,
-                                 "solver": solver})
-    for note in core.basis_notes(result):
+    result = stage.basis(materials, options, progress=lambda counts: log.progress(
+        counts, "lobe basis", total=len(counts)))
+    stage.write_basis(output, result)
+    for note in result.notes:
         log.warn(f"{output}: {note}")
     if plot is not None:
+        # lazy: matplotlib only when a plot is asked for
         from ..lobes.plot import plot_basis
 
-        plot_basis(plot, result)
-    last = result.steps[-1]
-    log.info(f"{output}: {len(result.steps)} bases from {len(mats)} materials, "
-             f"{s.n_samples} samples; {last.n_lobes} lobes: error {last.error:.4g} "
-             f"(max {last.max_error:.4g}, mean {last.mean_error:.4g}); {t['time_s']:.1f} s")
+        plot_basis(plot, result.result)
+    log.info(f"{output}: {result.summary()}")
 
 
 @sub.command("fit")
@@ -144,24 +130,17 @@ def fit(
     Example:
       gonio lobes fit red.material.json --basis basis.json -o red.lobes.json
     """
-    from .. import lobes as core
-    from .. import log
-    from ..errors import InputError
-    from ..schemas import Lobes, read_lobe_basis, read_material, write_lobes
-    from . import read_as
+    # lazy: gonio --help and the other commands do not load lobes.run (benchmarks/bench_startup.py)
+    from ..lobes import run as stage
+    from ..schemas import read_lobe_basis  # lazy: schemas loads numpy
 
-    core.check_channels(channels)
-    core.check_solver(solver)
+    options = stage.FitOptions(samples, mirror_dense, view_angles, channels, solver, compare,
+                               max_energy_ratio, time_limit_s, n_lobes)
+    stage.check_fit_options(options)
     if (basis_path is None) == (exponents is None):
         raise InputError("give exactly one of --basis BASIS.json and --exponents E1,E2,...",
                          fix="e.g. --basis basis.json")
-    if time_limit_s is not None and not (time_limit_s > 0):
-        raise InputError(f"--time-limit-s {time_limit_s:g} is not positive")
-    if not (max_energy_ratio >= 1):
-        raise InputError(f"--max-energy-ratio {max_energy_ratio:g} is below 1",
-                         fix="a sound fit holds about 1x the material's albedo; e.g. "
-                             "--max-energy-ratio 1000 (default) or inf for no check")
-    from ..outputs import declare
+    stage.check_fit_limits(options)
     declare({"-o": output}, [material, basis_path])
     inputs = [material]
     if basis_path is not None:
@@ -169,65 +148,12 @@ def fit(
         inputs.append(basis_path)
     else:
         e = EXPONENTS.parse(exponents)
-    e = core.check_exponents(e, where="--exponents" if basis_path is None else str(basis_path))
-    mat = read_material(material)
-    s = core.sample_set(samples, core.parse_view_angles(view_angles), mirror_dense)
-    if time_limit_s is None:
-        time_limit_s = core.default_time_limit_s(s)
-    others = tuple(core.WEIGHT_SOLVERS) if compare else ()
-    from ..errors import GonioError
-    with log.timer() as t:
-        try:
-            table = core.fit_weight_table(mat, e, s, channels, solver, compare=others,
-                                          time_limit_s=time_limit_s,
-                                          max_energy_ratio=max_energy_ratio)
-        except GonioError as exc:              # a refused fit names the material
-            if exc.path is None:
-                exc.path = str(material)
-            raise
-    lobes = Lobes(table.exponents, channels, table.channels, table.view_angle_deg,
-                  table.diffuse, table.directional_diffuse, table.gloss, table.errors,
-                  solver, s.name, table.n_samples)
-    write_lobes(output, lobes, inputs=inputs, time_s=t["time_s"],
-                parameters={"lobes": n_lobes, "exponents": [float(v) for v in e],
-                            "samples": samples, "mirror_dense": mirror_dense,
-                            "view_angles": view_angles,
-                            "channels": channels, "solver": solver, "compare": compare,
-                            "time_limit_s": time_limit_s,
-                            # JSON holds no inf: null is "no check"
-                            "max_energy_ratio": (max_energy_ratio if max_energy_ratio
-                                                 < float("inf") else None)})
-    for note in core.unresolved_notes(table, samples):
+    result = stage.fit(material, e, options,
+                       where="--exponents" if basis_path is None else str(basis_path))
+    stage.write_fit(output, result, inputs)
+    for note in result.notes:
         log.warn(f"{output}: {note}")
-    note = core.energy_note(table)
-    if note is not None:
-        log.warn(f"{output}: {note}")
-    for name, r in table.errors.items():
-        stopped = [k for k, st in enumerate(r["status"]) if st not in core.FINISHED]
-        if stopped:
-            views = ", ".join(f"{table.view_angle_deg[k]:g}" for k in stopped)
-            what = ("the weights written are not optimal there" if name == solver
-                    else "a comparison only: the weights written are not affected")
-            log.warn(f"{output}: {name} did not finish at view angle(s) {views} deg "
-                     f"({r['message'][stopped[0]]}); {what}; the status per view is in "
-                     "the file")
-    log.info(f"{output}: {e.size} lobes, {len(table.view_angle_deg)} view angles, "
-             f"{len(table.channels)} channels; " + error_text(table.errors, s.name))
-
-
-def error_text(errors: dict, sample_set: str) -> str:
-    """Each solver's worst-view error, said with its scale: rel-RMS sqrt(Σ r² / Σ b²) of
-    the lobes against f cos θi over a view's samples is 0 when exact and 1 when no better
-    than no lobes at all; a figure of the sample set, so comparable between solvers and
-    lobe counts, not between sample sets (hemisphere samples score higher than in-plane
-    ones, yet render better off the plane: docs/lobes.md)."""
-    parts = [f"{name}{' (written)' if k == 0 and len(errors) > 1 else ''} "
-             f"{max(r['rms_relative']):.3g} "
-             f"({1e3 * sorted(r['time_s'])[len(r['time_s']) // 2]:.2f} ms/view, median)"
-             for k, (name, r) in enumerate(errors.items())]
-    return (f"how far the lobes miss f cos theta_i at the worst view, rel-RMS (0 exact, 1 no "
-            f"better than no lobes; over the {sample_set} samples: compare solvers and lobe "
-            f"counts on them, not sample sets): " + "; ".join(parts))
+    log.info(f"{output}: {result.summary()}")
 
 
 EXAMPLE = "gonio lobes basis red.material.json blue.material.json -o basis.json --plot basis.png"

@@ -49,38 +49,41 @@ class Written:
     report: dict[str, Any] | None = None
 
 
+# Every ``gonio`` run imports this registry (``commands/export.py`` lists its targets in
+# ``--help``), so each target's module (numpy, its format's library, the renderer's scene
+# reader) is imported when the target is used, not here.
 def _mitsuba_write(*args, **kwargs) -> Written:
-    from .mitsuba import export_mitsuba
+    from .mitsuba import export_mitsuba  # lazy: the registry stays light
 
     return Written(export_mitsuba(*args, **kwargs))
 
 
 def _mitsuba_models() -> list[str]:
-    from .mitsuba import supported_models
+    from .mitsuba import supported_models  # lazy: the registry stays light
 
     return supported_models()
 
 
 def _gltf_write(*args, **kwargs) -> Written:
-    from .gltf import export_gltf
+    from .gltf import export_gltf  # lazy: the registry stays light
 
     return Written(*export_gltf(*args, **kwargs))
 
 
 def _openpbr_write(*args, **kwargs) -> Written:
-    from .openpbr import export_openpbr
+    from .openpbr import export_openpbr  # lazy: the registry stays light
 
     return Written(*export_openpbr(*args, **kwargs))
 
 
 def _cxf_write(*args, **kwargs) -> Written:
-    from .cxf import export_cxf
+    from .cxf import export_cxf  # lazy: the registry stays light
 
     return Written(export_cxf(*args, **kwargs))
 
 
 def _all_models() -> list[str]:
-    from ..brdf import MODELS
+    from ..brdf import MODELS  # lazy: the registry stays light
 
     return list(MODELS)
 

@@ -25,7 +25,13 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import __version__
+from ..artifact import atomic_path
+from ..csvlayouts import aspecular_of_theta_o
 from ..errors import InputError
+from ..geometry import in_plane_cosines
+from ..schemas import read_measurement
+from . import check_file_output, get_target
 
 #: CxF3 limits of a ``ReflectanceSpectrum`` (the schema's ``StartWL`` range, its values'
 #: exclusive maximum; gonio's grid steps are whole nanometres to be written).
@@ -64,9 +70,6 @@ def cxf_bytes(name: str, theta_i_deg, theta_o_deg, reflectance, start_wl: int,
     from colour_cxf import cxf3
     from xsdata.models.datatype import XmlDateTime
 
-    from .. import __version__
-    from ..csvlayouts import aspecular_of_theta_o
-
     now = XmlDateTime.from_datetime(datetime.now(timezone.utc).replace(microsecond=0))
     aspec = aspecular_of_theta_o(theta_i_deg, theta_o_deg)
     specs, values = [], []
@@ -103,11 +106,6 @@ def export_cxf(material, material_path, out, scene_path=None, variables=None, *,
                ) -> list[Path]:
     """Write ``out`` (``NAME.cxf``): ``material``'s spectra at the configurations of the
     measurement ``at`` (module docstring); returns its path."""
-    from ..artifact import atomic_path
-    from ..geometry import in_plane_cosines
-    from ..schemas import read_measurement
-    from . import check_file_output, get_target
-
     if scene_path is not None or variables:
         raise InputError("--scene: --to cxf writes spectra, not a scene",
                          fix="leave out --scene and --var")

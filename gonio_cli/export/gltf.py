@@ -24,8 +24,13 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import __version__
 from ..errors import InputError
+from ..render.mesh import uv_sphere
+from . import check_file_output, get_target
 from .gltf_brdf import GltfMaterial, gltf_brdf
+from .gltf_fit import fit_gltf
+from .judge import Fitted, export_judged
 
 #: φ segments of the preview sphere (rings = half): 4 032 triangles, smooth in a viewer.
 PREVIEW_SEGMENTS = 64
@@ -72,9 +77,6 @@ def glb_bytes(m: GltfMaterial, extras: dict | None = None) -> bytes:
     """The ``.glb`` of material ``m`` on the preview sphere (module docstring)."""
     import pygltflib as g
 
-    from .. import __version__
-    from ..render.mesh import uv_sphere
-
     mesh = uv_sphere(PREVIEW_SEGMENTS)
     pos = np.asarray(mesh.vertices, dtype=np.float32)
     nrm = np.asarray(mesh.normals, dtype=float)
@@ -104,10 +106,6 @@ def export_gltf(material, material_path, out, scene_path=None, variables=None
     """Fit, write and judge: ``out`` (``NAME.glb``) and its report; returns both paths and
     the report's payload.
     ``scene_path``/``variables`` are refused (the target writes a preview, not a scene)."""
-    from . import check_file_output, get_target
-    from .gltf_fit import fit_gltf
-    from .judge import Fitted, export_judged
-
     if scene_path is not None or variables:
         raise InputError("--scene: --to gltf writes the material on a preview sphere, "
                          "not a scene", fix="leave out --scene and --var")

@@ -27,7 +27,15 @@ from typing import Any, Callable
 
 import numpy as np
 
+from ..artifact import atomic_path, read_artifact, sha256_file, write_artifact
+from ..errors import GonioError, InputError
+from ..evaluate import evaluate_at, gains_for
+from ..fit.verdict import COLOUR_RANGE_NM, covers_colour
 from ..geometry import Cosines, in_plane_cosines
+from ..schemas import Material, read_measurement
+from ..spectra import delta_e_2000, same_grid
+from .mitsuba import rgb_weights
+from .standard_fit import material_rgb, perceived
 
 #: The in-plane grid used when the material's measurement is not at hand: θi 0–75° every
 #: 15°, θo −75–85° every 5° (the light's side and the far side, the mirror included).
@@ -51,9 +59,6 @@ COLOUR = ("CIEDE2000 of R = pi f as linear sRGB under D65 (CIE 1931 2 degree obs
 
 def check_colour_grid(material, material_path) -> None:
     """Refuse a material whose grid misses the visible (its colour cannot be judged)."""
-    from ..errors import InputError
-    from ..fit.verdict import COLOUR_RANGE_NM, covers_colour
-
     if not covers_colour(material.wavelength_nm):
         wl = np.asarray(material.wavelength_nm, dtype=float)
         raise InputError(f"wavelength_nm {wl[0]:g}-{wl[-1]:g} nm does not cover "
@@ -72,10 +77,6 @@ def in_plane_grid() -> tuple[np.ndarray, np.ndarray]:
 def find_measurement(material_path, material_doc: dict):
     """(path, Measurement) of the material's recorded input measurement, or (None, None)
     when none is recorded, found, readable or on the material's grid."""
-    from ..errors import GonioError
-    from ..schemas import read_measurement
-    from ..spectra import same_grid
-
     base = Path(material_path).resolve().parent
     for record in material_doc.get("inputs") or []:
         recorded = Path(str(record.get("path", "")))
@@ -114,9 +115,6 @@ class Judgement:
 
 def delta_e_rgb(rgb_ref, rgb_test) -> np.ndarray:
     """CIEDE2000 (N,) of linear-sRGB reflectance factors (N, 3) against ``rgb_ref``."""
-    from ..spectra import delta_e_2000
-    from .standard_fit import perceived
-
     lab = perceived(rgb_ref)
     return delta_e_2000(lab(rgb_ref), lab(rgb_test))
 
@@ -125,8 +123,6 @@ def judge(material, exported_rgb: Callable[[Cosines], np.ndarray], theta_i_deg,
           theta_o_deg) -> Judgement:
     """The exported BRDF (f (..., 3) linear sRGB) against ``material`` at in-plane
     configurations (degrees)."""
-    from .standard_fit import material_rgb
-
     cos = in_plane_cosines(theta_i_deg, theta_o_deg)
     de = delta_e_rgb(np.pi * material_rgb(material)(cos), np.pi * exported_rgb(cos))
     return Judgement(de, np.asarray(theta_i_deg, float), np.asarray(theta_o_deg, float))
@@ -135,9 +131,6 @@ def judge(material, exported_rgb: Callable[[Cosines], np.ndarray], theta_i_deg,
 def own_fit(material, material_path, material_doc: dict, meas_path, meas) -> dict[str, Any]:
     """The material's own fit error, as :func:`judge` measures (material against the
     data) when the measurement is at hand, else the verdict recorded by ``gonio fit``."""
-    from ..evaluate import evaluate_at, gains_for
-    from .mitsuba import rgb_weights
-
     if meas is not None:
         gains = gains_for(material, meas, "auto", material_path=material_path,
                           measurement_path=meas_path)
@@ -158,9 +151,6 @@ def own_fit(material, material_path, material_doc: dict, meas_path, meas) -> dic
 def report(target: str, material, material_path, exported_rgb) -> dict[str, Any]:
     """The payload of an export's report: where it was judged, per configuration
     CIEDE2000, mean, p95, worst, and the material's own fit error beside it."""
-    from ..artifact import read_artifact
-    from ..schemas import Material
-
     doc = read_artifact(material_path, Material.SCHEMA, Material.READ_VERSIONS)
     meas_path, meas = find_measurement(material_path, doc)
     if meas is not None:
@@ -225,9 +215,6 @@ class Fitted:
 def export_judged(kind: Fitted, material, material_path, out) -> tuple[list[Path], dict]:
     """Fit, write and judge: ``out`` and its report (:func:`report_path`), both atomically;
     returns both paths and the report's payload (``kind.target`` holds the parameters)."""
-    from ..artifact import atomic_path, sha256_file, write_artifact
-    from .standard_fit import material_rgb
-
     check_colour_grid(material, material_path)
     fit = kind.fit(material_rgb(material))
     m = kind.written(rounded(replace(fit.material,

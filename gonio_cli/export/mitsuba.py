@@ -33,9 +33,12 @@ from typing import Callable
 import numpy as np
 
 from ..artifact import atomic_path, write_artifact
+from ..brdf import MODELS, UNDERCOAT_INDEX, goniochromatic_exponent_arg
 from ..folders import make_folder
-from ..brdf import UNDERCOAT_INDEX, goniochromatic_exponent_arg
 from ..errors import InputError
+from ..render.scene import load_scene, read_scene_toml
+from ..samples import sample_data_dir
+from ..spectra import cmf_weights, illuminant, xyz_to_linear_srgb_matrix
 
 SCHEMA = "gonio.mitsuba-bsdf"
 SCHEMA_VERSION = 1
@@ -142,6 +145,7 @@ def supported_models() -> list[str]:
 
 def check_model(model: str, path) -> None:
     """Refuse a model the plugin has no port or lobes for, listing those it has."""
+    # lazy: drjit_brdf imports drjit, the optional extra gonio[mitsuba]
     from .drjit_brdf import MODELS as PORTED
 
     ok = [m for m in LOBES if m in PORTED]
@@ -156,8 +160,6 @@ def rgb_weights(grid_nm) -> np.ndarray:
     """(3, n_λ): linear sRGB of a spectral reflectance r(λ) under D65 is ``W @ r``:
     W = M_XYZ→sRGB · cmf(λ) S_D65(λ) / Σ S_D65 ȳ (docs/conventions.md's matrix and CMFs).
     What the plugin's RGB variants sum f over the grid with."""
-    from ..spectra import cmf_weights, illuminant, xyz_to_linear_srgb_matrix
-
     s = illuminant("D65", grid_nm)                       # Σ S ȳ / Σ ȳ = 1
     return xyz_to_linear_srgb_matrix() @ (cmf_weights(grid_nm) * s[:, None]).T
 
@@ -166,8 +168,6 @@ def rgb_weights(grid_nm) -> np.ndarray:
 
 def bsdf_params(material) -> dict:
     """The payload of ``bsdf_params.json`` for a :class:`gonio_cli.schemas.Material`."""
-    from ..brdf import MODELS
-
     spec = MODELS[material.model]
     grid = np.asarray(material.wavelength_nm, dtype=float)
     return {"model": material.model, "wavelength_nm": grid,
@@ -262,13 +262,9 @@ def gonio_scene_toml(camera, lights, grid_nm, ssaa: int) -> tuple[str, dict[str,
 def scene_camera_lights(scene_path, variables=None, material_path=None):
     """(camera, lights, grid, ssaa) of a gonio scene file, or of the sample data's
     :data:`DEFAULT_SCENE` with ``material_path`` on its sphere."""
-    from ..render.scene import load_scene, read_scene_toml
-
     if scene_path is not None:
         sc = load_scene(scene_path, variables=variables)
     else:
-        from ..samples import sample_data_dir
-
         path = sample_data_dir() / DEFAULT_SCENE
         doc = dict(read_scene_toml(path))
         doc["object"] = [{"mesh": "builtin:sphere",

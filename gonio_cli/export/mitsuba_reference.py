@@ -34,6 +34,13 @@ from typing import Callable, Mapping, Sequence
 import numpy as np
 
 from ..errors import GonioError, InputError
+from ..imageio import read_image
+from ..ingest.rgl import check_bsdf
+from ..render.mesh import rotation_matrix
+from ..render.scene import load_scene
+from ..schemas import Material, read_material, write_material
+from .mitsuba import export_mitsuba
+from .mitsuba_render import llvm_works
 
 #: Mitsuba's path length: 1 sees emitters, 2 adds direct light at the first surface.
 #: gonio renders one bounce (no inter-reflection), so the reference stops there too.
@@ -82,8 +89,6 @@ def scene_from_toml(scene_path, envmap, *, bsdf=None, variables=None, width=None
     """The :class:`ReferenceScene` of a gonio scene file with one ``material`` object
     (its camera, mesh, transform, lights, grid and ssaa; its ``[environment]`` and
     ``lobes`` are left out: the reference gets ``envmap`` itself)."""
-    from ..render.scene import load_scene
-
     sc = load_scene(scene_path, variables=variables,
                     overrides={"width": width, "height": height})
     if len(sc.objects) != 1 or sc.objects[0].material is None:
@@ -205,8 +210,6 @@ def mitsuba_envmap(path, layout: str = "gonio") -> np.ndarray:
     2H + 1 rows whose bilinear interpolation is gonio's exactly (:func:`gonio_cli.envmap.
     lookup`: texel centres at the odd rows, midpoints between them, the clamped poles);
     ``"file"`` the pixels as they are (Mitsuba's reading of the file)."""
-    from ..imageio import read_image
-
     img = read_image(path)
     if not img.is_float:
         raise InputError(f"is {img.format}, not a float (HDR) map", path=path,
@@ -240,8 +243,6 @@ def choose_variant(kind: str = "spectral") -> str:
     """LLVM if Dr.Jit can compile kernels here, else scalar, of ``kind`` (VARIANTS)."""
     import mitsuba as mi
 
-    from .mitsuba_render import llvm_works
-
     llvm, scalar = VARIANTS[kind]
     return llvm if llvm in mi.variants() and llvm_works() else scalar
 
@@ -249,9 +250,6 @@ def choose_variant(kind: str = "spectral") -> str:
 def _register_plugin(ref: ReferenceScene, folder: Path) -> Path:
     """Export ``ref.material`` (``gonio export --to mitsuba``) into ``folder`` and register
     its BSDF for the active variant; returns its ``bsdf_params.json``."""
-    from ..schemas import read_material
-    from .mitsuba import export_mitsuba
-
     out = folder / "mitsuba_plugin"
     export_mitsuba(read_material(ref.material), ref.material, out)
     spec = importlib.util.spec_from_file_location("gonio_bsdf", out / "gonio_bsdf.py")
@@ -262,8 +260,6 @@ def _register_plugin(ref: ReferenceScene, folder: Path) -> Path:
 
 
 def _to_world(ref: ReferenceScene, mi):
-    from ..render.mesh import rotation_matrix
-
     m = np.eye(4)
     m[:3, :3] = rotation_matrix(ref.rotate_deg) * np.asarray(ref.scale, float)[None, :]
     m[:3, 3] = ref.translate
@@ -290,8 +286,6 @@ FLOOR_HALF_SIZE = 6.0
 
 def floor_material(path) -> Path:
     """The floor's gonio material (f = :data:`FLOOR_ALBEDO`/π exactly)."""
-    from ..schemas import Material, write_material
-
     g = np.arange(380.0, 781.0, 10.0)
     write_material(path, Material("cook-torrance", g, {
         "kd": np.full(g.size, FLOOR_ALBEDO), "ks": np.zeros(g.size),
@@ -376,8 +370,6 @@ def render_mitsuba(ref: ReferenceScene, folder, *, spp: int = DEFAULT_SPP,
     if variant is None:
         kind = colour
         if ref.bsdf is not None:
-            from ..ingest.rgl import check_bsdf
-
             kind = check_bsdf(ref.bsdf)[0].name
         variant = choose_variant(kind)
     mi.set_variant(variant)

@@ -29,6 +29,8 @@ import numpy as np
 
 from ..errors import GonioError, InputError
 from ..geometry import Cosines
+from . import check_file_output, get_target
+from .judge import Fitted, export_judged
 from .openpbr_brdf import COAT_DARKENING, OpenPbrMaterial, openpbr_brdf
 from .standard_fit import ExportFit, Space, fit_standard
 
@@ -150,9 +152,6 @@ def export_openpbr(material, material_path, out, scene_path=None, variables=None
                    ) -> tuple[list[Path], dict]:
     """Fit, write and judge: ``out`` (``NAME.mtlx``) and its report; returns both paths and
     the report's payload. ``scene_path``/``variables`` are refused (a material only)."""
-    from . import check_file_output, get_target
-    from .judge import Fitted, export_judged
-
     if scene_path is not None or variables:
         raise InputError("--scene: --to openpbr writes a material, not a scene",
                          fix="leave out --scene and --var")

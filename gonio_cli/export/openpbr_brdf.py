@@ -42,6 +42,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from ..cache import cached_arrays
 from ..geometry import Cosines
 from .gltf_brdf import (ALPHA_MIN, COS_EPS, ior_f0, parameters_dict, specular_brdf,
                         visibility)
@@ -173,8 +174,6 @@ def albedo_tables() -> dict[str, np.ndarray]:
     """``e_f`` (n_r, n_s, n_μ): directional albedo E(μo) of the GGX lobe with the
     dielectric Fresnel of F0 = s², on :data:`TABLE_ROUGHNESS` × :data:`TABLE_SQRT_F0` ×
     :data:`TABLE_MU`; ``e_1`` (n_r, n_μ) the same with F = 1. Cached on disk."""
-    from ..cache import cached_arrays
-
     name = (f"openpbr_albedo_v{TABLE_VERSION}_{TABLE_MU.size}x{TABLE_ROUGHNESS.size}x"
             f"{TABLE_SQRT_F0.size}x{TABLE_NODES}.npz")
     shape = (TABLE_ROUGHNESS.size, TABLE_SQRT_F0.size, TABLE_MU.size)

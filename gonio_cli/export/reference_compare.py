@@ -19,6 +19,9 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..imageio import read_image, write_png
+from ..render.tonemap import get_exr_space
+from ..spectra import delta_e_2000, srgb_encode, srgb_white_xyz, xyz_to_lab, xyz_to_linear_srgb
 
 #: A white whose luminance is this percentile of the reference over the object (the
 #: brightest 1 % at or above display white, as an auto exposure would set it).
@@ -58,9 +61,6 @@ def read_xyz(path) -> np.ndarray:
     """CIE XYZ (H, W, 3) float64 of a gonio EXR, from the space its header names
     (``gonio:exr_space``; linear sRGB without one). Render with ``adapt = "none"``
     (:func:`write_gonio_scene` does) for the scene's own colorimetry."""
-    from ..imageio import read_image
-    from ..render.tonemap import get_exr_space
-
     img = read_image(path)
     space = str(img.metadata.get("exr_space", "srgb"))
     m = get_exr_space(space).matrix()
@@ -181,8 +181,6 @@ def compare(gonio, mitsuba, *, noise: np.ndarray | None = None, mask=None,
     :data:`WHITE_PERCENTILE` th percentile of Mitsuba's Y over the mask); ``column``: where
     to look for the sharp feature (default :func:`feature_column`).
     """
-    from ..spectra import delta_e_2000, srgb_white_xyz, xyz_to_lab
-
     if hasattr(mitsuba, "xyz"):                       # a MitsubaRender
         noise = mitsuba.noise if noise is None else noise
         mitsuba = mitsuba.xyz
@@ -216,9 +214,6 @@ def side_by_side(comparison: Comparison, gonio, mitsuba, path, *, de_max: float 
                  ) -> Path:
     """PNG: gonio | Mitsuba (linear sRGB / white_y, clipped, sRGB-encoded; feature rows
     marked red at the centre column) | CIEDE2000 (black 0 … white ``de_max``)."""
-    from ..imageio import write_png
-    from ..spectra import srgb_encode, xyz_to_linear_srgb
-
     mitsuba = getattr(mitsuba, "xyz", mitsuba)
     tiles, c = [], comparison.feature_column
     for image, row in ((gonio, comparison.feature_row_gonio),

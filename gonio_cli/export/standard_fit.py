@@ -29,6 +29,8 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from ..geometry import Cosines, cosines, in_plane_directions
+from ..spectra import delta_e_2000, xyz_to_lab, xyz_to_linear_srgb_matrix
+from .mitsuba import rgb_weights
 
 #: Residuals are colour differences in units of this (10 → 1): only for the solver's
 #: scaling, the optimum does not depend on it.
@@ -90,16 +92,12 @@ def hemisphere_directions() -> tuple[np.ndarray, np.ndarray]:
 
 def material_rgb(material) -> Callable[[Cosines], np.ndarray]:
     """f (..., 3) of a :class:`gonio_cli.schemas.Material` as linear sRGB under D65."""
-    from .mitsuba import rgb_weights
-
     w = rgb_weights(np.asarray(material.wavelength_nm, dtype=float)).T     # (n_λ, 3)
     return lambda cos: material.evaluate(cos) @ w
 
 
 def rgb_to_xyz(rgb) -> np.ndarray:
     """XYZ (..., 3) of linear sRGB (..., 3) (the inverse of the conventions' matrix)."""
-    from ..spectra import xyz_to_linear_srgb_matrix
-
     return np.asarray(rgb, dtype=float) @ np.linalg.inv(xyz_to_linear_srgb_matrix()).T
 
 
@@ -107,8 +105,6 @@ def perceived(r_ref) -> Callable[[np.ndarray], np.ndarray]:
     """L*a*b* (..., 3) of linear-sRGB reflectance factors, each configuration scaled by
     1 / max(1, Y) of ``r_ref`` (..., 3) there (the judgement's scaling of a highlight,
     as `gonio fit`'s verdict does), white D65 (sRGB's (1, 1, 1))."""
-    from ..spectra import xyz_to_lab
-
     scale = (1.0 / np.maximum(1.0, rgb_to_xyz(r_ref)[..., 1]))[..., None]
     white = rgb_to_xyz(np.ones(3))
     return lambda rgb: xyz_to_lab(rgb_to_xyz(rgb) * scale, white)
@@ -147,8 +143,6 @@ def fit_standard(target_rgb: Callable[[Cosines], np.ndarray], space: Space,
     linear sRGB, sr⁻¹) over ``directions`` ((ωi, ωo), default
     :func:`hemisphere_directions`); module docstring."""
     from scipy.optimize import least_squares
-
-    from ..spectra import delta_e_2000
 
     t0 = time.perf_counter()
     wi, wo = directions if directions is not None else hemisphere_directions()

@@ -4,8 +4,9 @@
 Structural-colour reflective inks are printed side by side on black substrate, at most
 one ink per position. A halftone is therefore a *label image* (H, W) uint8 — 0 bare
 substrate, 1 R, 2 G, 3 B — shown as an RGB mask whose channels are 0 or 1 with at most
-one set per pixel (docs/conventions.md). Pipeline (pure numpy; the shell in
-:mod:`gonio_cli.commands.halftone` reads and writes the files):
+one set per pixel (docs/conventions.md). Pipeline (pure numpy; :mod:`.run`, the stage as
+a library call, reads and writes the files; the shell :mod:`gonio_cli.commands.halftone`
+parses the options):
 
 1. :func:`prepare`: linear light (:mod:`.coverage`), gamut mapping into the simplex
    r + g + b ≤ 1, optional resampling to print size;

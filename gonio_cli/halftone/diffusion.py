@@ -252,6 +252,7 @@ BUILDS = ("c", "numba")
 def c_build_available() -> bool:
     """Whether the C build of the kernel was compiled when gonio was installed."""
     try:
+        # lazy: the C build is optional (absent where pip found no C compiler)
         from . import _diffuse  # noqa: F401
     except ImportError:
         return False

@@ -35,12 +35,17 @@ Arrays: wavelength is the last axis (STYLE 6); ``values`` are (n_spectra, n_λ).
 The package: step 1, the CSV layer, is :mod:`gonio_cli.csvio`; steps 2, 3, 5 and the
 merge :mod:`.steps`; the quantities of step 4 :mod:`.quantities`; other input formats
 (RGL ``.bsdf``, :mod:`.rgl`) :mod:`.formats`; here the stage itself and its summary.
+
+As a library call (what ``gonio ingest`` runs): :func:`run` returns the measurement with
+the effective parameters and every file read, :func:`write` writes the artifact.
 """
 
 from __future__ import annotations
 
 import os
-from dataclasses import replace
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
@@ -50,7 +55,7 @@ from ..csvio import Spectra, grid_text, read_spectrum
 from ..csvlayouts import read_spectra
 from ..errors import InputError
 from ..percent import check_percent
-from ..schemas import Measurement
+from ..schemas import Measurement, write_measurement
 from ..spectra import parse_grid, resample, same_grid
 from .formats import FORMATS, input_format
 from .quantities import (DEFAULT_QUANTITY, QUANTITIES, REFLECTANCE_FACTOR_LAYOUTS,
@@ -100,30 +105,17 @@ def ingest(paths: Sequence[str | os.PathLike], *, quantity: str | None = None,
     """
     if not paths:
         raise InputError("no input files", fix="gonio ingest INPUT.csv [...] -o OUT.json")
+    options = dict(quantity=quantity, white_reflectance=white_reflectance,
+                   aperture_mm=aperture_mm, distance_mm=distance_mm, dark=dark,
+                   grid_nm=grid_nm, scale=scale, sample=sample, theta_i_deg=theta_i_deg,
+                   theta_o_deg=theta_o_deg)
     fmt = input_format(paths)
     if fmt is not None:
-        return fmt.load().ingest(
-            paths, theta_i_deg=theta_i_deg, theta_o_deg=theta_o_deg, grid_nm=grid_nm,
-            quantity=quantity, white_reflectance=white_reflectance, aperture_mm=aperture_mm,
-            distance_mm=distance_mm, dark=dark, scale=scale, sample=sample)
-    params = resolve_parameters(paths, quantity=quantity, white_reflectance=white_reflectance,
-                                aperture_mm=aperture_mm, distance_mm=distance_mm, dark=dark,
-                                grid_nm=grid_nm, scale=scale, sample=sample,
-                                theta_i_deg=theta_i_deg, theta_o_deg=theta_o_deg)
+        return fmt.load().ingest(paths, **options)
+    params = resolve_parameters(paths, **options)
     _refuse_repeated_inputs(paths)
     grid = parse_grid(params["grid_nm"])
-    dark_spectrum = read_spectrum(dark, "dark") if dark is not None else None
-    parts, grids, negatives = [], [], 0
-    for path in log.progress(paths, "reading CSV files", total=len(paths)):
-        spectra = read_spectra(path, params["sample"])
-        grids.append(spectra.wavelength_nm)
-        spectra = crop(spectra, grid)
-        if dark_spectrum is not None:
-            spectra = subtract_dark(spectra, dark_spectrum)
-        if params["scale"] != 1.0:
-            spectra = replace(spectra, values=spectra.values * params["scale"])
-        negatives += check_negatives(spectra)
-        parts.append(spectra)
+    parts, grids, negatives = _read_files(paths, params, grid, dark)
     merged = merge(parts, grids)
     brdf = _convert(merged, params)
     # an explicit --scale 1 states that the values are in the quantity's units
@@ -149,6 +141,71 @@ def ingest(paths: Sequence[str | os.PathLike], *, quantity: str | None = None,
     for note in notes:  # only now: a failing run prints one line, its error
         log.warn(note)
     return m
+
+
+@dataclass
+class IngestRun:
+    """What :func:`run` made: the measurement, the effective parameters (recorded in the
+    artifact), the files ingested and the other files read (``--dark``, a white standard's
+    CSV), and the time (s)."""
+
+    measurement: Measurement
+    parameters: dict[str, Any]
+    paths: list
+    extra: list
+    time_s: float
+
+    def summary_line(self, output: Path | str) -> str:
+        """The one line every run ends with (on stderr, unless --quiet)."""
+        def count(n: int, noun: str) -> str:
+            return f"{n} {noun}{'' if n == 1 else 's'}"
+
+        m = self.measurement
+        n_theta_i = len(set(m.theta_i_deg.tolist()))
+        return (f"{output}: {count(m.theta_i_deg.size, 'configuration')} "
+                f"({count(n_theta_i, 'angle')} of incidence) x "
+                f"{count(m.wavelength_nm.size, 'wavelength')}, {m.quantity} "
+                f"from {count(len(self.paths), 'file')}, {self.time_s:.2f} s")
+
+
+def run(paths: Sequence[str | os.PathLike], **options: Any) -> IngestRun:
+    """``gonio ingest`` as a library call: :func:`ingest` of ``paths`` with ``options``
+    (its keyword arguments, as given: the core warns about a default it had to choose),
+    the options checked first (:func:`resolve_parameters`: refused before anything is
+    read)."""
+    params = resolve_parameters(paths, **options)
+    start = time.perf_counter()
+    measurement = ingest(paths, **options)
+    time_s = time.perf_counter() - start
+    extra = [p for p in (params.get("dark"), params.get("white_reflectance"))
+             if isinstance(p, str)]
+    return IngestRun(measurement, params, list(paths), extra, time_s)
+
+
+def write(result: IngestRun, output: str | os.PathLike) -> None:
+    """Write the ``gonio.measurement`` artifact of :func:`run` (atomically, with its
+    inputs' hashes and the parameters)."""
+    write_measurement(output, result.measurement, inputs=[*result.paths, *result.extra],
+                      parameters=result.parameters, time_s=result.time_s)
+
+
+def _read_files(paths, params: dict[str, Any], grid: np.ndarray, dark
+                ) -> tuple[list[Spectra], list[np.ndarray], int]:
+    """Steps 1-3 per file: the spectra read and cropped to the working grid, the dark
+    subtracted and the scale applied; each file's own grid; the negative values counted."""
+    dark_spectrum = read_spectrum(dark, "dark") if dark is not None else None
+    parts, grids, negatives = [], [], 0
+    for path in log.progress(paths, "reading CSV files", total=len(paths)):
+        spectra = read_spectra(path, params["sample"])
+        grids.append(spectra.wavelength_nm)
+        spectra = crop(spectra, grid)
+        if dark_spectrum is not None:
+            spectra = subtract_dark(spectra, dark_spectrum)
+        if params["scale"] != 1.0:
+            spectra = replace(spectra, values=spectra.values * params["scale"])
+        negatives += check_negatives(spectra)
+        parts.append(spectra)
+    return parts, grids, negatives
 
 
 def _refuse_repeated_inputs(paths: Sequence[str | os.PathLike]) -> None:

@@ -23,9 +23,13 @@ from typing import Any, Sequence
 import numpy as np
 
 from .. import log
+from ..csvlayouts import _check_angles  # the CSV layer's angle checks, one rule
+from ..csvlayouts import theta_o_of_aspecular
 from ..errors import InputError
 from ..schemas import Measurement
 from ..spectra import DEFAULT_GRID_NM, covers, parse_grid, resample, same_grid
+from .quantities import QUANTITIES
+from .rgl import single_file_summary
 
 FORMAT = "cxf3"
 
@@ -98,8 +102,6 @@ def read_cxf(path: str, sample: str | None):
     import colour_cxf
     from colour_cxf import cxf3
 
-    from ..csvlayouts import theta_o_of_aspecular
-
     try:
         doc = colour_cxf.read_cxf_from_file(path)
     except Exception as exc:                    # xsdata's parser errors, any kind
@@ -144,11 +146,7 @@ def ingest(paths: Sequence[str | os.PathLike], *, grid_nm: str | None = None,
                          f"grid {grid[0]:g}-{grid[-1]:g} nm", path=path,
                          fix=f"choose a grid inside the file's, e.g. --grid-nm "
                              f"{wl[0]:g}:{wl[-1]:g}:{wl[1] - wl[0]:g}")
-    from ..csvlayouts import _check_angles  # the CSV layer's angle checks, one rule
-
     _check_angles(ti, to, np.arange(ti.size) + 1, path)
-    from .quantities import QUANTITIES
-
     notes = []
     resampled = not same_grid(wl, grid)
     quantity = QUANTITIES["reflectance-factor"]
@@ -160,9 +158,7 @@ def ingest(paths: Sequence[str | os.PathLike], *, grid_nm: str | None = None,
                     "reflectance-factor")
     info = {"format": FORMAT, "path": path, "object": name, "geometries": int(ti.size),
             "wavelength_nm": f"{wl[0]:g}-{wl[-1]:g} nm ({wl.size} wavelengths)"}
-    from .rgl import _summary
-
-    m.summary = {**_summary(m, info, params, resampled, 0, notes),
+    m.summary = {**single_file_summary(m, info, params, resampled, 0, notes),
                  "quantity": quantity.name, "conversion": quantity.formula}
     for note in notes:
         log.warn(note)

@@ -40,9 +40,12 @@ import numpy as np
 
 from .. import log
 from ..errors import InputError
+from ..geometry import in_plane_directions
 from ..numbers import NumberList
 from ..schemas import Measurement
-from ..spectra import DEFAULT_GRID_NM, covers, parse_grid, resample, same_grid
+from ..spectra import (DEFAULT_GRID_NM, covers, parse_grid, resample, rgb_reflectance_basis,
+                       rgb_reflectance_basis_range_nm, same_grid)
+from .steps import distinct, used_wavelengths
 from .tensorfile import TensorField, read_tensor_file, read_tensor_header
 
 #: The format's name in summaries and in the artifact's parameters.
@@ -166,8 +169,6 @@ def parse_angles(spec: str, flag: str, theta_i: bool, path=None) -> np.ndarray:
                         unit="deg", lo=0.0 if theta_i else -90.0, lo_open=not theta_i,
                         hi=90.0, hi_open=True)
     values = option.parse(spec, path)
-    from .steps import distinct  # np.unique without its numpy.ma import
-
     return distinct(np.round(np.asarray(values, dtype=float), 6)) + 0.0  # + 0.0: −0 → 0
 
 
@@ -255,8 +256,6 @@ def evaluate_in_plane(path: str | os.PathLike, kind: Kind, theta_i_deg, theta_o_
 
 def _evaluate(mi, path, theta_i_deg, theta_o_deg, channels, spectral: bool) -> np.ndarray:
     """:func:`evaluate_in_plane` with ``mi``'s variant set."""
-    from ..geometry import in_plane_directions
-
     try:
         bsdf = mi.load_dict({"type": "measured", "filename": os.fspath(path)})
     except RuntimeError as exc:
@@ -325,39 +324,8 @@ def ingest(paths: Sequence[str | os.PathLike], *, theta_i_deg: str | None = None
     ti_all, to_all = (a.ravel() for a in np.meshgrid(ti, to, indexing="ij"))
     notes: list[str] = []
     meta = read_tensor_file(path, ["description", "jacobian", "phi_i", "theta_i"])
-    if kind.name == "spectral":
-        wl = np.asarray(read_tensor_file(path, ["wavelengths"])["wavelengths"], dtype=float)
-        if not covers(wl, grid):
-            raise InputError(f"its wavelengths {wl[0]:g}-{wl[-1]:g} nm do not cover the "
-                             f"working grid {grid[0]:g}-{grid[-1]:g} nm", path=path,
-                             column="wavelengths",
-                             fix=f"choose a grid inside the file's, e.g. --grid-nm "
-                                 f"{math.ceil(wl[0] / 10) * 10:g}:"
-                                 f"{math.floor(wl[-1] / 10) * 10:g}:10")
-        from .steps import used_wavelengths
-
-        used = wl[used_wavelengths(wl, grid)]
-        f = evaluate_in_plane(path, kind, ti_all, to_all, used)
-        brdf = resample(used, f, grid)
-        resampled = not same_grid(used, grid)
-        if resampled:
-            notes.append(f"{path}: resampled from the file's {wl.size} wavelengths "
-                         f"({wl[0]:g}-{wl[-1]:g} nm, {used.size} used) onto the working grid "
-                         f"{params['grid_nm']} nm")
-        file_grid = f"{wl[0]:g}-{wl[-1]:g} nm ({wl.size} wavelengths)"
-    else:
-        from ..spectra import rgb_reflectance_basis, rgb_reflectance_basis_range_nm
-
-        lo, hi = rgb_reflectance_basis_range_nm()
-        if grid[0] < lo - 1e-6 or grid[-1] > hi + 1e-6:
-            raise InputError(f"an RGB file becomes spectra through the Mallett-Yuksel basis, "
-                             f"defined on {lo:g}-{hi:g} nm, not the working grid "
-                             f"{grid[0]:g}-{grid[-1]:g} nm", path=path,
-                             fix=f"choose a grid inside it, e.g. --grid-nm {DEFAULT_GRID_NM}")
-        rgb = evaluate_in_plane(path, kind, ti_all, to_all, (0, 1, 2))
-        brdf = rgb @ rgb_reflectance_basis(grid).T
-        resampled = False
-        file_grid = "linear sRGB"
+    convert = _spectral_brdf if kind.name == "spectral" else _rgb_brdf
+    brdf, resampled, file_grid = convert(path, kind, ti_all, to_all, grid, params, notes)
     negative = int(np.count_nonzero(brdf < 0))
     if negative:
         notes.append(f"{path}: clipped {negative} negative values (RGB outside the basis' "
@@ -372,17 +340,54 @@ def ingest(paths: Sequence[str | os.PathLike], *, theta_i_deg: str | None = None
             "jacobian": bool(np.asarray(meta["jacobian"])[0]),
             "wavelength_nm": file_grid, "rgb_to_spectrum": params["rgb_to_spectrum"],
             "mitsuba_variant": kind.variant, "mitsuba_version": params["mitsuba_version"]}
-    m.summary = _summary(m, info, params, resampled, negative, notes)
+    m.summary = single_file_summary(m, info, params, resampled, negative, notes)
     for note in notes:
         log.warn(note)
     return m
 
 
-def _summary(m: Measurement, info: dict, params: dict, resampled: bool, clipped: int,
-             notes: list[str]) -> dict[str, Any]:
-    """The summary of :func:`gonio_cli.ingest.ingest`'s shape for an RGL input."""
-    from .steps import distinct
+def _spectral_brdf(path: str, kind: Kind, theta_i_deg, theta_o_deg, grid: np.ndarray,
+                   params: dict, notes: list[str]) -> tuple[np.ndarray, bool, str]:
+    """A spectral file's BRDF (N, n_λ) on the working grid, whether it was resampled, and
+    the file's grid as the summary says it; a resampling note appended to ``notes``."""
+    wl = np.asarray(read_tensor_file(path, ["wavelengths"])["wavelengths"], dtype=float)
+    if not covers(wl, grid):
+        raise InputError(f"its wavelengths {wl[0]:g}-{wl[-1]:g} nm do not cover the "
+                         f"working grid {grid[0]:g}-{grid[-1]:g} nm", path=path,
+                         column="wavelengths",
+                         fix=f"choose a grid inside the file's, e.g. --grid-nm "
+                             f"{math.ceil(wl[0] / 10) * 10:g}:"
+                             f"{math.floor(wl[-1] / 10) * 10:g}:10")
+    used = wl[used_wavelengths(wl, grid)]
+    f = evaluate_in_plane(path, kind, theta_i_deg, theta_o_deg, used)
+    brdf = resample(used, f, grid)
+    resampled = not same_grid(used, grid)
+    if resampled:
+        notes.append(f"{path}: resampled from the file's {wl.size} wavelengths "
+                     f"({wl[0]:g}-{wl[-1]:g} nm, {used.size} used) onto the working grid "
+                     f"{params['grid_nm']} nm")
+    return brdf, resampled, f"{wl[0]:g}-{wl[-1]:g} nm ({wl.size} wavelengths)"
 
+
+def _rgb_brdf(path: str, kind: Kind, theta_i_deg, theta_o_deg, grid: np.ndarray,
+              params: dict, notes: list[str]) -> tuple[np.ndarray, bool, str]:
+    """An RGB file's BRDF (N, n_λ) through the Mallett-Yuksel basis (as
+    :func:`_spectral_brdf` returns it; never resampled)."""
+    lo, hi = rgb_reflectance_basis_range_nm()
+    if grid[0] < lo - 1e-6 or grid[-1] > hi + 1e-6:
+        raise InputError(f"an RGB file becomes spectra through the Mallett-Yuksel basis, "
+                         f"defined on {lo:g}-{hi:g} nm, not the working grid "
+                         f"{grid[0]:g}-{grid[-1]:g} nm", path=path,
+                         fix=f"choose a grid inside it, e.g. --grid-nm {DEFAULT_GRID_NM}")
+    rgb = evaluate_in_plane(path, kind, theta_i_deg, theta_o_deg, (0, 1, 2))
+    return rgb @ rgb_reflectance_basis(grid).T, False, "linear sRGB"
+
+
+def single_file_summary(m: Measurement, info: dict, params: dict, resampled: bool,
+                        clipped: int, notes: list[str]) -> dict[str, Any]:
+    """The summary of :func:`gonio_cli.ingest.ingest`'s shape for one input file of
+    another format (an RGL ``.bsdf`` here, a CxF3 file in :mod:`.cxf`): ``info`` is the
+    file's entry, ``clipped`` the values clipped to 0."""
     per_theta_i = []
     for t in distinct(m.theta_i_deg):
         sel = m.theta_i_deg == t

@@ -12,7 +12,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ..errors import InputError
+from ..artifact import atomic_path
+from ..errors import InputError, binary_kind
 
 #: Mitsuba's tensor file: 12-byte magic, version (major, minor), field count, then per field
 #: name, rank, type code, offset and shape, all little-endian (``src/core/tensor.cpp``,
@@ -63,8 +64,6 @@ def read_tensor_header(path: str | os.PathLike) -> dict[str, TensorField]:
     except OSError as exc:
         raise InputError(f"cannot read it ({exc.strerror or exc})", path=path) from None
     if not head.startswith(TENSOR_MAGIC):
-        from ..errors import binary_kind
-
         kind = binary_kind(head[:16]) or ("empty" if size == 0 else
                                           "no 'tensor_file' header")
         raise not_bsdf(path, kind)
@@ -128,8 +127,6 @@ def read_tensor_file(path: str | os.PathLike,
 def write_tensor_file(path: str | os.PathLike, fields: dict[str, Any]) -> None:
     """Write ``fields`` (name → numpy array, or str, stored as uint8 text) as a Mitsuba
     tensor file, atomically; the layout :func:`read_tensor_header` and Mitsuba read."""
-    from ..artifact import atomic_path
-
     arrays = {k: (np.frombuffer(v.encode("utf-8"), np.uint8) if isinstance(v, str)
                   else np.ascontiguousarray(v)) for k, v in fields.items()}
     for name, a in arrays.items():

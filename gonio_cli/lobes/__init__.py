@@ -14,10 +14,14 @@ seed's equations are written for reflected light, which does). A pure Lambertian
 f = ρ/π is exactly K_D = ρ/π with every lobe weight 0. Negative dot products are clamped
 to zero, as seed 001 notes under eq. 1: (R·V) ≤ 0 gives a lobe value of exactly 0.
 
-Choosing exponents (seed 001 §3.2, eq. 4): :func:`select_basis`. Fitting weights
-(seed 001 §4, eqs. 5-6): :func:`fit_weights` with a solver of :data:`WEIGHT_SOLVERS`.
-Samples (seed 001 §4): :data:`SAMPLE_SETS`. Angle-dependent weights (seed 001 §5.2):
-:func:`fit_weight_table`, one fit per view angle, a table the renderer interpolates.
+Here: the constants and the lobes themselves (eqs. 1-3). Each step has its module, which
+its callers import it from: choosing exponents (seed 001 §3.2, eq. 4):
+:func:`.basis.select_basis`; fitting weights (seed 001 §4, eqs. 5-6):
+:func:`.solve.fit_weights` with a solver of :data:`.solvers.WEIGHT_SOLVERS`; samples (seed
+001 §4): :data:`.samples.SAMPLE_SETS`; angle-dependent weights (seed 001 §5.2):
+:func:`.solve.fit_weight_table`, one fit per view angle, a table the renderer
+interpolates; what the lobes hold against the material: :mod:`.energy`. ``gonio lobes``
+as library calls: :mod:`.run`.
 
 Rendering with prefiltered maps (docs/conventions.md: P_E is the *normalised* average
 ∫ L max(0, r·ω)^E dω / ∫ max(0, r·ω)^E dω, and ∫_sphere max(0, r·ω)^E dω = 2π/(E+1)):
@@ -32,6 +36,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
+from ..schemas import EXPONENT_RANGE
 
 # ------------------------------------------------------------------------ constants --
 
@@ -208,8 +213,6 @@ def check_exponents(exponents, where: str = "basis") -> np.ndarray:
     if e.size == 0:
         raise InputError(f"{where}: the basis is empty (no exponents)",
                          fix="choose one with gonio lobes basis or pass --exponents 1,10,100")
-    from ..schemas import EXPONENT_RANGE
-
     lo, hi = EXPONENT_RANGE
     bad = e[~(np.isfinite(e) & (e >= lo) & (e <= hi))]
     if bad.size:
@@ -217,23 +220,3 @@ def check_exponents(exponents, where: str = "basis") -> np.ndarray:
                          fix="a cosine-lobe exponent E is at least 1 (the diffuse lobe, "
                              "seed 001 eq. 2) and at most 1e6")
     return e
-
-
-# ----------------------------------------------------------------- re-exports --
-# Samples, solvers and the basis search live in their own modules (they import the
-# constants and lobes above, hence these imports at the end); every name stays importable
-# from ``gonio_cli.lobes``.
-
-from .samples import (CHANNELS, SAMPLE_SETS, HemispherePattern, SamplePattern,  # noqa: E402
-                      Samples, check_channels, directional_albedo, mirror_rings,
-                      parse_view_angles, read_sample_csv, sample_set, target_values)
-from .solvers import (DEFAULT_SOLVER, FINISHED, STATUSES,  # noqa: E402
-                      WARM_SIMPLEX_MAX_SAMPLES, WEIGHT_SOLVERS, WeightFit, WeightSolver,
-                      check_solver, relative_weights, residual_errors)
-from .energy import check_energy, energy_excess, energy_note, lobe_energy  # noqa: E402
-from .solve import (WeightTable, check_design, default_time_limit_s,  # noqa: E402
-                    fit_weight_table, fit_weights, lobe_columns, lobe_half_width_deg,
-                    resolved_lobes, unresolved_notes)
-from .basis import (BASIS_EVALS_PER_LOBE, BASIS_FLAT_REL, BASIS_FTOL_REL,  # noqa: E402
-                    BASIS_PIN_LOG, BASIS_SOLVERS, BASIS_XTOL_LOG, BasisResult, BasisStep,
-                    basis_notes, basis_objective, resolvable_exponent, select_basis)

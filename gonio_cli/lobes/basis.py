@@ -1,7 +1,7 @@
 """The exponent basis search of the cosine-lobe fit (seed 001 §3.2, eq. 4) by nlopt.
 
 :func:`select_basis` adds one lobe at a time, minimising :func:`basis_objective` over
-log E (nlopt, imported here only). Re-exported by :mod:`gonio_cli.lobes`.
+log E (nlopt, imported here only).
 """
 
 from __future__ import annotations
@@ -147,8 +147,37 @@ def select_basis(targets: Sequence[np.ndarray], samples: Samples, max_lobes: int
     rises with the lobe count. nlopt LN_SBPLX (Subplex: derivative-free, robust to the
     kinks the max in eq. 4 makes) on log E within ``exponent_range``.
     """
-    import nlopt
+    lo, hi, top = _search_bounds(targets, samples, max_lobes, solver, exponent_range)
+    result = BasisResult(solver=solver, n_samples=samples.n_samples,
+                         exponent_range=(float(exponent_range[0]), top),
+                         mirror_offset_deg=samples.mirror_offset_deg())
+    cos_theta_i, cos_rv, weight = samples.cos_theta_i(), samples.cos_rv(), samples.weight
+    groups = [samples.view_index == k for k in range(samples.view_angle_deg.size)]
 
+    def objective(x):
+        return basis_objective(x, cos_theta_i, cos_rv, groups, targets, solver, weight)
+
+    start_all = time.perf_counter()
+    log_e = np.empty(0)
+    counts = range(1, int(max_lobes) + 1)
+    for m in (progress(counts) if progress else counts):
+        t0 = time.perf_counter()
+        best, evaluations, message = _search_count(objective, log_e, lo, hi)
+        log_e = np.sort(best["x"])
+        errs = best["errs"]
+        if result.steps and best["f"] > result.steps[-1].error:
+            message += "; error rose from the previous count (LP vertex jump; use nnls)"
+        result.steps.append(BasisStep(m, np.exp(log_e), best["f"], float(errs.max()),
+                                      float(errs.mean()), [float(v) for v in errs],
+                                      evaluations, time.perf_counter() - t0, message))
+    result.time_s = time.perf_counter() - start_all
+    return result
+
+
+def _search_bounds(targets, samples: Samples, max_lobes: int, solver: str,
+                   exponent_range) -> tuple[float, float, float]:
+    """(lo, hi) of the search in log E and the largest exponent the samples resolve, after
+    checking :func:`select_basis`'s arguments (InputError naming the option)."""
     if solver not in BASIS_SOLVERS:
         raise InputError(f"--solver {solver!r} is not usable for the basis search",
                          fix=f"use one of {', '.join(BASIS_SOLVERS)}")
@@ -159,63 +188,51 @@ def select_basis(targets: Sequence[np.ndarray], samples: Samples, max_lobes: int
     lo, hi = np.log(exponent_range[0]), np.log(exponent_range[1])
     if not (np.isfinite(lo) and np.isfinite(hi) and hi > lo):
         raise InputError(f"exponent range {exponent_range} is not 0 < min < max")
-    offsets = samples.mirror_offset_deg()
     sharpest = resolvable_exponent(samples)
     if sharpest <= exponent_range[0] * np.exp(BASIS_XTOL_LOG):
         raise InputError(f"sample set {samples.name}: no view has a sample within the "
                          f"widest lobe's half-width of its mirror direction (the nearest is "
-                         f"{np.max(offsets):.3g} deg away), so no lobe can be fitted",
+                         f"{np.max(samples.mirror_offset_deg()):.3g} deg away), so no lobe "
+                         f"can be fitted",
                          fix="use samples near the mirror direction, e.g. --samples seed001")
-    top = float(min(exponent_range[1], sharpest))
-    hi = min(hi, np.log(sharpest))
-    result = BasisResult(solver=solver, n_samples=samples.n_samples,
-                         exponent_range=(float(exponent_range[0]), top),
-                         mirror_offset_deg=offsets)
-    cos_theta_i, cos_rv, weight = samples.cos_theta_i(), samples.cos_rv(), samples.weight
-    groups = [samples.view_index == k for k in range(samples.view_angle_deg.size)]
-    start_all = time.perf_counter()
-    log_e = np.empty(0)
-    counts = range(1, int(max_lobes) + 1)
-    for m in (progress(counts) if progress else counts):
-        t0 = time.perf_counter()
-        best = {"x": None, "f": np.inf, "errs": None}
-        evals = {"n": 0}
+    return lo, min(hi, np.log(sharpest)), float(min(exponent_range[1], sharpest))
 
-        def f(x):
-            evals["n"] += 1
-            value, errs = basis_objective(x, cos_theta_i, cos_rv, groups, targets, solver,
-                                          weight)
-            if value < best["f"]:
-                best.update(x=np.array(x, dtype=float), f=value, errs=errs)
-            return value
 
-        for s in _gap_starts(log_e, lo, hi):
-            f(np.append(log_e, s))
-        x0 = best["x"].copy()
-        opt = nlopt.opt(nlopt.LN_SBPLX, m)
-        opt.set_min_objective(lambda x, grad: f(x))
-        opt.set_lower_bounds([lo] * m)
-        opt.set_upper_bounds([hi] * m)
-        opt.set_xtol_abs(BASIS_XTOL_LOG)
-        opt.set_ftol_rel(BASIS_FTOL_REL)
-        opt.set_maxeval(BASIS_EVALS_PER_LOBE * m)
-        opt.set_initial_step(0.5)
-        try:
-            opt.optimize(x0)
-            code = opt.last_optimize_result()
-            message = {3: "converged (ftol)", 4: "converged (xtol)",
-                       5: "stopped at maxeval"}.get(code, f"nlopt result {code}")
-        except nlopt.RoundoffLimited:  # round-off stops: the best point evaluated stands
-            message = "nlopt stopped (round-off limited); kept the best point"
-        log_e = np.sort(best["x"])
-        errs = best["errs"]
-        if result.steps and best["f"] > result.steps[-1].error:
-            message += "; error rose from the previous count (LP vertex jump; use nnls)"
-        result.steps.append(BasisStep(m, np.exp(log_e), best["f"], float(errs.max()),
-                                      float(errs.mean()), [float(v) for v in errs],
-                                      evals["n"], time.perf_counter() - t0, message))
-    result.time_s = time.perf_counter() - start_all
-    return result
+def _search_count(objective: Callable, log_e: np.ndarray, lo: float, hi: float):
+    """One lobe added to ``log_e``: the best point nlopt's LN_SBPLX evaluated over log E
+    in [lo, hi] (``{"x", "f", "errs"}``), the number of evaluations and how it ended."""
+    import nlopt
+
+    m = log_e.size + 1
+    best = {"x": None, "f": np.inf, "errs": None}
+    evals = {"n": 0}
+
+    def f(x):
+        evals["n"] += 1
+        value, errs = objective(x)
+        if value < best["f"]:
+            best.update(x=np.array(x, dtype=float), f=value, errs=errs)
+        return value
+
+    for s in _gap_starts(log_e, lo, hi):
+        f(np.append(log_e, s))
+    x0 = best["x"].copy()
+    opt = nlopt.opt(nlopt.LN_SBPLX, m)
+    opt.set_min_objective(lambda x, grad: f(x))
+    opt.set_lower_bounds([lo] * m)
+    opt.set_upper_bounds([hi] * m)
+    opt.set_xtol_abs(BASIS_XTOL_LOG)
+    opt.set_ftol_rel(BASIS_FTOL_REL)
+    opt.set_maxeval(BASIS_EVALS_PER_LOBE * m)
+    opt.set_initial_step(0.5)
+    try:
+        opt.optimize(x0)
+        code = opt.last_optimize_result()
+        message = {3: "converged (ftol)", 4: "converged (xtol)",
+                   5: "stopped at maxeval"}.get(code, f"nlopt result {code}")
+    except nlopt.RoundoffLimited:  # round-off stops: the best point evaluated stands
+        message = "nlopt stopped (round-off limited); kept the best point"
+    return best, evals["n"], message
 
 
 def basis_notes(result: BasisResult) -> list[str]:

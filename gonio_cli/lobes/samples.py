@@ -13,10 +13,12 @@ from typing import Sequence
 
 import numpy as np
 
+from ..csvio import THETA_I, THETA_O, read_columns
 from ..errors import InputError
+from ..geometry import cosines, in_plane_directions, reflect
 from ..names import choices_fix, pick
 from ..numbers import NumberList
-from ..geometry import cosines, in_plane_directions, reflect
+from ..spectra import spectrum_to_xyz
 from . import (GLOBAL_VIEW_ANGLES_DEG, HEMISPHERE_POINTS, HORIZON_DEG, MIRROR_BLEND_DEG,
                MIRROR_RING_AZIMUTHS, MIRROR_RING_GAUSS, MIRROR_RING_INNER_DEG,
                MIRROR_RING_RATIO, MIRROR_RING_SPACING_DEG)
@@ -271,8 +273,6 @@ def read_sample_csv(path) -> tuple[np.ndarray, np.ndarray]:
     side), θo the detector. Returns (φ, θo) in degrees, (N,) each (N = 0 for a header
     alone). Read by :func:`gonio_cli.csvio.read_columns`, the reader of every small CSV.
     """
-    from ..csvio import THETA_I, THETA_O, read_columns
-
     angles, _ = read_columns(path, (THETA_I, THETA_O), "the sample set", allow_empty=True)
     return angles[:, 0].copy(), angles[:, 1].copy()
 
@@ -361,8 +361,6 @@ def target_values(material, samples: Samples, channels: str = "spectral"):
     f = material.evaluate(cosines(wi, wo))                     # (N, n_λ) sr⁻¹
     b = f * samples.cos_theta_i()[:, None]
     if channels == "xyz":
-        from ..spectra import spectrum_to_xyz
-
         return spectrum_to_xyz(b, material.wavelength_nm), ["X", "Y", "Z"]
     return b, [float(w) for w in material.wavelength_nm]
 

@@ -17,6 +17,7 @@ import numpy as np
 
 from ..names import pick
 from . import LP_TIME_LIMIT_S
+from .simplex import lp_l1_simplex, lp_l1_warm, warm_up
 
 # -------------------------------------------------------------------- weight solvers --
 
@@ -101,8 +102,6 @@ def _lp_warm(M: np.ndarray, B: np.ndarray, time_limit_s: float = LP_TIME_LIMIT_S
     no compiler to load; the channels share M, so each starts from the last optimal
     basis). A channel the simplex cannot certify is re-solved by HiGHS, and so is the
     whole LP when a view has more than :data:`WARM_SIMPLEX_MAX_SAMPLES` samples."""
-    from .simplex import lp_l1_warm
-
     if M.shape[0] > WARM_SIMPLEX_MAX_SAMPLES:
         X, status, message = _highs(M, B, time_limit_s)
         return X, status, (f"{message}; by HiGHS: {M.shape[0]} samples per view is above "
@@ -119,8 +118,6 @@ def _lp_simplex(M: np.ndarray, B: np.ndarray, time_limit_s: float = LP_TIME_LIMI
     """The same LP by the compiled dense simplex of :mod:`gonio_cli.lobes.simplex`
     (numba, ~20 µs per channel once loaded); a channel that hits its iteration cap
     (cycling on a degenerate problem) is re-solved by HiGHS."""
-    from .simplex import lp_l1_simplex
-
     start = time.perf_counter()
     X, iterations, status = lp_l1_simplex(M, B, deadline=start + time_limit_s)
     message = f"dense simplex, {int(iterations.max())} pivots at most"
@@ -175,8 +172,6 @@ def _lsq_clamp(M: np.ndarray, B: np.ndarray, time_limit_s: float = LP_TIME_LIMIT
 
 def _load_compiled_simplex() -> None:
     """Load the numba kernel (disk cache) before the clock and the time limit start."""
-    from .simplex import warm_up
-
     warm_up()
 
 

@@ -8,6 +8,7 @@ from typing import Iterable
 import numpy as np
 
 from ..errors import InputError, num
+from ..schemas import MAX_MAGNITUDE
 
 #: Output texels per lobe standard deviation σ = 1/√E rad (cos^E θ ≈ exp(−Eθ²/2)), at
 #: least. The levels are powers of two, so maps get 2.5–5 texels per σ: bilinear lookup
@@ -41,8 +42,6 @@ def validate_map(pixels: np.ndarray, *, fix_invalid: bool = False,
         raise InputError(f"a {' × '.join(map(str, a.shape[:2]))} image is not a lat-long "
                          "map (needs at least 1 row and 2 columns)", path=path,
                          fix="pass an equirectangular map, 2:1 (width = 2 × height)")
-    from ..schemas import MAX_MAGNITUDE
-
     finite = np.isfinite(a) & (np.abs(a) <= MAX_MAGNITUDE)   # huge: as inf (Numeric ranges)
     bad_values = ~finite | (np.where(finite, a, 0.0) < 0.0)
     bad = bad_values.any(axis=2)

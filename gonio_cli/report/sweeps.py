@@ -14,7 +14,11 @@ from typing import Callable, Iterable
 
 import numpy as np
 
-from .. import lobes as L
+from ..lobes import design_matrix
+from ..lobes.basis import select_basis
+from ..lobes.samples import sample_set, target_values
+from ..lobes.solve import fit_weight_table, fit_weights
+from ..lobes.solvers import WEIGHT_SOLVERS
 from ..prefilter import brute, inputs as prefilter_inputs, methods as prefilter_methods, \
     prefilter, ring
 from ..render import Stats
@@ -86,20 +90,20 @@ def lobe_sweep(max_lobes: int = 6, repeats: int = 5, materials: dict | None = No
     Returns ``{"basis": [...], "rows": [...], "basis_time_s": float}``.
     """
     mats = materials if materials is not None else lobe_test_materials()
-    s = L.sample_set("seed001")
-    targets = [L.target_values(m, s, "xyz")[0] for m in mats.values()]
-    result, basis_s = timed(L.select_basis, targets, s, max_lobes)
+    s = sample_set("seed001")
+    targets = [target_values(m, s, "xyz")[0] for m in mats.values()]
+    result, basis_s = timed(select_basis, targets, s, max_lobes)
     basis = [{"lobes": st.n_lobes, "eq4_error": float(st.error), "time_s": float(st.time_s),
               "exponents": [float(e) for e in st.exponents]} for st in result.steps]
-    L.fit_weights(np.eye(3), np.ones((3, 1)), "lp-simplex")  # compile outside the timing
-    one = L.sample_set("dense", [40.0])
-    one_targets = [L.target_values(m, one, "xyz")[0] for m in mats.values()]
+    fit_weights(np.eye(3), np.ones((3, 1)), "lp-simplex")  # compile outside the timing
+    one = sample_set("dense", [40.0])
+    one_targets = [target_values(m, one, "xyz")[0] for m in mats.values()]
     rows = []
     for st in result.steps:
-        M = L.design_matrix(one.cos_theta_i(), one.cos_rv(), st.exponents)
-        for solver in (solvers or L.WEIGHT_SOLVERS):
-            fits = [L.fit_weights(M, B, solver) for B in one_targets]
-            ms = 1e3 * float(np.median([median_time(lambda B=B: L.fit_weights(M, B, solver),
+        M = design_matrix(one.cos_theta_i(), one.cos_rv(), st.exponents)
+        for solver in (solvers or WEIGHT_SOLVERS):
+            fits = [fit_weights(M, B, solver) for B in one_targets]
+            ms = 1e3 * float(np.median([median_time(lambda B=B: fit_weights(M, B, solver),
                                                     repeats) for B in one_targets]))
             rows.append({"lobes": st.n_lobes, "weights": int(M.shape[1]), "solver": solver,
                          "l1_sum": float(sum(f.l1 for f in fits)),
@@ -130,8 +134,8 @@ def lobe_render_times(basis: list[dict], material, sky: np.ndarray, size: int = 
         env = Environment("memory", np.array([r.exponent for r in maps]), [""] * len(maps),
                           [r.pixels.shape[:2] for r in maps],
                           {float(r.exponent): r.pixels for r in maps})
-        table = L.fit_weight_table(material, b["exponents"],
-                                   L.sample_set("hemisphere", np.arange(0.0, 90.0, 10.0)),
+        table = fit_weight_table(material, b["exponents"],
+                                   sample_set("hemisphere", np.arange(0.0, 90.0, 10.0)),
                                    solver="nnls", compare=())
         lobes = Lobes(table.exponents, "spectral", table.channels, table.view_angle_deg,
                       table.diffuse, table.directional_diffuse, table.gloss, {},

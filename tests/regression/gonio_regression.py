@@ -102,11 +102,12 @@ def demo_materials():
 
 @functools.lru_cache(maxsize=None)
 def basis():
-    from gonio_cli import lobes
+    from gonio_cli.lobes.basis import select_basis
+    from gonio_cli.lobes.samples import sample_set, target_values
 
-    s = lobes.sample_set("seed001")
-    targets = [lobes.target_values(m, s, "xyz")[0] for m in demo_materials()]
-    return lobes.select_basis(targets, s, MAX_LOBES, solver="nnls")
+    s = sample_set("seed001")
+    targets = [target_values(m, s, "xyz")[0] for m in demo_materials()]
+    return select_basis(targets, s, MAX_LOBES, solver="nnls")
 
 
 @functools.lru_cache(maxsize=None)
@@ -191,14 +192,16 @@ def lobes_numbers(name: str, model: str, samples: str, solver: str) -> dict[str,
     reference (this artifact tests the weight fit alone, not the basis search again), and
     the fit's L1 and squared error per view angle and channel, Σ_n |M x − b| and
     Σ_n (M x − b)² (the LP minimises the first, NNLS the second)."""
-    from gonio_cli import lobes
+    from gonio_cli.lobes import design_matrix
+    from gonio_cli.lobes.samples import parse_view_angles, sample_set, target_values
+    from gonio_cli.lobes.solve import fit_weight_table
 
     mat = material(name, model)
     e = load_numbers("lobes-basis")[f"exponents_{LOBE_COUNT}"]
-    s = lobes.sample_set(samples, lobes.parse_view_angles("0:80:10"))
-    t = lobes.fit_weight_table(mat, e, s, "spectral", solver)
-    b, _ = lobes.target_values(mat, s, "spectral")
-    M = lobes.design_matrix(s.cos_theta_i(), s.cos_rv(), e)
+    s = sample_set(samples, parse_view_angles("0:80:10"))
+    t = fit_weight_table(mat, e, s, "spectral", solver)
+    b, _ = target_values(mat, s, "spectral")
+    M = design_matrix(s.cos_theta_i(), s.cos_rv(), e)
     x = np.concatenate([t.diffuse[:, None], t.directional_diffuse, t.gloss], axis=1)
     r = np.einsum("nk,nkc->nc", M, x[s.view_index]) - b                  # (N, C)
     l1 = np.stack([np.abs(r[s.view_index == k]).sum(axis=0) for k in range(t.view_angle_deg.size)])
