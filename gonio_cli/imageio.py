@@ -227,10 +227,7 @@ def write_png(path: str | os.PathLike, pixels: np.ndarray,
     """Write 8-bit PNG atomically. ``pixels``: uint8 (H, W[, C]), or float in [0, 1]
     (rounded; the caller has already encoded it, e.g. sRGB). ``compression``: a key of
     :data:`COMPRESSION`."""
-    chosen = get_compression(compression, "compression")
-    level = chosen.png_zlib_level
-    strategy = {} if chosen.png_zlib_strategy is None else {
-        "compress_type": chosen.png_zlib_strategy}
+    level = get_compression(compression, "compression").png_zlib_level
     a = np.asarray(pixels)
     if a.dtype != np.uint8:
         check_finite(a, "the image", path)
