@@ -45,7 +45,8 @@ SWEEP_GAIN_NAMES = ("auto", "on", "off")
 
 # ------------------------------------------------------------------------- gonio render --
 
-#: ``--spectral`` / ``[output] spectral``: :data:`gonio_cli.render.shade.SPECTRAL_PATHS`.
+#: ``--spectral`` / ``[output] spectral``: the paths of :mod:`gonio_cli.render.shade`
+#: (which uses this tuple).
 SPECTRAL_PATHS = ("table", "exact")
 #: ``--tonemap``: :data:`gonio_cli.render.tonemap.TONEMAPS`.
 TONEMAP_NAMES = ("neutral", "none", "clip", "reinhard", "filmic")
@@ -65,18 +66,18 @@ GAMUT_NAMES = ("scale", "clip")
 INPUT_ENCODING_NAMES = ("auto", "srgb", "linear")
 #: ``--compress``: :data:`gonio_cli.imageio.COMPRESSION`.
 COMPRESSION_NAMES = ("none", "fast", "balanced", "small")
-#: ``--mask-format``: :data:`gonio_cli.commands.halftone.MASK_WRITERS`.
+#: ``--mask-format``: :data:`gonio_cli.halftone.run.MASK_WRITERS`.
 MASK_FORMAT_NAMES = ("palette", "rgb")
 
 # ------------------------------------------------------- gonio lobes, prefilter, sparkle --
 
-#: ``--samples`` (or a CSV file): :data:`gonio_cli.lobes.SAMPLE_SETS`.
+#: ``--samples`` (or a CSV file): :data:`gonio_cli.lobes.samples.SAMPLE_SETS`.
 SAMPLE_SET_NAMES = ("seed001", "dense", "hemisphere")
-#: ``--channels``: :data:`gonio_cli.lobes.CHANNELS`.
+#: ``--channels``: :data:`gonio_cli.lobes.samples.CHANNELS`.
 CHANNEL_NAMES = ("spectral", "xyz")
-#: ``gonio lobes fit --solver``: :data:`gonio_cli.lobes.WEIGHT_SOLVERS`.
+#: ``gonio lobes fit --solver``: :data:`gonio_cli.lobes.solvers.WEIGHT_SOLVERS`.
 WEIGHT_SOLVER_NAMES = ("lp", "highs", "lp-simplex", "nnls", "lsq-clamp")
-#: ``gonio lobes basis --solver``: :data:`gonio_cli.lobes.BASIS_SOLVERS`.
+#: ``gonio lobes basis --solver``: :data:`gonio_cli.lobes.basis.BASIS_SOLVERS`.
 BASIS_SOLVER_NAMES = ("nnls", "lp-simplex")
 #: ``gonio prefilter --method`` (besides ``auto``): :data:`gonio_cli.prefilter.methods.METHODS`.
 PREFILTER_METHOD_NAMES = ("brute", "ring")
@@ -86,7 +87,7 @@ SPARKLE_RULE_NAMES = ("mad", "percentile")
 
 # ------------------------------------------------------------------------- gonio report --
 
-#: ``--sections``: :data:`gonio_cli.report.SECTION_NAMES` (its sections, in order).
+#: ``--sections``: :data:`gonio_cli.report.sections.SECTIONS` (its sections, in order).
 REPORT_SECTION_NAMES = ("fit", "lobes", "prefilter", "render", "table1", "sheets")
 
 

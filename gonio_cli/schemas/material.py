@@ -101,7 +101,7 @@ C_MAX = 100.0
 
 #: The range of every material parameter (brdf.MODELS), by name: α of GGX in (0, 1]
 #: (seed 000 eq. 3, fit.common.ALPHA_MAX); Beckmann m in (0, 1] (seed 004 eq. 9,
-#: fit.cook_torrance.M_MAX); Fresnel F0 in [0, 1]; scales and albedos in
+#: fit.cook_torrance_profile.M_MAX); Fresnel F0 in [0, 1]; scales and albedos in
 #: [0, MAX_MAGNITUDE]. A test checks that every model parameter is listed.
 PARAM_RANGES: dict[str, Number] = {
     **{k: Number(0.0, 1.0, lo_open=True) for k in ("alpha", "alpha_coat", "alpha_2")},
