@@ -56,8 +56,10 @@ def test_bad_material_for_basis_is_one_line(good, tmp_path, change, field):
     assert_refused(code, err, names=(str(bad), field), outputs=[out])
 
 
-@pytest.mark.parametrize("exponents", ["0.5,8", "1,1e300", "1,nan"])
-def test_exponents_option_outside_the_range_is_refused(good, tmp_path, exponents):
+@pytest.mark.parametrize("exponents, why", [("0.5,8", "outside [1, 1e+06]"),
+                                             ("1,1e300", "outside [1, 1e+06]"),
+                                             ("1,nan", "'nan' is not a number")])
+def test_exponents_option_outside_the_range_is_refused(good, tmp_path, exponents, why):
     out = tmp_path / "red.lobes.json"
     code, err = run("lobes", "fit", good["material"], "--exponents", exponents, "-o", out)
-    assert_refused(code, err, names=("--exponents", "outside [1, 1e+06]"), outputs=[out])
+    assert_refused(code, err, names=("--exponents", why), outputs=[out])

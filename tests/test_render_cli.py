@@ -376,7 +376,8 @@ def test_a_400_700_material_renders_without_editing_the_scene(run_gonio, materia
 @pytest.mark.parametrize("grid, needle", [
     ("380:780:10", "g.json: covers 400-700 nm, not the render's grid 380-780 nm; choose "
                    "--grid-nm inside its range"),
-    ("400:700", "--grid-nm '400:700' is not START:STOP:STEP in nm"),
+    ("400:700", "--grid-nm '400:700': '400:700' is not a number or START:STOP:STEP; one "
+                "START:STOP:STEP range, in nm"),
 ])
 def test_bad_grid_nm_is_one_line_and_nothing_written(run_gonio, material_400_700, tmp_path,
                                                      grid, needle):
