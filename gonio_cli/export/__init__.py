@@ -4,7 +4,8 @@
 writes a folder from a :class:`gonio_cli.schemas.Material`:
 
 * ``mitsuba`` — a Mitsuba 3 BSDF plugin, its parameters and a ready scene
-  (:mod:`gonio_cli.export.mitsuba`, docs/export.md);
+  (:mod:`gonio_cli.export.mitsuba`, docs/export.md), judged in Mitsuba itself
+  (:mod:`gonio_cli.export.mitsuba_judge`);
 * ``gltf`` — a binary glTF 2.0 file (``NAME.glb``): a preview sphere with a PBR material
   fitted to the material's BRDF, and a report of what the fit loses
   (:mod:`gonio_cli.export.gltf`);
@@ -52,10 +53,13 @@ class Written:
 # Every ``gonio`` run imports this registry (``commands/export.py`` lists its targets in
 # ``--help``), so each target's module (numpy, its format's library, the renderer's scene
 # reader) is imported when the target is used, not here.
-def _mitsuba_write(*args, **kwargs) -> Written:
+def _mitsuba_write(material, material_path, out_dir, *args, **kwargs) -> Written:
     from .mitsuba import export_mitsuba  # lazy: the registry stays light
+    from .mitsuba_judge import judge_mitsuba  # lazy: (the same)
 
-    return Written(export_mitsuba(*args, **kwargs))
+    files = export_mitsuba(material, material_path, out_dir, *args, **kwargs)
+    path, rep = judge_mitsuba(material, material_path, out_dir)
+    return Written(files + ([path] if path is not None else []), rep)
 
 
 def _mitsuba_models() -> list[str]:
@@ -89,8 +93,9 @@ def _all_models() -> list[str]:
 
 
 TARGETS: dict[str, Target] = {
-    "mitsuba": Target("mitsuba", "Mitsuba 3 BSDF plugin (Python) + scene XML",
-                      _mitsuba_write, _mitsuba_models),
+    "mitsuba": Target("mitsuba", "Mitsuba 3 BSDF plugin (Python) + scene XML, and its "
+                      "colour-error report", _mitsuba_write, _mitsuba_models,
+                      label="Mitsuba"),
     "gltf": Target("gltf", "glTF 2.0 binary (.glb): a preview sphere with a fitted PBR "
                    "material, and its colour-error report", _gltf_write, _all_models,
                    output=".glb", label="glTF", judged=True),
