@@ -403,10 +403,10 @@ def lost(job, exc: BaseException, outdir: str, settings: Mapping[str, Any],
     ``retries`` + 1 starts so far and not stopped by the time limit. A task can be lost
     before it starts (queued on a worker that died): it is submitted again too, up to
     twice the starts allowed in all, so a task that can never start ends."""
-    starts = len(attempt_log(outdir, job))
     done = receipt(job, outdir, settings["run"])  # it ended before its task was lost
     if done is not None:
-        return {**done, "attempts": max(starts, int(done.get("attempts", 1)))}
+        return done
+    starts = len(attempt_log(outdir, job))
     limit = timed_out(outdir, job)
     common = {"attempts": starts, "run": settings["run"]}
     if limit is not None:

@@ -343,10 +343,10 @@ def execute(job: Job, outdir: str, previous: Mapping[str, Any] | None,
     """
     settings = dict(settings or {})
     run = settings.get("run")
-    attempts = note_attempt(outdir, job)
     done = receipt(job, outdir, run)
-    if done is not None:  # started again after it ended: every start is counted
-        return {**done, "attempts": max(attempts, int(done.get("attempts", 1)))}
+    if done is not None:  # it ended already (Dask ran its task again): not an attempt
+        return done
+    attempts = note_attempt(outdir, job)
     want = settings.get("gonio_version")
     if want and want != __version__:
         return record(job, "failed", attempts=attempts, worker=worker_name(), run=run,
