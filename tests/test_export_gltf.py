@@ -232,22 +232,27 @@ def coat_material(tmp_path) -> Path:
     return path
 
 
-@pytest.fixture(scope="module")
-def exported(tmp_path_factory):
-    """(glb, report, stderr) of ``gonio export orange.material.json --to gltf``."""
-    from gonio_cli import cli
-
-    tmp = tmp_path_factory.mktemp("gltf")
-    mat = coat_material(tmp)
-    glb = tmp / "orange.glb"
+def export_coat(tmp: Path, target: str, suffix: str) -> tuple[Path, dict, str]:
+    """(the file, its report, stderr) of ``gonio export orange.material.json --to TARGET``
+    run in-process in ``tmp``."""
     import contextlib
     import io
 
+    from gonio_cli import cli
+
+    mat = coat_material(tmp)
+    out = tmp / f"orange{suffix}"
     err = io.StringIO()
     with contextlib.redirect_stderr(err):
-        code = cli.run(["export", str(mat), "-o", str(glb), "--to", "gltf"])
+        code = cli.run(["export", str(mat), "-o", str(out), "--to", target])
     assert code == 0, err.getvalue()
-    return glb, json.loads((tmp / "orange.glb.report.json").read_text()), err.getvalue()
+    return out, json.loads((tmp / f"orange{suffix}.report.json").read_text()), err.getvalue()
+
+
+@pytest.fixture(scope="module")
+def exported(tmp_path_factory):
+    """(glb, report, stderr) of ``gonio export orange.material.json --to gltf``."""
+    return export_coat(tmp_path_factory.mktemp("gltf"), "gltf", ".glb")
 
 
 def test_export_writes_the_glb_and_its_report(exported):

@@ -13,9 +13,6 @@
 
 from __future__ import annotations
 
-import contextlib
-import io
-import json
 from pathlib import Path
 
 import numpy as np
@@ -29,7 +26,7 @@ from gonio_cli.export.openpbr_brdf import OpenPbrMaterial, openpbr_brdf
 from gonio_cli.geometry import cosines, in_plane_cosines
 from gonio_cli.samples import sample_data_dir
 from gonio_cli.schemas import read_material
-from test_export_gltf import SpectralTruth, coat_material, export_demo_coat  # noqa: E402
+from test_export_gltf import SpectralTruth, coat_material, export_coat, export_demo_coat  # noqa: E402
 
 mx = pytest.importorskip("MaterialX", reason="MaterialX is not installed (gonio's "
                          "exchange extra: pip install '.[exchange]'; make test installs it)")
@@ -188,16 +185,7 @@ def test_round_trip_recovers_an_openpbr_surface():
 @pytest.fixture(scope="module")
 def exported(tmp_path_factory):
     """(mtlx, report, stderr) of ``gonio export orange.material.json --to openpbr``."""
-    from gonio_cli import cli
-
-    tmp = tmp_path_factory.mktemp("openpbr")
-    mat = coat_material(tmp)
-    out = tmp / "orange.mtlx"
-    err = io.StringIO()
-    with contextlib.redirect_stderr(err):
-        code = cli.run(["export", str(mat), "-o", str(out), "--to", "openpbr"])
-    assert code == 0, err.getvalue()
-    return out, json.loads((tmp / "orange.mtlx.report.json").read_text()), err.getvalue()
+    return export_coat(tmp_path_factory.mktemp("openpbr"), "openpbr", ".mtlx")
 
 
 def _read_surface(path: Path) -> OpenPbrMaterial:
