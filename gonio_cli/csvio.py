@@ -57,6 +57,8 @@ MAX_LISTED_SAMPLES = 10
 #: Header names of the angle columns (degrees) and of the multi-angle geometry label.
 THETA_I = "theta_i_deg"
 THETA_O = "theta_o_deg"
+#: The optional detector azimuth column of every layout (docs/conventions.md).
+PHI_O = "phi_o_deg"
 GEOMETRY = "geometry"
 WAVELENGTH = "wavelength_nm"
 VALUE = "value"
@@ -133,6 +135,8 @@ class Spectra:
     lines : (n, n_λ) int, 1-based line of each value in its file (for messages).
     columns : (n_λ,) list of str, the column each wavelength was read from.
     info : dict, what was read (delimiter, rows, skipped lines, dropped wavelengths).
+    phi_o_deg : (n,) float, the detector's azimuth (degrees, canonical with θo:
+        :func:`gonio_cli.geometry.canonical_azimuth`), or None: every row in plane.
     """
 
     path: str
@@ -144,6 +148,7 @@ class Spectra:
     lines: np.ndarray
     columns: list[str]
     info: dict[str, Any] = field(default_factory=dict)
+    phi_o_deg: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -217,7 +222,7 @@ def _header_names(text: str) -> list[str] | None:
 
 
 #: Every column name of a layout (a header with a mistake still has some).
-_KNOWN_NAMES = frozenset((THETA_I, THETA_O, WAVELENGTH, VALUE, GEOMETRY))
+_KNOWN_NAMES = frozenset((THETA_I, THETA_O, PHI_O, WAVELENGTH, VALUE, GEOMETRY))
 
 
 def _header_index(content: Sequence[tuple[int, str]],

@@ -14,11 +14,13 @@ from typing import Any, Sequence
 import numpy as np
 
 from .csvio import (ANGLE_DECIMALS, DELIMITER_NAMES, GEOMETRY, LABEL_COLUMNS,
-                    MAX_LISTED_SAMPLES, RADIAN_LIMIT, THETA_I, THETA_O, VALUE, WAVELENGTH,
+                    MAX_LISTED_SAMPLES, PHI_O, RADIAN_LIMIT, THETA_I, THETA_O, VALUE,
+                    WAVELENGTH,
                     WAVELENGTH_DECIMALS, Layout, Spectra, Table, check_wavelengths,
                     float_cells, grid_text, header_wavelength, label_key, label_kind,
                     read_table)
 from .errors import InputError
+from .geometry import canonical_azimuth
 
 #: ASTM E2194 aspecular label: ``45as15`` = light at 45°, detector 15° from the specular
 #: direction towards the light (θo = 45 − 15 = 30°); a degree sign is tolerated.
@@ -111,7 +113,7 @@ def _check_header(table: Table, layout: Layout) -> None:
     # a header with wavelength columns may be meant as either layout that has them
     example = (" or ".join(lay.example for lay in LAYOUTS.values() if lay.wide)
                if layout.wide else layout.example)
-    allowed = set(layout.columns)
+    allowed = set(layout.columns) | {PHI_O}
     for h in table.header:
         is_wl = layout.wide and header_wavelength(h) is not None
         if not is_wl and h.lower() not in allowed:
@@ -123,7 +125,7 @@ def _check_header(table: Table, layout: Layout) -> None:
         if name not in names:
             raise InputError(f"missing column {name!r} for the {layout.name} layout",
                              path=table.path, row=table.header_line, fix=example)
-    dup = [h for h in layout.columns if names.count(h) > 1]
+    dup = [h for h in (*layout.columns, PHI_O) if names.count(h) > 1]
     if dup:
         raise InputError(f"column {dup[0]!r} appears twice", path=table.path,
                          row=table.header_line, fix=layout.example)
@@ -158,6 +160,23 @@ def _check_angles(theta_i, theta_o, lines, path, labels=None) -> None:
                          fix="write angles in degrees (multiply by 180/pi)")
 
 
+def _azimuths(table: Table, theta_o: np.ndarray):
+    """(θo, φo) of the rows, canonical (:func:`gonio_cli.geometry.canonical_azimuth`),
+    with φo from the optional ``phi_o_deg`` column checked in [−180, 180]; (θo, None)
+    without that column (every row in the plane of incidence)."""
+    if PHI_O not in [h.lower() for h in table.header]:
+        return theta_o, None
+    phi = float_cells(table, [table.index(PHI_O)])[:, 0]
+    bad = np.flatnonzero(np.abs(phi) > 180.0)
+    if bad.size:
+        k = int(bad[0])
+        raise InputError(f"{PHI_O}={phi[k]:g}, outside [-180, 180]", path=table.path,
+                         row=int(table.lines[k]), column=PHI_O,
+                         fix="the detector's azimuth is degrees from the plane of incidence "
+                             "(0: in plane, theta_o signed); fix or drop the row")
+    return canonical_azimuth(theta_o, phi)
+
+
 def rounded_keys(*cols: np.ndarray) -> np.ndarray:
     """(n, k) array of angle columns rounded to :data:`ANGLE_DECIMALS` (grouping keys)."""
     return np.round(np.stack(cols, axis=-1), ANGLE_DECIMALS) + 0.0  # + 0.0: −0 → 0
@@ -168,6 +187,7 @@ def _read_long(table: Table) -> Spectra:
     cols = [table.index(n) for n in (THETA_I, THETA_O, WAVELENGTH, VALUE)]
     ti, to, wl, v = float_cells(table, cols).T
     _check_angles(ti, to, table.lines, table.path)
+    to, phi = _azimuths(table, to)
     wl_r = np.round(wl, WAVELENGTH_DECIMALS)
     if wl_r.min() <= 0:
         k = int(np.argmin(wl_r))
@@ -175,7 +195,8 @@ def _read_long(table: Table) -> Spectra:
                          row=int(table.lines[k]), column=WAVELENGTH,
                          fix="wavelengths are in nm, e.g. 380")
     w_u, j = np.unique(wl_r, return_inverse=True)
-    cfg_u, c = np.unique(rounded_keys(ti, to), axis=0, return_inverse=True)
+    cfg_u, c = np.unique(rounded_keys(ti, to, *(() if phi is None else (phi,))), axis=0,
+                         return_inverse=True)
     j, c = j.reshape(-1), c.reshape(-1)
     n_wl = w_u.size
     rep = _occurrence(c * n_wl + j)
@@ -191,7 +212,8 @@ def _read_long(table: Table) -> Spectra:
     lines[s, j] = table.lines
     cfg_of = c[np.unique(s, return_index=True)[1]]
     return Spectra(table.path, "long", w_u, cfg_u[cfg_of, 0], cfg_u[cfg_of, 1], values,
-                   lines, [VALUE] * n_wl)
+                   lines, [VALUE] * n_wl,
+                   phi_o_deg=None if phi is None else cfg_u[cfg_of, 2])
 
 
 def _occurrence(key: np.ndarray) -> np.ndarray:
@@ -225,8 +247,9 @@ def _wide_spectra(table: Table, layout: str, ti, to) -> Spectra:
     idx, wl = _wavelength_columns(table)
     values = float_cells(table, idx)
     lines = np.broadcast_to(table.lines[:, None], values.shape).copy()
+    to, phi = _azimuths(table, to)
     return Spectra(table.path, layout, wl, ti, to, values, lines,
-                   [table.header[k] for k in idx])
+                   [table.header[k] for k in idx], phi_o_deg=phi)
 
 
 def _read_wide(table: Table) -> Spectra:

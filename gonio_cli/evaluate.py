@@ -31,7 +31,7 @@ from .brdf import MODELS
 from .errors import InputError
 from .fit.gains import SweepGains
 from .fit.plot import plot_fit
-from .geometry import in_plane_cosines
+from .geometry import measurement_cosines
 from .names import SWEEP_GAIN_NAMES, pick
 from .schemas import Material, Measurement, write_measurement
 from .spectra import grid_spec, same_grid
@@ -89,7 +89,7 @@ def evaluate_at(material: Material, measurement: Measurement, *, material_path=N
     Returns
     -------
     Measurement
-        Same ``wavelength_nm`` (n_λ,), ``theta_i_deg`` and ``theta_o_deg`` (n_cfg,) as
+        Same ``wavelength_nm`` (n_λ,), ``theta_i_deg``, ``theta_o_deg``, ``phi_o_deg`` as
         ``measurement``; ``brdf`` (n_cfg, n_λ) the model in sr⁻¹ (no cosine factor),
         times ``gains`` (:func:`gains_for`) per angle of incidence when given;
         no ``brdf_std``; ``n_repeats`` 1; quantity ``brdf``; ``summary`` naming the model.
@@ -101,7 +101,8 @@ def evaluate_at(material: Material, measurement: Measurement, *, material_path=N
     """
     check_same_grid(material, measurement, material_path=material_path,
                     measurement_path=measurement_path)
-    f = material.evaluate(in_plane_cosines(measurement.theta_i_deg, measurement.theta_o_deg))
+    f = material.evaluate(measurement_cosines(measurement.theta_i_deg, measurement.theta_o_deg,
+                                              measurement.phi_o_deg))
     if gains is not None:
         f = f * gains.per_configuration(measurement.theta_i_deg)[:, None]
     n = measurement.n_configurations
@@ -112,7 +113,8 @@ def evaluate_at(material: Material, measurement: Measurement, *, material_path=N
                         "configurations": n,
                         "sweep_gain": gains.to_dict() if gains is not None else None,
                         "brdf_min_per_sr": float(np.min(f)) if f.size else 0.0,
-                        "brdf_max_per_sr": float(np.max(f)) if f.size else 0.0})
+                        "brdf_max_per_sr": float(np.max(f)) if f.size else 0.0},
+                       None if measurement.phi_o_deg is None else measurement.phi_o_deg.copy())
 
 
 def model_parameters(material: Material) -> dict[str, Any]:

@@ -3,7 +3,10 @@
 Conventions (``docs/conventions.md``): the sample normal is +z; the light is at polar angle
 θi on the −x side, ωi = (−sin θi, 0, cos θi); the detector is at a signed in-plane angle
 θo, ωo = (sin θo, 0, cos θo), so θo = θi is the mirror configuration and θo < 0 is the
-light's side. Angles are degrees at the boundary, radians and cosines in here.
+light's side. Out of the plane of incidence the detector has an azimuth φo from the plane,
+ωo = (sin θo cos φo, sin θo sin φo, cos θo) (φo = 0 is the in-plane form exactly), written
+canonically (:func:`canonical_azimuth`). Angles are degrees at the boundary, radians and
+cosines in here.
 
 Every BRDF in :mod:`gonio_cli.brdf` is written in the four cosines of :class:`Cosines`,
 so the fit (in-plane data) and the renderer (arbitrary 3-D directions) share one code path.
@@ -43,6 +46,76 @@ def in_plane_directions(theta_i_deg, theta_o_deg) -> tuple[np.ndarray, np.ndarra
     wi = np.stack([-np.sin(ti), zero, np.cos(ti)], axis=-1)
     wo = np.stack([np.sin(to), zero, np.cos(to)], axis=-1)
     return wi, wo
+
+
+#: Below this |φo| (degrees) a configuration is in the plane of incidence.
+AZIMUTH_TOL_DEG = 1e-6
+
+
+def measurement_directions(theta_i_deg, theta_o_deg, phi_o_deg=None
+                           ) -> tuple[np.ndarray, np.ndarray]:
+    """ωi and ωo (..., 3) of goniometer configurations in or out of the plane of incidence.
+
+    ωi = (−sin θi, 0, cos θi) and ωo = (sin θo cos φo, sin θo sin φo, cos θo)
+    (docs/conventions.md, "Out of the plane of incidence"). ``phi_o_deg`` None (or 0)
+    gives :func:`in_plane_directions` exactly, θo signed.
+    """
+    if phi_o_deg is None:
+        return in_plane_directions(theta_i_deg, theta_o_deg)
+    ti = np.radians(np.asarray(theta_i_deg, dtype=float))
+    to = np.radians(np.asarray(theta_o_deg, dtype=float))
+    po = np.radians(np.asarray(phi_o_deg, dtype=float))
+    ti, to, po = np.broadcast_arrays(ti, to, po)
+    zero = np.zeros_like(ti)
+    wi = np.stack([-np.sin(ti), zero, np.cos(ti)], axis=-1)
+    st = np.sin(to)
+    wo = np.stack([st * np.cos(po), st * np.sin(po), np.cos(to)], axis=-1)
+    return wi, wo
+
+
+def measurement_cosines(theta_i_deg, theta_o_deg, phi_o_deg=None) -> Cosines:
+    """:class:`Cosines` of configurations (θi, θo, φo) in degrees; ``phi_o_deg`` None is
+    in plane (:func:`in_plane_cosines`, bit for bit). The one place a measurement's
+    configurations become the cosines every model, fit, eval and export takes."""
+    return cosines(*measurement_directions(theta_i_deg, theta_o_deg, phi_o_deg))
+
+
+def canonical_azimuth(theta_o_deg, phi_o_deg) -> tuple[np.ndarray, np.ndarray]:
+    """(θo, φo) in degrees spelled one way per detector direction (docs/conventions.md).
+
+    φo is wrapped to (−180°, 180°]; a detector in the plane (φo = 0 or 180°) is written
+    φo = 0 with θo signed (180° → −θo, today's in-plane form); out of the plane θo ≥ 0
+    (θo < 0 at φo becomes −θo at φo ± 180°); at θo = 0 (the normal) φo is 0.
+    """
+    to = np.array(theta_o_deg, dtype=float, copy=True)
+    po = np.asarray(phi_o_deg, dtype=float)
+    to, po = np.broadcast_arrays(to, po)
+    to, po = to.copy(), po.copy()
+    flip = to < 0
+    to[flip] = -to[flip]
+    po[flip] = po[flip] + 180.0
+    po = 180.0 - np.mod(180.0 - po, 360.0)                  # (−180, 180]
+    back = np.abs(np.abs(po) - 180.0) <= AZIMUTH_TOL_DEG
+    to[back] = -to[back]
+    po[back | (np.abs(po) <= AZIMUTH_TOL_DEG) | (to == 0)] = 0.0
+    return to, po
+
+
+def reciprocal_configuration(theta_i_deg, theta_o_deg, phi_o_deg=None):
+    """(θi', θo', φo') of the reverse configurations (light and detector swapped), canonical.
+
+    Out of the plane (θo ≥ 0) the reverse of (θi, θo, φo) is (θo, θi, φo); in the plane
+    (φo = 0, θo signed) that of (θi, θo) is (|θo|, θi · sign θo), as before: the
+    detector at θo < 0 is at azimuth 180° and the swapped detector keeps that azimuth.
+    ``phi_o_deg`` None gives None for φo'. For an isotropic BRDF f is the same at both.
+    """
+    ti = np.asarray(theta_i_deg, dtype=float)
+    to = np.asarray(theta_o_deg, dtype=float)
+    po = np.zeros_like(to) if phi_o_deg is None else np.asarray(phi_o_deg, dtype=float)
+    ti, to, po = np.broadcast_arrays(ti, to, po)
+    azimuth = np.where(to < 0, po + 180.0, po)
+    ro, rp = canonical_azimuth(ti, azimuth)
+    return np.abs(to), ro, (None if phi_o_deg is None else rp)
 
 
 def half_vector(wi: np.ndarray, wo: np.ndarray) -> np.ndarray:

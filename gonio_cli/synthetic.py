@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from .brdf import evaluate
-from .geometry import in_plane_cosines
+from .geometry import measurement_cosines
 from .schemas import Measurement
 from .spectra import parse_grid
 
@@ -51,17 +51,21 @@ def ink_spectra(ink: str = "red", grid_nm=None):
 
 def synthetic_measurement(model: str, params: dict, theta_i_deg, theta_o_deg,
                           grid_nm=None, noise: float = 0.02, seed: int = 0,
-                          repeats: int = 1) -> Measurement:
+                          repeats: int = 1, phi_o_deg=None) -> Measurement:
     """A :class:`Measurement` of a registered model with multiplicative noise.
 
     ``noise`` is the standard deviation of log(value) per reading; with ``repeats`` > 1
     each configuration is read that many times and averaged, with its sample std kept.
+    ``phi_o_deg`` (one per configuration, or None in plane) places the detector out of the
+    plane of incidence (docs/conventions.md).
     """
     wl = parse_grid() if grid_nm is None else np.asarray(grid_nm, dtype=float)
-    f = evaluate(model, in_plane_cosines(theta_i_deg, theta_o_deg), params)
+    f = evaluate(model, measurement_cosines(theta_i_deg, theta_o_deg, phi_o_deg), params)
     rng = np.random.default_rng(seed)
     reads = f[None] * np.exp(noise * rng.standard_normal((repeats,) + f.shape))
     std = reads.std(axis=0, ddof=1) if repeats > 1 else None
     return Measurement(wl, theta_i_deg, theta_o_deg, reads.mean(axis=0), std,
                        np.full(np.shape(theta_i_deg), repeats), "brdf",
-                       {"synthetic": {"model": model, "noise": noise, "seed": seed}})
+                       {"synthetic": {"model": model, "noise": noise, "seed": seed}},
+                       None if phi_o_deg is None else np.broadcast_to(
+                           np.asarray(phi_o_deg, dtype=float), np.shape(theta_i_deg)))

@@ -29,7 +29,7 @@ from .. import __version__
 from ..artifact import atomic_path
 from ..csvlayouts import aspecular_of_theta_o
 from ..errors import InputError
-from ..geometry import in_plane_cosines
+from ..geometry import measurement_cosines
 from ..schemas import read_measurement
 from . import check_file_output, get_target
 
@@ -112,7 +112,12 @@ def export_cxf(material, material_path, out, scene_path=None, variables=None, *,
     check_file_output(out, get_target("cxf"))
     meas = read_measurement(at)
     start_wl, increment = check_grid(material.wavelength_nm, material_path)
-    cos = in_plane_cosines(meas.theta_i_deg, meas.theta_o_deg)
+    if meas.phi_o_deg is not None:
+        raise InputError("--at: the measurement has configurations out of the plane of "
+                         "incidence (phi_o_deg), which the CxF3 multi-angle file written "
+                         "here cannot name", path=at,
+                         fix="give --at a measurement in the plane of incidence")
+    cos = measurement_cosines(meas.theta_i_deg, meas.theta_o_deg, meas.phi_o_deg)
     r = np.pi * material.evaluate(cos)
     k = int(np.argmax(r.max(axis=-1)))
     if not np.all(np.isfinite(r)) or r[k].max() >= REFLECTANCE_MAX:

@@ -31,7 +31,7 @@ from ..artifact import atomic_path, read_artifact, sha256_file, write_artifact
 from ..errors import GonioError, InputError
 from ..evaluate import evaluate_at, gains_for
 from ..fit.verdict import COLOUR_RANGE_NM, covers_colour
-from ..geometry import Cosines, in_plane_cosines
+from ..geometry import Cosines, measurement_cosines
 from ..schemas import Material, read_measurement
 from ..spectra import delta_e_2000, same_grid
 from .mitsuba import rgb_weights
@@ -120,10 +120,10 @@ def delta_e_rgb(rgb_ref, rgb_test) -> np.ndarray:
 
 
 def judge(material, exported_rgb: Callable[[Cosines], np.ndarray], theta_i_deg,
-          theta_o_deg) -> Judgement:
-    """The exported BRDF (f (..., 3) linear sRGB) against ``material`` at in-plane
-    configurations (degrees)."""
-    cos = in_plane_cosines(theta_i_deg, theta_o_deg)
+          theta_o_deg, phi_o_deg=None) -> Judgement:
+    """The exported BRDF (f (..., 3) linear sRGB) against ``material`` at goniometer
+    configurations (degrees; ``phi_o_deg`` None: in plane)."""
+    cos = measurement_cosines(theta_i_deg, theta_o_deg, phi_o_deg)
     de = delta_e_rgb(np.pi * material_rgb(material)(cos), np.pi * exported_rgb(cos))
     return Judgement(de, np.asarray(theta_i_deg, float), np.asarray(theta_o_deg, float))
 
@@ -154,12 +154,12 @@ def report(target: str, material, material_path, exported_rgb) -> dict[str, Any]
     doc = read_artifact(material_path, Material.SCHEMA, Material.READ_VERSIONS)
     meas_path, meas = find_measurement(material_path, doc)
     if meas is not None:
-        ti, to = meas.theta_i_deg, meas.theta_o_deg
+        ti, to, po = meas.theta_i_deg, meas.theta_o_deg, meas.phi_o_deg
         where = f"the configurations of {os.fspath(meas_path)}"
     else:
-        ti, to = in_plane_grid()
+        (ti, to), po = in_plane_grid(), None
         where = "an in-plane grid (the material's measurement was not found)"
-    j = judge(material, exported_rgb, ti, to)
+    j = judge(material, exported_rgb, ti, to, po)
     return {"target": target, "model": material.model, "configurations": where,
             "colour": COLOUR, **j.summary(),
             "material_fit": own_fit(material, material_path, doc, meas_path, meas),

@@ -157,7 +157,8 @@ def judge(data: FitData, result: ModelFit, max_mean_delta_e: float | None = None
         notes.append(text)
     # what the data allow: a pair no reciprocal model can match both of explains a poor
     # fit (with gains: the data as the BRDF should reproduce them)
-    gap = reciprocity(data.wavelength_nm, data.theta_i_deg, data.theta_o_deg, y)
+    gap = reciprocity(data.wavelength_nm, data.theta_i_deg, data.theta_o_deg, y,
+                      data.phi_o_deg)
     if gap is not None:
         out["data_reciprocity"] = gap.to_dict()
         if word == "poor" and gap.delta_e - gap.uncertainty > THRESHOLDS["mean_delta_e"]:

@@ -23,7 +23,7 @@ from typing import Any, Callable
 import numpy as np
 
 from ..errors import InputError
-from ..geometry import Cosines, in_plane_cosines
+from ..geometry import Cosines, measurement_cosines
 from ..schemas import Measurement
 
 #: Admissible GGX α. Below 1e-3 the lobe is ~0.06° wide, narrower than any goniometer's
@@ -65,6 +65,8 @@ class FitData:
         residuals ; positive : (N, L) bool, y > 0 (log residuals need it)
     residuals : "log", "linear" or "compressive" (a linear residual whose weights
         compress the dynamic range, :func:`prepare`; fitters treat it as linear)
+    phi_o_deg : (N,) the detector's azimuth (docs/conventions.md), or None in plane;
+        ``cos`` already holds it, so a fitter needs nothing else
     """
 
     wavelength_nm: np.ndarray
@@ -76,6 +78,7 @@ class FitData:
     positive: np.ndarray
     residuals: str
     excluded: dict[str, Any] = field(default_factory=dict)
+    phi_o_deg: np.ndarray | None = None
 
     @property
     def n_configurations(self) -> int:
@@ -85,11 +88,13 @@ class FitData:
         """The same data restricted to a boolean or index selection of configurations."""
         return FitData(self.wavelength_nm, self.theta_i_deg[rows], self.theta_o_deg[rows],
                        Cosines(*(c[rows] for c in self.cos)), self.y[rows], self.w[rows],
-                       self.positive[rows], self.residuals, self.excluded)
+                       self.positive[rows], self.residuals, self.excluded,
+                       None if self.phi_o_deg is None else self.phi_o_deg[rows])
 
     def mirror_rows(self) -> np.ndarray:
-        """Boolean (N,): the mirror configurations θo ≈ θi (seed 000 eq. 7)."""
-        return np.abs(self.theta_o_deg - self.theta_i_deg) <= MIRROR_TOL_DEG
+        """Boolean (N,): the mirror configurations θo ≈ θi, φo = 0 (seed 000 eq. 7)."""
+        mirror = np.abs(self.theta_o_deg - self.theta_i_deg) <= MIRROR_TOL_DEG
+        return mirror if self.phi_o_deg is None else mirror & (self.phi_o_deg == 0)
 
     def theta_i_groups(self) -> list[tuple[float, np.ndarray]]:
         """[(θi in degrees, boolean rows)] per distinct angle of incidence, ascending."""
@@ -178,7 +183,8 @@ def prepare(measurement: Measurement, *, residuals: str = "log",
                          fix="exclude fewer angles or give some configurations weight > 0")
     y = measurement.brdf[keep]
     positive = y > 0
-    cos = in_plane_cosines(ti[keep], to[keep])
+    phi = None if measurement.phi_o_deg is None else measurement.phi_o_deg[keep]
+    cos = measurement_cosines(ti[keep], to[keep], phi)
     has_std = measurement.brdf_std is not None and use_std
     if has_std:
         rel = _relative_sigma(y, measurement.brdf_std[keep], measurement.n_repeats[keep])
@@ -202,7 +208,7 @@ def prepare(measurement: Measurement, *, residuals: str = "log",
     w = w / np.mean(w[w > 0]) if np.any(w > 0) else w  # scale-free weights, mean 1
     return FitData(measurement.wavelength_nm, ti[keep], to[keep], cos, y, w, positive,
                    residuals, {"theta_i_deg": dropped_ti, "theta_o_deg": dropped_to,
-                               "non_positive_values": int((~positive).sum())})
+                               "non_positive_values": int((~positive).sum())}, phi)
 
 
 def _relative_sigma(y: np.ndarray, std: np.ndarray, n_repeats: np.ndarray) -> np.ndarray:

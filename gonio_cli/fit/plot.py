@@ -84,6 +84,16 @@ def model_curve(material: Material, layout: str, key: float, x_min: float, x_max
     return x, material.evaluate(in_plane_cosines(ti, to)).mean(axis=1)
 
 
+def in_plane_rows(measurement: Measurement) -> tuple[np.ndarray, str]:
+    """(boolean rows, title note): the configurations in the plane of incidence (φo = 0),
+    the ones :func:`plot_fit` draws, and the note naming how many out of plane it leaves
+    out ("" when none)."""
+    plane = measurement.azimuths_deg == 0
+    n_out = int((~plane).sum())
+    return plane, (f"\n(in-plane configurations only: {n_out} out of plane not shown)"
+                   if n_out else "")
+
+
 def plot_fit(path: str | os.PathLike, measurement: Measurement, material: Material,
              title: str = "", excluded_theta_i_deg=(), gains=None) -> None:
     """Write a PNG like seed 000 Figure 4 (top, middle, bottom) for ``material``.
@@ -101,8 +111,9 @@ def plot_fit(path: str | os.PathLike, measurement: Measurement, material: Materi
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    ti_all, to_all = measurement.theta_i_deg, measurement.theta_o_deg
-    y_avg = measurement.brdf.mean(axis=1)
+    plane, left_out = in_plane_rows(measurement)
+    ti_all, to_all = measurement.theta_i_deg[plane], measurement.theta_o_deg[plane]
+    y_avg = measurement.brdf[plane].mean(axis=1)
     f_avg = material.evaluate(in_plane_cosines(ti_all, to_all)).mean(axis=1)
     layout, groups = curve_groups(ti_all, to_all)
     gained = gains is not None and layout == "theta_o" and gains.covers(ti_all)
@@ -141,7 +152,7 @@ def plot_fit(path: str | os.PathLike, measurement: Measurement, material: Materi
     axes[0].set_ylabel("BRDF, mean over λ (sr⁻¹)")
     axes[0].set_xlabel(x_label)
     axes[0].legend(fontsize=7, ncol=2)
-    axes[0].set_title(title or f"{material.model} fit")
+    axes[0].set_title((title or f"{material.model} fit") + left_out)
     axes[1].set_ylabel("|data − fit| (sr⁻¹)")
     axes[1].set_xlabel(x_label)
     wl = material.wavelength_nm

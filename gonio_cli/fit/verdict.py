@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from .. import spectra
+from ..geometry import measurement_directions, reciprocal_configuration, reflect
 from .common import FitData, MIRROR_TOL_DEG
 
 #: Limits of a ``good`` fit. Mean CIEDE2000 0.7: about half of a just-noticeable
@@ -101,9 +102,11 @@ class Reciprocity:
     interpolated: bool
     delta_e: float
     uncertainty: float = 0.0
+    phi_o_deg: float = 0.0          # both configurations' azimuth (out of plane: φo' = φo)
 
     def to_dict(self) -> dict[str, Any]:
         return {"theta_i_deg": self.theta_i_deg, "theta_o_deg": self.theta_o_deg,
+                **({"phi_o_deg": self.phi_o_deg} if self.phi_o_deg else {}),
                 "reverse_theta_i_deg": self.reverse_theta_i_deg,
                 "reverse_theta_o_deg": self.reverse_theta_o_deg,
                 "reverse_interpolated": self.interpolated, "delta_e2000": self.delta_e,
@@ -145,14 +148,17 @@ def _reverse_value(o: np.ndarray, fs: np.ndarray, target: float):
     return np.exp(sum(wk * lk for wk, lk in zip(weights, logs))), linear, True
 
 
-def reciprocity(wavelength_nm, theta_i_deg, theta_o_deg, f) -> Reciprocity | None:
+def reciprocity(wavelength_nm, theta_i_deg, theta_o_deg, f, phi_o_deg=None
+                ) -> Reciprocity | None:
     """The pair of the data whose colours most break reciprocity, f(ωi, ωo) = f(ωo, ωi),
     which every physical BRDF (so every model here) obeys; None where the data hold no
     pair (or colour cannot be judged).
 
     Each configuration at least :data:`RECIPROCITY_MIN_ASPECULAR_DEG` from the mirror is
-    compared with its reverse (θi' = |θo|, θo' = θi · sign θo): measured, or interpolated
-    in log f along its sweep through the two measured θo around it and the next nearest
+    compared with its reverse (θi' = |θo|, θo' = θi · sign θo; out of the plane (θo, θi,
+    φo), :func:`gonio_cli.geometry.reciprocal_configuration`; the angle from the mirror
+    direction is measured in 3-D there): measured, or interpolated
+    in log f along its sweep (same θi and φo) through the two measured θo around it and the next nearest
     (quadratic; exact for a lobe that is Gaussian in θo), its disagreement with the
     log-linear interpolation kept as the estimate's uncertainty. Colour as
     :func:`colour_errors` (R = π f, D65, 10°, a pair scaled so the first's Y is at most 1).
@@ -167,26 +173,31 @@ def reciprocity(wavelength_nm, theta_i_deg, theta_o_deg, f) -> Reciprocity | Non
     ti = np.asarray(theta_i_deg, dtype=float)
     to = np.asarray(theta_o_deg, dtype=float)
     f = np.asarray(f, dtype=float)
+    po = np.zeros_like(ti) if phi_o_deg is None else np.asarray(phi_o_deg, dtype=float)
+    rev_i, rev_o, _ = reciprocal_configuration(ti, to, po)
+    wi, wo = measurement_directions(ti, to, po)
+    aspecular = np.where(po == 0, np.abs(to - ti), np.degrees(np.arccos(np.clip(
+        np.sum(wo * reflect(wi), axis=-1), -1.0, 1.0))))
     sweeps = {}
-    for t in np.unique(ti):
-        rows = np.flatnonzero(ti == t)
+    for t, p in set(zip(ti.tolist(), po.tolist())):
+        rows = np.flatnonzero((ti == t) & (po == p))
         rows = rows[np.argsort(to[rows], kind="stable")]
-        sweeps[float(t)] = (to[rows], f[rows])
+        sweeps[(float(t), float(p))] = (to[rows], f[rows])
     forward, best, simple, where = [], [], [], []
     for k in range(ti.size):
         a, b = float(ti[k]), float(to[k])
-        if b == 0.0 or abs(b - a) < RECIPROCITY_MIN_ASPECULAR_DEG or abs(b) == a:
+        if b == 0.0 or aspecular[k] < RECIPROCITY_MIN_ASPECULAR_DEG or abs(b) == a:
             continue
-        ri, ro = abs(b), float(a * np.sign(b))
-        if ri not in sweeps:
+        ri, ro = float(rev_i[k]), float(rev_o[k])
+        if (ri, float(po[k])) not in sweeps:
             continue
-        values = _reverse_value(*sweeps[ri], ro)
+        values = _reverse_value(*sweeps[(ri, float(po[k]))], ro)
         if values is None:
             continue
         forward.append(f[k])
         best.append(values[0])
         simple.append(values[1])
-        where.append((a, b, ri, ro, values[2]))
+        where.append((a, b, ri, ro, values[2], float(po[k])))
     if not forward:
         return None
     white = spectra.reflectance_to_xyz(np.ones(wl.size), wl)
@@ -201,7 +212,7 @@ def reciprocity(wavelength_nm, theta_i_deg, theta_o_deg, f) -> Reciprocity | Non
     if not np.isfinite(net).any():
         return None
     k = int(np.argmax(net))
-    return Reciprocity(*where[k], float(de[k]), float(spread[k]))
+    return Reciprocity(*where[k][:5], float(de[k]), float(spread[k]), where[k][5])
 
 
 def covers_colour(wavelength_nm) -> bool:
@@ -210,8 +221,10 @@ def covers_colour(wavelength_nm) -> bool:
     return bool(wl.size >= 2 and wl[0] <= COLOUR_RANGE_NM[0] and wl[-1] >= COLOUR_RANGE_NM[1])
 
 
-def colour_errors(wavelength_nm, theta_i_deg, theta_o_deg, f_data, f_model) -> ColourErrors:
-    """CIEDE2000 (D65, 10°) of π f_model against π f_data per configuration, (N, L) each."""
+def colour_errors(wavelength_nm, theta_i_deg, theta_o_deg, f_data, f_model,
+                  phi_o_deg=None) -> ColourErrors:
+    """CIEDE2000 (D65, 10°) of π f_model against π f_data per configuration, (N, L) each;
+    the mirror configurations (θo = θi, φo = 0) give the peak ratios."""
     wl = np.asarray(wavelength_nm, dtype=float)
     white = spectra.reflectance_to_xyz(np.ones(wl.size), wl)
     xyz_d = spectra.reflectance_to_xyz(np.pi * np.asarray(f_data, dtype=float), wl)
@@ -224,7 +237,8 @@ def colour_errors(wavelength_nm, theta_i_deg, theta_o_deg, f_data, f_model) -> C
     to = np.asarray(theta_o_deg, dtype=float)
     peak: dict[float, float] = {}
     for t in np.unique(np.round(ti, 6)):
-        k = np.where((np.abs(ti - t) < 1e-6) & (np.abs(to - t) <= MIRROR_TOL_DEG))[0]
+        k = np.where((np.abs(ti - t) < 1e-6) & (np.abs(to - t) <= MIRROR_TOL_DEG)
+                     & (True if phi_o_deg is None else np.asarray(phi_o_deg) == 0))[0]
         if k.size and y[k[0]] > 0:
             peak[float(t)] = float(xyz_m[k[0], 1] / y[k[0]])
     return ColourErrors(de, ti, to, peak)
@@ -235,7 +249,7 @@ def fit_colour_errors(data: FitData, f_model) -> ColourErrors | None:
     if not covers_colour(data.wavelength_nm):
         return None
     return colour_errors(data.wavelength_nm, data.theta_i_deg, data.theta_o_deg, data.y,
-                         f_model)
+                         f_model, data.phi_o_deg)
 
 
 def verdict(success: bool, colour: ColourErrors | None,

@@ -122,7 +122,8 @@ def ingest(paths: Sequence[str | os.PathLike], *, quantity: str | None = None,
     confirmed = scale is not None and float(scale) == 1.0
     percent_notes = check_percent(parts, brdf, params, QUANTITIES[params["quantity"]],
                                   units_confirmed=confirmed)
-    ti, to, mean, std, counts = average_repeats(merged.theta_i_deg, merged.theta_o_deg, brdf)
+    ti, to, mean, std, counts, phi = average_repeats(merged.theta_i_deg, merged.theta_o_deg,
+                                                     brdf, merged.phi_o_deg)
     clipped = int(np.count_nonzero(mean < 0))
     mean = np.maximum(mean, 0.0)
     notes = _quantity_notes(parts, quantity is not None) + percent_notes
@@ -135,7 +136,7 @@ def ingest(paths: Sequence[str | os.PathLike], *, quantity: str | None = None,
     repeated = bool(counts.max() > 1)
     m = Measurement(grid, ti, to, resample(wl, mean, grid),
                     resample(wl, std, grid) if repeated else None, counts,
-                    params["quantity"])
+                    params["quantity"], phi_o_deg=phi)
     resampled = not all(same_grid(g, grid) for g in grids)
     m.summary = _summary(m, parts, params, resampled, negatives, clipped, notes)
     for note in notes:  # only now: a failing run prints one line, its error

@@ -144,12 +144,16 @@ def merge(parts: Sequence[Spectra], grids: Sequence[np.ndarray]) -> Spectra:
                                  "export them on the same wavelengths")
     if len(parts) == 1:
         return first
+    in_plane = all(p.phi_o_deg is None for p in parts)
     return Spectra(", ".join(p.path for p in parts), "+".join(p.layout for p in parts),
                    first.wavelength_nm,
                    np.concatenate([p.theta_i_deg for p in parts]),
                    np.concatenate([p.theta_o_deg for p in parts]),
                    np.concatenate([p.values for p in parts]),
-                   np.concatenate([p.lines for p in parts]), first.columns)
+                   np.concatenate([p.lines for p in parts]), first.columns,
+                   phi_o_deg=None if in_plane else np.concatenate(
+                       [np.zeros(p.theta_i_deg.shape) if p.phi_o_deg is None else p.phi_o_deg
+                        for p in parts]))
 
 
 def _first_difference(a: np.ndarray, b: np.ndarray) -> str:
@@ -160,25 +164,29 @@ def _first_difference(a: np.ndarray, b: np.ndarray) -> str:
     return f"{a[k]:g} nm" if k < a.size else f"{b[k]:g} nm (missing)"
 
 
-def average_repeats(theta_i_deg, theta_o_deg, values):
+def average_repeats(theta_i_deg, theta_o_deg, values, phi_o_deg=None):
     """Average the rows of each configuration and keep their sample standard deviation.
 
     Parameters
     ----------
     theta_i_deg, theta_o_deg : (n,) float, degrees; rows agreeing to
-        :data:`ANGLE_DECIMALS` decimals are one configuration.
+        :data:`ANGLE_DECIMALS` decimals (with ``phi_o_deg``, if given) are one
+        configuration.
     values : (n, n_λ) float.
+    phi_o_deg : (n,) float, degrees (canonical), or None: every row in plane.
 
     Returns
     -------
-    theta_i_deg, theta_o_deg : (m,) float, configurations sorted by θi then θo.
+    theta_i_deg, theta_o_deg : (m,) float, configurations sorted by θi then θo (then φo).
     mean : (m, n_λ) float.
     std : (m, n_λ) float, sample standard deviation (ddof = 1), 0 for a single row.
     n_repeats : (m,) int.
+    phi_o_deg : (m,) float, or None when none was given.
     """
-    keys, inv = np.unique(rounded_keys(np.asarray(theta_i_deg, float),
-                                        np.asarray(theta_o_deg, float)),
-                          axis=0, return_inverse=True)
+    cols = [np.asarray(theta_i_deg, float), np.asarray(theta_o_deg, float)]
+    if phi_o_deg is not None:
+        cols.append(np.asarray(phi_o_deg, float))
+    keys, inv = np.unique(rounded_keys(*cols), axis=0, return_inverse=True)
     inv = inv.reshape(-1)
     values = np.asarray(values, dtype=float)
     order = np.argsort(inv, kind="stable")
@@ -189,7 +197,8 @@ def average_repeats(theta_i_deg, theta_o_deg, values):
     mean = np.add.reduceat(v, starts, axis=0) / counts[:, None]
     sq = np.add.reduceat((v - mean[sorted_inv]) ** 2, starts, axis=0)
     std = np.sqrt(sq / np.maximum(counts - 1, 1)[:, None]) * (counts > 1)[:, None]
-    return keys[:, 0], keys[:, 1], mean, std, counts
+    return (keys[:, 0], keys[:, 1], mean, std, counts,
+            None if phi_o_deg is None else keys[:, 2])
 
 
 def distinct(values: np.ndarray) -> np.ndarray:
