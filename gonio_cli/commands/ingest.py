@@ -88,6 +88,15 @@ OPTIONAL = {
         "--theta-o-deg", "LIST|START:STOP:STEP",
         ".bsdf only: signed detector angles for every angle of incidence, degrees "
         "[default: -80:85:5]."),
+    "phi_o_deg": (
+        "--phi-o-deg", "LIST|START:STOP:STEP",
+        ".bsdf only: detector azimuths from the plane of incidence, each with every "
+        "theta_o, degrees in [0, 180] [default: 0]."),
+    "mirror_deg": (
+        "--mirror-deg", "LIST|none",
+        ".bsdf only: distances from the mirror direction of a fine ring of detectors "
+        "(in and across the plane), degrees [default: 1,2,3 with the default "
+        "--theta-o-deg, none with a list given]."),
 }
 
 
@@ -104,7 +113,8 @@ def ingest(
              "Or one RGL .bsdf file."),
     output: Path = typer.Option(
         ..., "--output", "-o", metavar="MEASUREMENT.json", show_default=False,
-        help="The measurement artifact to write (gonio.measurement v1)."),
+        help="The measurement artifact to write (gonio.measurement v1; v2 with "
+             "configurations out of the plane of incidence)."),
     quantity: Optional[str] = _optional("quantity"),
     white_reflectance: Optional[str] = _optional("white_reflectance"),
     aperture_mm: Optional[float] = _optional("aperture_mm"),
@@ -115,6 +125,8 @@ def ingest(
     sample: Optional[str] = _optional("sample"),
     theta_i_deg: Optional[str] = _optional("theta_i_deg"),
     theta_o_deg: Optional[str] = _optional("theta_o_deg"),
+    phi_o_deg: Optional[str] = _optional("phi_o_deg"),
+    mirror_deg: Optional[str] = _optional("mirror_deg"),
     summary: bool = typer.Option(
         False, "--summary", help="Print what was read (angles, grid, repeats, values, "
                                  "anything dropped or clipped) to stdout."),
@@ -128,7 +140,7 @@ def ingest(
     result = stage.run(inputs, quantity=quantity, white_reflectance=white_reflectance,
                        aperture_mm=aperture_mm, distance_mm=distance_mm, dark=dark,
                        grid_nm=grid_nm, scale=scale, sample=sample, theta_i_deg=theta_i_deg,
-                       theta_o_deg=theta_o_deg)
+                       theta_o_deg=theta_o_deg, phi_o_deg=phi_o_deg, mirror_deg=mirror_deg)
     stage.write(result, output)
     if summary:
         typer.echo(stage.format_summary(result.measurement.summary))

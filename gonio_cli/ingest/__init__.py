@@ -70,7 +70,8 @@ def ingest(paths: Sequence[str | os.PathLike], *, quantity: str | None = None,
            distance_mm: float | None = None, dark: str | os.PathLike | None = None,
            grid_nm: str | None = None, scale: float | None = None,
            sample: str | None = None, theta_i_deg: str | None = None,
-           theta_o_deg: str | None = None) -> Measurement:
+           theta_o_deg: str | None = None, phi_o_deg: str | None = None,
+           mirror_deg: str | None = None) -> Measurement:
     """Read goniometer CSVs and return one measurement on the working grid.
 
     Parameters
@@ -94,8 +95,10 @@ def ingest(paths: Sequence[str | os.PathLike], *, quantity: str | None = None,
     sample : of files holding several samples (a ``Name``, ``Sample`` or ``ID`` column
         with several values), the one to read (:func:`select_sample`).
     theta_i_deg, theta_o_deg : for an input of another format (:data:`FORMATS`, e.g. an
-        RGL ``.bsdf``, read by :func:`gonio_cli.ingest.rgl.ingest`), the in-plane grid to
+        RGL ``.bsdf``, read by :func:`gonio_cli.ingest.rgl.ingest`), the grid to
         evaluate it at; refused for CSV input.
+    phi_o_deg, mirror_deg : the same input's azimuths and mirror ring
+        (:mod:`gonio_cli.ingest.hemisphere`); refused for CSV input.
 
     Returns
     -------
@@ -108,7 +111,7 @@ def ingest(paths: Sequence[str | os.PathLike], *, quantity: str | None = None,
     options = dict(quantity=quantity, white_reflectance=white_reflectance,
                    aperture_mm=aperture_mm, distance_mm=distance_mm, dark=dark,
                    grid_nm=grid_nm, scale=scale, sample=sample, theta_i_deg=theta_i_deg,
-                   theta_o_deg=theta_o_deg)
+                   theta_o_deg=theta_o_deg, phi_o_deg=phi_o_deg, mirror_deg=mirror_deg)
     fmt = input_format(paths)
     if fmt is not None:
         return fmt.load().ingest(paths, **options)

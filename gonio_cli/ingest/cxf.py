@@ -36,7 +36,7 @@ FORMAT = "cxf3"
 #: The CSV options a CxF3 file cannot use (its values are reflectance factors, its
 #: angles in the file).
 _REFUSED = ("quantity", "white_reflectance", "aperture_mm", "distance_mm", "dark", "scale",
-            "theta_i_deg", "theta_o_deg")
+            "theta_i_deg", "theta_o_deg", "phi_o_deg", "mirror_deg")
 
 
 def resolve_parameters(paths: Sequence[str | os.PathLike], *, grid_nm: str | None = None,

@@ -131,7 +131,8 @@ def resolve_parameters(paths: Sequence[str | os.PathLike], *, quantity: str | No
                        dark: str | os.PathLike | None = None,
                        grid_nm: str | None = None, scale: float | None = None,
                        sample: str | None = None, theta_i_deg: str | None = None,
-                       theta_o_deg: str | None = None) -> dict[str, Any]:
+                       theta_o_deg: str | None = None, phi_o_deg: str | None = None,
+                       mirror_deg: str | None = None) -> dict[str, Any]:
     """Check the options against each other and fill in defaults.
 
     Returns the effective parameters (recorded in the artifact): ``quantity`` (default
@@ -144,13 +145,15 @@ def resolve_parameters(paths: Sequence[str | os.PathLike], *, quantity: str | No
     fmt = input_format(paths)
     if fmt is not None:
         return fmt.load().resolve_parameters(
-            paths, theta_i_deg=theta_i_deg, theta_o_deg=theta_o_deg, grid_nm=grid_nm,
-            quantity=quantity, white_reflectance=white_reflectance, aperture_mm=aperture_mm,
+            paths, theta_i_deg=theta_i_deg, theta_o_deg=theta_o_deg, phi_o_deg=phi_o_deg,
+            mirror_deg=mirror_deg, grid_nm=grid_nm, quantity=quantity, white_reflectance=white_reflectance, aperture_mm=aperture_mm,
             distance_mm=distance_mm, dark=dark, scale=scale, sample=sample)
-    for flag, value in (("--theta-i-deg", theta_i_deg), ("--theta-o-deg", theta_o_deg)):
+    for flag, value in (("--theta-i-deg", theta_i_deg), ("--theta-o-deg", theta_o_deg),
+                        ("--phi-o-deg", phi_o_deg), ("--mirror-deg", mirror_deg)):
         if value is not None:
-            raise InputError(f"{flag} is for an RGL .bsdf input (its in-plane grid); a CSV "
-                             "holds its own angles", path=where, fix=f"drop {flag}")
+            raise InputError(f"{flag} is for an RGL .bsdf input (its grid); a CSV holds its "
+                             "own angles (a phi_o_deg column out of plane)", path=where,
+                             fix=f"drop {flag}")
     quantity = DEFAULT_QUANTITY if quantity is None else quantity
     if quantity not in QUANTITIES:
         raise InputError(f"--quantity {quantity!r} is not known", path=where,

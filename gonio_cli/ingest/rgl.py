@@ -1,10 +1,12 @@
-"""RGL measured BSDFs (``.bsdf``) in: Mitsuba 3's ``measured`` plugin, evaluated in plane.
+"""RGL measured BSDFs (``.bsdf``) in: Mitsuba 3's ``measured`` plugin, evaluated on a
+goniometer grid over the hemisphere, dense around the mirror (:mod:`.hemisphere`).
 
 The RGL material database (Dupuy & Jakob 2018, "An adaptive parameterization for efficient
 material acquisition and rendering") ships each material as a Mitsuba *tensor file*, RGB
 (``*_rgb.bsdf``) or spectral (``*_spec.bsdf``). :func:`ingest` turns one into a
-:class:`~gonio_cli.schemas.Measurement` on an in-plane goniometer grid, so it fits and
-renders like a CSV measurement:
+:class:`~gonio_cli.schemas.Measurement` on a goniometer grid (in the plane of incidence
+and, with ``--phi-o-deg`` and the mirror ring, out of it), so it fits and renders like a
+CSV measurement:
 
 1. :func:`read_tensor_header` and :func:`check_bsdf` read and check the file without
    Mitsuba: the ``tensor_file`` header, every field inside the file, and the fields,
@@ -14,7 +16,7 @@ renders like a CSV measurement:
 2. :func:`evaluate_in_plane` loads the file with Mitsuba's ``measured`` plugin (a scalar
    variant, ``scalar_spectral`` for spectral files, ``scalar_rgb`` for RGB ones: the plugin
    accepts nothing else) and evaluates it for the light at θi on the −x side and the
-   detector at signed θo (docs/conventions.md). The plugin's ``eval`` returns f·cos θo,
+   detector at θo, φo (docs/conventions.md; φo = 0: signed θo in the plane). The plugin's ``eval`` returns f·cos θo,
    Mitsuba's convention for every BSDF (its tables store the BRDF times the cosine); it is
    divided by cos θo here, so the measurement holds f in sr⁻¹ without any cosine.
 3. Spectral files are evaluated at their own wavelengths and resampled onto the working
@@ -40,11 +42,13 @@ import numpy as np
 
 from .. import log
 from ..errors import InputError
-from ..geometry import in_plane_directions
+from ..geometry import measurement_directions
 from ..numbers import NumberList
 from ..schemas import Measurement
 from ..spectra import (DEFAULT_GRID_NM, covers, parse_grid, resample, rgb_reflectance_basis,
                        rgb_reflectance_basis_range_nm, same_grid)
+from .hemisphere import (DEFAULT_MIRROR_DEG, DEFAULT_PHI_O_DEG, NO_MIRROR, hemisphere_grid,
+                         parse_azimuths, parse_mirror)
 from .steps import distinct, used_wavelengths
 from .tensorfile import TensorField, read_tensor_file, read_tensor_header
 
@@ -174,13 +178,16 @@ def parse_angles(spec: str, flag: str, theta_i: bool, path=None) -> np.ndarray:
 
 def resolve_parameters(paths: Sequence[str | os.PathLike], *,
                        theta_i_deg: str | None = None, theta_o_deg: str | None = None,
+                       phi_o_deg: str | None = None, mirror_deg: str | None = None,
                        grid_nm: str | None = None, **csv_options) -> dict[str, Any]:
     """Check the options for an RGL input and fill in defaults (recorded in the artifact).
 
     One ``.bsdf`` at a time; the CSV-only options (``csv_options``, e.g. ``quantity``) are
     refused when given, since the file holds BRDFs. Reads the file's header (cheap) to
     record its kind and, for RGB, the RGB → spectrum rule; :func:`ingest` checks the rest
-    of the file (:func:`check_bsdf`).
+    of the file (:func:`check_bsdf`). The mirror ring defaults to
+    :data:`~.hemisphere.DEFAULT_MIRROR_DEG` with the default θo grid and to none with a
+    θo list given (that list is the grid, as before).
     """
     where = os.fspath(paths[0])
     if len(paths) != 1:
@@ -194,13 +201,18 @@ def resolve_parameters(paths: Sequence[str | os.PathLike], *,
                              path=where, fix=f"drop {flag}")
     theta_i = theta_i_deg if theta_i_deg is not None else DEFAULT_THETA_I_DEG
     theta_o = theta_o_deg if theta_o_deg is not None else DEFAULT_THETA_O_DEG
+    phi = phi_o_deg if phi_o_deg is not None else DEFAULT_PHI_O_DEG
+    mirror = mirror_deg if mirror_deg is not None else (
+        DEFAULT_MIRROR_DEG if theta_o_deg is None else NO_MIRROR)
     parse_angles(theta_i, "--theta-i-deg", True, where)
     parse_angles(theta_o, "--theta-o-deg", False, where)
+    parse_azimuths(phi, where)
+    parse_mirror(mirror, where)
     grid = grid_nm if grid_nm is not None else DEFAULT_GRID_NM
     parse_grid(grid)
     kind = kind_of(read_tensor_header(where))
     return {"format": FORMAT, "kind": kind.name, "quantity": "brdf", "theta_i_deg": theta_i,
-            "theta_o_deg": theta_o, "grid_nm": grid,
+            "theta_o_deg": theta_o, "phi_o_deg": phi, "mirror_deg": mirror, "grid_nm": grid,
             "rgb_to_spectrum": RGB_TO_SPECTRUM if kind.name == "rgb" else None,
             "mitsuba_variant": kind.variant, "mitsuba_version": mitsuba_version()}
 
@@ -230,11 +242,12 @@ def import_mitsuba(path=None):
 # --------------------------------------------------------------------- evaluation --
 
 def evaluate_in_plane(path: str | os.PathLike, kind: Kind, theta_i_deg, theta_o_deg,
-                      channels) -> np.ndarray:
-    """BRDF f in sr⁻¹ (no cosine) of an RGL file at in-plane configurations.
+                      channels, phi_o_deg=None) -> np.ndarray:
+    """BRDF f in sr⁻¹ (no cosine) of an RGL file at goniometer configurations.
 
-    ``theta_i_deg``, ``theta_o_deg``: (n,) in degrees, light at (−sin θi, 0, cos θi), detector
-    at (sin θo, 0, cos θo) (docs/conventions.md; Mitsuba's local frame has the normal on
+    ``theta_i_deg``, ``theta_o_deg``, ``phi_o_deg`` (None: in plane): (n,) in degrees,
+    light at (−sin θi, 0, cos θi), detector at (sin θo cos φo, sin θo sin φo, cos θo)
+    (docs/conventions.md; Mitsuba's local frame has the normal on
     +z too; ωi's 0 is −0.0, see the comment in the code). ``channels``: (n_c,) wavelengths in nm for a spectral file, or ``(0, 1, 2)``
     (R, G, B) for an RGB one. Returns (n, n_c) float64: Mitsuba's ``eval`` (f·cos θo, in
     float32, as its scalar variants compute) divided by cos θo.
@@ -248,13 +261,14 @@ def evaluate_in_plane(path: str | os.PathLike, kind: Kind, theta_i_deg, theta_o_
     mi.set_variant(kind.variant)
     try:
         return _evaluate(mi, path, theta_i_deg, theta_o_deg, channels,
-                         kind.name == "spectral")
+                         kind.name == "spectral", phi_o_deg)
     finally:
         if previous is not None:
             mi.set_variant(previous)
 
 
-def _evaluate(mi, path, theta_i_deg, theta_o_deg, channels, spectral: bool) -> np.ndarray:
+def _evaluate(mi, path, theta_i_deg, theta_o_deg, channels, spectral: bool,
+              phi_o_deg=None) -> np.ndarray:
     """:func:`evaluate_in_plane` with ``mi``'s variant set."""
     try:
         bsdf = mi.load_dict({"type": "measured", "filename": os.fspath(path)})
@@ -263,7 +277,7 @@ def _evaluate(mi, path, theta_i_deg, theta_o_deg, channels, spectral: bool) -> n
         text = lines[0].split("] ", 1)[-1] if lines else type(exc).__name__
         raise InputError(f"Mitsuba cannot load it: {text}", path=path,
                          fix="pass an unmodified RGL .bsdf file") from None
-    wi, wo = in_plane_directions(theta_i_deg, theta_o_deg)
+    wi, wo = measurement_directions(theta_i_deg, theta_o_deg, phi_o_deg)
     # ωi's y is −0.0 (the same direction): Mitsuba 3.9.1's measured plugin leaves its
     # symmetry reduction (m_reduction) uninitialised for isotropic files (open upstream fix:
     # github.com/mitsuba-renderer/mitsuba3/pull/1850) and then flips x and y unless their
@@ -296,14 +310,17 @@ def _evaluate(mi, path, theta_i_deg, theta_o_deg, channels, spectral: bool) -> n
 
 def ingest(paths: Sequence[str | os.PathLike], *, theta_i_deg: str | None = None,
                 theta_o_deg: str | None = None, grid_nm: str | None = None,
+                phi_o_deg: str | None = None, mirror_deg: str | None = None,
                 **csv_options) -> Measurement:
-    """Read one RGL ``.bsdf`` into a measurement: in-plane BRDF on the working grid.
+    """Read one RGL ``.bsdf`` into a measurement: BRDF on the working grid.
 
     Parameters
     ----------
     paths : one path of an RGL ``.bsdf`` file (RGB or spectral).
     theta_i_deg, theta_o_deg : angle lists (:func:`parse_angles`; defaults
         :data:`DEFAULT_THETA_I_DEG`, :data:`DEFAULT_THETA_O_DEG`); every θo for every θi.
+    phi_o_deg, mirror_deg : the azimuths of that grid and the mirror ring
+        (:func:`~.hemisphere.hemisphere_grid`; :func:`resolve_parameters`'s defaults).
     grid_nm : working grid ``"START:STOP:STEP"`` (default ``380:780:10``).
     csv_options : the CSV-only options of :func:`gonio_cli.ingest.ingest`, which must be
         None here.
@@ -311,27 +328,32 @@ def ingest(paths: Sequence[str | os.PathLike], *, theta_i_deg: str | None = None
     Returns
     -------
     Measurement
-        ``brdf`` (n_θi · n_θo, n_λ) in sr⁻¹ without the cosine factor, one repeat each,
+        ``brdf`` (n_cfg, n_λ) in sr⁻¹ without the cosine factor, one repeat each,
         quantity ``brdf``, and a ``summary`` (:func:`gonio_cli.ingest.format_summary`).
     """
     params = resolve_parameters(paths, theta_i_deg=theta_i_deg, theta_o_deg=theta_o_deg,
-                                grid_nm=grid_nm, **csv_options)
+                                phi_o_deg=phi_o_deg, mirror_deg=mirror_deg, grid_nm=grid_nm,
+                                **csv_options)
     path = os.fspath(paths[0])
     kind, fields = check_bsdf(path)
     grid = parse_grid(params["grid_nm"])
     ti = parse_angles(params["theta_i_deg"], "--theta-i-deg", True, path)
     to = parse_angles(params["theta_o_deg"], "--theta-o-deg", False, path)
-    ti_all, to_all = (a.ravel() for a in np.meshgrid(ti, to, indexing="ij"))
+    ti_all, to_all, po_all = hemisphere_grid(ti, to, parse_azimuths(params["phi_o_deg"]),
+                                             parse_mirror(params["mirror_deg"]))
+    po_all = po_all if np.any(po_all) else None
     notes: list[str] = []
     meta = read_tensor_file(path, ["description", "jacobian", "phi_i", "theta_i"])
     convert = _spectral_brdf if kind.name == "spectral" else _rgb_brdf
-    brdf, resampled, file_grid = convert(path, kind, ti_all, to_all, grid, params, notes)
+    brdf, resampled, file_grid = convert(path, kind, (ti_all, to_all, po_all), grid, params,
+                                         notes)
     negative = int(np.count_nonzero(brdf < 0))
     if negative:
         notes.append(f"{path}: clipped {negative} negative values (RGB outside the basis' "
                      "gamut or interpolation round-off) to 0")
     brdf = np.maximum(brdf, 0.0)
-    m = Measurement(grid, ti_all, to_all, brdf, None, np.ones(ti_all.size, dtype=int), "brdf")
+    m = Measurement(grid, ti_all, to_all, brdf, None, np.ones(ti_all.size, dtype=int), "brdf",
+                    phi_o_deg=po_all)
     description = bytes(np.asarray(meta["description"])).decode("utf-8", "replace")
     info = {"format": FORMAT, "path": path, "kind": kind.name, "description": description,
             "isotropic": bool(meta["phi_i"].shape[0] <= 2),
@@ -346,7 +368,7 @@ def ingest(paths: Sequence[str | os.PathLike], *, theta_i_deg: str | None = None
     return m
 
 
-def _spectral_brdf(path: str, kind: Kind, theta_i_deg, theta_o_deg, grid: np.ndarray,
+def _spectral_brdf(path: str, kind: Kind, configurations, grid: np.ndarray,
                    params: dict, notes: list[str]) -> tuple[np.ndarray, bool, str]:
     """A spectral file's BRDF (N, n_λ) on the working grid, whether it was resampled, and
     the file's grid as the summary says it; a resampling note appended to ``notes``."""
@@ -359,7 +381,8 @@ def _spectral_brdf(path: str, kind: Kind, theta_i_deg, theta_o_deg, grid: np.nda
                              f"{math.ceil(wl[0] / 10) * 10:g}:"
                              f"{math.floor(wl[-1] / 10) * 10:g}:10")
     used = wl[used_wavelengths(wl, grid)]
-    f = evaluate_in_plane(path, kind, theta_i_deg, theta_o_deg, used)
+    ti, to, po = configurations
+    f = evaluate_in_plane(path, kind, ti, to, used, po)
     brdf = resample(used, f, grid)
     resampled = not same_grid(used, grid)
     if resampled:
@@ -369,7 +392,7 @@ def _spectral_brdf(path: str, kind: Kind, theta_i_deg, theta_o_deg, grid: np.nda
     return brdf, resampled, f"{wl[0]:g}-{wl[-1]:g} nm ({wl.size} wavelengths)"
 
 
-def _rgb_brdf(path: str, kind: Kind, theta_i_deg, theta_o_deg, grid: np.ndarray,
+def _rgb_brdf(path: str, kind: Kind, configurations, grid: np.ndarray,
               params: dict, notes: list[str]) -> tuple[np.ndarray, bool, str]:
     """An RGB file's BRDF (N, n_λ) through the Mallett-Yuksel basis (as
     :func:`_spectral_brdf` returns it; never resampled)."""
@@ -379,7 +402,8 @@ def _rgb_brdf(path: str, kind: Kind, theta_i_deg, theta_o_deg, grid: np.ndarray,
                          f"defined on {lo:g}-{hi:g} nm, not the working grid "
                          f"{grid[0]:g}-{grid[-1]:g} nm", path=path,
                          fix=f"choose a grid inside it, e.g. --grid-nm {DEFAULT_GRID_NM}")
-    rgb = evaluate_in_plane(path, kind, theta_i_deg, theta_o_deg, (0, 1, 2))
+    ti, to, po = configurations
+    rgb = evaluate_in_plane(path, kind, ti, to, (0, 1, 2), po)
     return rgb @ rgb_reflectance_basis(grid).T, False, "linear sRGB"
 
 
@@ -412,7 +436,7 @@ def file_lines(info: dict[str, Any]) -> list[str]:
              f"{'isotropic' if info['isotropic'] else 'anisotropic'}, "
              f"{info['theta_i_samples']} theta_i samples, "
              f"{'x'.join(map(str, info['resolution']))} per slice, {info['wavelength_nm']}",
-             f"  evaluated in plane by Mitsuba {info['mitsuba_version']} "
+             f"  evaluated by Mitsuba {info['mitsuba_version']} "
              f"({info['mitsuba_variant']}, measured plugin), divided by cos theta_o"]
     if info.get("rgb_to_spectrum"):
         lines.append(f"  RGB to spectrum: {info['rgb_to_spectrum']}")
