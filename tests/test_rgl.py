@@ -58,9 +58,10 @@ def ingest(run_gonio, tmp_path, path, *options, name="m.json"):
     return read_measurement(out), json.loads(out.read_text()), res
 
 
-def mitsuba_in_plane(mi, variant, path, theta_i_deg, theta_o_deg, channels):
-    """Mitsuba's measured plugin at in-plane configurations, written from
-    docs/conventions.md: ωi = (−sin θi, 0, cos θi), ωo = (sin θo, 0, cos θo); returns
+def mitsuba_in_plane(mi, variant, path, theta_i_deg, theta_o_deg, channels, phi_o_deg=None):
+    """Mitsuba's measured plugin at goniometer configurations, written from
+    docs/conventions.md: ωi = (−sin θi, 0, cos θi), ωo = (sin θo cos φo, sin θo sin φo,
+    cos θo) (φo = 0 unless given: in plane); returns
     eval (f·cos θo) / cos θo, (n, n_channels). ωi's 0 is written −0.0: Mitsuba 3.9.1
     leaves the plugin's symmetry reduction uninitialised for isotropic files
     (github.com/mitsuba-renderer/mitsuba3/pull/1850), so with +0.0 its value at the
@@ -73,9 +74,11 @@ def mitsuba_in_plane(mi, variant, path, theta_i_deg, theta_o_deg, channels):
         si = mi.SurfaceInteraction3f()
         ctx = mi.BSDFContext()
         out = []
-        for ti, to in zip(np.radians(theta_i_deg), np.radians(theta_o_deg)):
+        phi = np.zeros(len(theta_i_deg)) if phi_o_deg is None else phi_o_deg
+        for ti, to, po in zip(np.radians(theta_i_deg), np.radians(theta_o_deg),
+                              np.radians(phi)):
             si.wi = mi.Vector3f(-np.sin(ti), -0.0, np.cos(ti))
-            wo = mi.Vector3f(np.sin(to), 0.0, np.cos(to))
+            wo = mi.Vector3f(np.sin(to) * np.cos(po), np.sin(to) * np.sin(po), np.cos(to))
             row = []
             if variant == "scalar_rgb":
                 v = bsdf.eval(ctx, si, wo)
@@ -137,13 +140,16 @@ def test_samples_are_the_format_mitsuba_loads(mi):
 def test_spectral_measurement_is_mitsubas_evaluation_over_cos_theta_o(run_gonio, tmp_path,
                                                                       mi):
     """Default goniometer grid, working grid 380:780:10 (between the file's 50 nm samples
-    Mitsuba interpolates linearly in λ, as the resampling onto the grid does)."""
+    Mitsuba interpolates linearly in λ, as the resampling onto the grid does): the
+    in-plane grid and, per θi, the mirror ring at 1, 2, 3° (in plane both sides, across)."""
     m, doc, _ = ingest(run_gonio, tmp_path, SPEC)
     assert np.array_equal(np.unique(m.theta_i_deg), np.arange(10.0, 71.0, 10.0))
-    assert np.array_equal(np.unique(m.theta_o_deg), np.arange(-80.0, 86.0, 5.0))
-    assert m.n_configurations == 7 * 34 and m.quantity == "brdf"
+    coarse = (m.phi_o_deg == 0) & (np.mod(m.theta_o_deg, 5.0) == 0)
+    assert np.array_equal(np.unique(m.theta_o_deg[coarse]), np.arange(-80.0, 86.0, 5.0))
+    assert coarse.sum() == 7 * 34 and m.n_configurations == 7 * (34 + 9)
+    assert m.quantity == "brdf" and (m.phi_o_deg > 0).sum() == 7 * 3
     truth = mitsuba_in_plane(mi, "scalar_spectral", SPEC, m.theta_i_deg, m.theta_o_deg,
-                             m.wavelength_nm)
+                             m.wavelength_nm, m.phi_o_deg)
     np.testing.assert_allclose(m.brdf, truth, rtol=FLOAT_RTOL, atol=FLOAT_ATOL)
     assert doc["parameters"]["mitsuba_variant"] == "scalar_spectral"
     assert doc["parameters"]["rgb_to_spectrum"] is None
@@ -253,10 +259,11 @@ def test_at_table_nodes_the_values_are_the_model(run_gonio, tmp_path, mi, theta_
 
 def test_between_nodes_the_values_are_the_tables_linear_interpolant(run_gonio, tmp_path,
                                                                    mi):
-    """At the default grid, the value is the model's f·cos θo at the two bracketing u_θ
-    nodes, interpolated linearly in u_θ (measured.cpp: θm = u² π/2, u_φ = 0 on the far
-    side of the mirror, ½ on the light's side), divided by cos θo."""
-    m, _, _ = ingest(run_gonio, tmp_path, SPEC, "--grid-nm", "380:780:50")
+    """At the default in-plane grid (no mirror ring), the value is the model's f·cos θo at
+    the two bracketing u_θ nodes, interpolated linearly in u_θ (measured.cpp: θm = u² π/2,
+    u_φ = 0 on the far side of the mirror, ½ on the light's side), divided by cos θo."""
+    m, _, _ = ingest(run_gonio, tmp_path, SPEC, "--grid-nm", "380:780:50",
+                     "--mirror-deg", "none")
     ti, to = m.theta_i_deg, m.theta_o_deg
     theta_m = np.abs(to - ti) / 2.0                        # degrees, in plane
     u = np.sqrt(theta_m / 90.0)

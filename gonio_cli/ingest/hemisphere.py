@@ -23,6 +23,7 @@ import numpy as np
 from ..csvio import ANGLE_DECIMALS
 from ..geometry import canonical_azimuth
 from ..numbers import NumberList
+from .steps import distinct
 
 #: Default azimuths of the coarse grid: the plane of incidence only.
 DEFAULT_PHI_O_DEG = "0"
@@ -44,7 +45,7 @@ def parse_azimuths(spec: str, path=None) -> np.ndarray:
     """``--phi-o-deg``: azimuths in [0, 180] degrees (sorted, distinct)."""
     option = NumberList("--phi-o-deg", "0,45,90,135", unit="deg", lo=0.0, hi=180.0)
     values = np.asarray(option.parse(spec, path), dtype=float)
-    return np.unique(np.round(values, ANGLE_DECIMALS)) + 0.0
+    return distinct(np.round(values, ANGLE_DECIMALS)) + 0.0
 
 
 def parse_mirror(spec: str, path=None) -> np.ndarray:
@@ -55,7 +56,7 @@ def parse_mirror(spec: str, path=None) -> np.ndarray:
     option = NumberList("--mirror-deg", "1,2,3 (or none)", unit="deg", lo=0.0,
                         lo_open=True, hi=MAX_MIRROR_DEG)
     values = np.asarray(option.parse(spec, path), dtype=float)
-    return np.unique(np.round(values, ANGLE_DECIMALS)) + 0.0
+    return distinct(np.round(values, ANGLE_DECIMALS)) + 0.0
 
 
 def mirror_ring(theta_i_deg: float, distances_deg) -> tuple[np.ndarray, np.ndarray]:
@@ -94,5 +95,7 @@ def hemisphere_grid(theta_i_deg, theta_o_deg, phi_o_deg=(0.0,), mirror_deg=()
     grid = np.concatenate(rows) if rows else np.zeros((0, 3))
     to, po = canonical_azimuth(grid[:, 1], grid[:, 2])
     keys = np.round(np.stack([grid[:, 0], po, to], axis=-1), ANGLE_DECIMALS) + 0.0
-    keys = np.unique(keys, axis=0)
+    keys = keys[np.lexsort(keys.T[::-1])]        # by θi, φo, θo (np.unique(axis=0) would
+    first = np.r_[True, np.any(keys[1:] != keys[:-1], axis=1)]   # import numpy.ma)
+    keys = keys[first]
     return keys[:, 0], keys[:, 2], keys[:, 1]
