@@ -12,6 +12,7 @@ import pytest
 from gonio_cli import brdf
 from gonio_cli.fit import FitOptions, fit
 from gonio_cli.fit.common import prepare
+from gonio_cli.fit.plot import in_plane_rows
 from gonio_cli.fit.verdict import colour_errors, reciprocity
 from gonio_cli.geometry import (Cosines, canonical_azimuth, in_plane_cosines, measurement_cosines,
                                 measurement_directions, reciprocal_configuration)
@@ -290,3 +291,13 @@ def test_grid_azimuths_fold_negative_theta_and_drop_beyond_the_horizon():
     np.testing.assert_allclose(np.sort(to)[:3], [75.0, 82.0, 85.0], atol=0.1)
     assert to.size == 5 and np.all(np.abs(to) < 90.0) and np.all(po >= 0)
     assert parse_mirror("none").size == 0
+
+
+def test_plot_draws_the_in_plane_subset_and_says_what_it_leaves_out():
+    m = synthetic_measurement("goniochromatic", {"alpha": 0.2, "rho": 0.1, "c": 1.0},
+                              [30.0, 30.0, 30.0], [10.0, 30.0, 30.0], grid_nm=[500.0, 600.0],
+                              phi_o_deg=[0.0, 0.0, 45.0])
+    rows, note = in_plane_rows(m)
+    assert rows.tolist() == [True, True, False] and "1 out of plane not shown" in note
+    m.phi_o_deg = None
+    assert in_plane_rows(m)[1] == ""

@@ -67,6 +67,7 @@ class MeasuredMaterial:
     """
 
     def __init__(self, measurement: Measurement, name: str = ""):
+        measurement = measurement.in_plane()  # an in-plane interpolant: φo = 0 rows only
         self.measurement = measurement
         self.name = name
         self.wavelength_nm = measurement.wavelength_nm

@@ -183,6 +183,7 @@ class SmoothMeasured:
         from scipy.interpolate import RBFInterpolator
         from scipy.ndimage import binary_erosion, spline_filter1d
 
+        measurement = measurement.in_plane()  # an in-plane interpolant: φo = 0 rows only
         self.measurement = measurement
         self.name = name
         self.wavelength_nm = measurement.wavelength_nm

@@ -82,6 +82,17 @@ class Measurement:
     def n_configurations(self) -> int:
         return int(self.theta_i_deg.size)
 
+    def in_plane(self) -> "Measurement":
+        """The configurations in the plane of incidence (φo = 0): ``self`` when all are,
+        else a copy of those rows (the in-plane interpolants of ``gonio render`` use it)."""
+        if self.phi_o_deg is None:
+            return self
+        rows = self.phi_o_deg == 0
+        return Measurement(self.wavelength_nm, self.theta_i_deg[rows], self.theta_o_deg[rows],
+                           self.brdf[rows],
+                           None if self.brdf_std is None else self.brdf_std[rows],
+                           self.n_repeats[rows], self.quantity, dict(self.summary))
+
     def to_payload(self) -> dict[str, Any]:
         azimuth = {} if self.phi_o_deg is None else {"phi_o_deg": self.phi_o_deg}
         return {
