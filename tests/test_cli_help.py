@@ -220,7 +220,8 @@ def _registries():
 #: "a value or a file" forms.
 NOT_REGISTRIES = {("fit", "--on-failure"), ("render", "--orbit"),
                   ("ingest", "--white-reflectance"), ("ingest", "--theta-i-deg"),
-                  ("ingest", "--theta-o-deg"), ("lobes fit", "--view-angles"),
+                  ("ingest", "--theta-o-deg"), ("ingest", "--phi-o-deg"),
+                  ("ingest", "--mirror-deg"), ("lobes fit", "--view-angles"),
                   ("batch", "--scheduler")}
 
 
