@@ -265,10 +265,12 @@ def _summary(m: Measurement, parts, params, resampled, negatives, clipped,
     theta_i = distinct(m.theta_i_deg)
     for t in theta_i:
         sel = m.theta_i_deg == t
+        n_out = int(np.count_nonzero(m.azimuths_deg[sel]))
         per_theta_i.append({"theta_i_deg": float(t),
                             "theta_o_min_deg": float(m.theta_o_deg[sel].min()),
                             "theta_o_max_deg": float(m.theta_o_deg[sel].max()),
-                            "configurations": int(sel.sum())})
+                            "configurations": int(sel.sum()),
+                            **({"out_of_plane": n_out} if n_out else {})})
     return {
         "files": [p.info for p in parts],
         "quantity": params["quantity"],
@@ -324,7 +326,8 @@ def format_summary(summary: dict[str, Any]) -> str:
     for row in summary["theta_o_by_theta_i"]:
         out.append(f"  theta_i {row['theta_i_deg']:g}: theta_o {row['theta_o_min_deg']:g} "
                    f"to {row['theta_o_max_deg']:g} deg, {row['configurations']} "
-                   "configurations")
+                   "configurations" + (f" ({row['out_of_plane']} out of the plane, phi_o "
+                                       "not 0)" if row.get("out_of_plane") else ""))
     out.append(f"grid: {summary['working_grid_nm']} nm"
                f"{' (resampled)' if summary['resampled'] else ''}")
     lo, hi = summary["repeats_min"], summary["repeats_max"]

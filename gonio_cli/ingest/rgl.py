@@ -415,10 +415,12 @@ def single_file_summary(m: Measurement, info: dict, params: dict, resampled: boo
     per_theta_i = []
     for t in distinct(m.theta_i_deg):
         sel = m.theta_i_deg == t
+        n_out = int(np.count_nonzero(m.azimuths_deg[sel]))
         per_theta_i.append({"theta_i_deg": float(t),
                             "theta_o_min_deg": float(m.theta_o_deg[sel].min()),
                             "theta_o_max_deg": float(m.theta_o_deg[sel].max()),
-                            "configurations": int(sel.sum())})
+                            "configurations": int(sel.sum()),
+                            **({"out_of_plane": n_out} if n_out else {})})
     return {"files": [info], "quantity": "brdf",
             "conversion": "f = Mitsuba measured eval (f cos theta_o) / cos theta_o",
             "scale": 1.0, "theta_i_deg": [r["theta_i_deg"] for r in per_theta_i],
