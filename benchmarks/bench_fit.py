@@ -13,11 +13,11 @@
    --version``, ``gonio ingest``, ``gonio fit --plot``, ``gonio eval``.
 
 4. ``--auto``: only ``gonio fit --model auto`` as a whole process, on the sample inks,
-   the MA-T12 pigment and three RGL materials sliced in plane (280 configurations × 41
-   wavelengths, tests/fixtures/real/rgl_*_rgb.csv): wall and CPU time (the child's and its
+   the MA-T12 pigment and three RGL materials as ``gonio ingest X.bsdf`` samples them
+   (301 configurations × 41 wavelengths, tests/fixtures/real/rgl_*_rgb.csv): wall and CPU time (the child's and its
    forked fitters'), peak memory and the load average beside the chosen model and its
-   held-out and in-sample colour error. ``--make-fixtures RGL_DIR`` rewrites those
-   fixtures from the RGL ``.bsdf`` files (Mitsuba 3); ``--repeats N`` (default 3).
+   held-out and in-sample colour error; ``--repeats N`` (default 3). Every model on all
+   the real files: benchmarks/bench_fit_real.py.
 
 ``--quick`` runs fewer cases.
 """
@@ -38,6 +38,7 @@ from gonio_cli.names import FIT_MODEL_CHOICES
 from gonio_cli.fit.sweep import (comparison_sweep, format_comparison, format_rows,
                                   goniochromatic_sweep)
 
+import bench_fit_real
 import process
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -116,63 +117,11 @@ def models_on_data(tmp: Path, quick: bool) -> None:
 
 # ------------------------------------------------------- --model auto as users run it --
 
-#: RGL materials sliced in plane for the ``--auto`` table (tests/fixtures/real/README.md):
-#: (label, fixture) — a matte paper, a satin fabric, a colour-shifting wrap.
-RGL_FIXTURES = (("RGL cardboard (matte)", "rgl_cardboard_rgb.csv"),
-                ("RGL purple satin", "rgl_satin_purple_rgb.csv"),
-                ("RGL Ibiza Sunset wrap (colour shift)", "rgl_cc_ibiza_sunset_rgb.csv"))
-
-#: θo of the RGL fixtures: every 5° and θi ± 1, 2, 3° around each mirror (7 × 40 = 280
-#: configurations with θi 10…70°), as tests/fixtures/real/rgl_wrap_inplane.csv.
-RGL_THETA_I_DEG = tuple(range(10, 71, 10))
-RGL_THETA_O_DEG = tuple(range(-80, 86, 5))
-RGL_MIRROR_OFFSETS_DEG = (-3, -2, -1, 1, 2, 3)
-
-def rgl_configurations():
-    """(θi, θo) in degrees of the RGL fixtures, (280,) each."""
-    import numpy as np
-
-    rows = [(ti, to) for ti in RGL_THETA_I_DEG
-            for to in sorted(set(RGL_THETA_O_DEG) | {ti + d for d in RGL_MIRROR_OFFSETS_DEG})]
-    return np.array(rows, dtype=float).T
-
-
-def make_rgl_fixtures(rgl_dir: Path) -> None:
-    """Write the RGB fixtures of :data:`RGL_FIXTURES` from the RGL ``.bsdf`` files in
-    ``rgl_dir`` (Mitsuba 3): the linear-sRGB BRDF (sr⁻¹, no cosine) in plane, 4 digits."""
-    from gonio_cli.ingest.rgl import check_bsdf, evaluate_in_plane
-
-    ti, to = rgl_configurations()
-    for _, name in RGL_FIXTURES:
-        src = rgl_dir / name.replace("rgl_", "", 1).replace(".csv", ".bsdf")
-        kind, _ = check_bsdf(src)
-        rgb = evaluate_in_plane(src, kind, ti, to, (0, 1, 2))
-        lines = [f"# Derived from the RGL material database (Dupuy & Jakob 2018), {src.name},",
-                 "# evaluated in plane with Mitsuba 3's measured BSDF (linear sRGB BRDF, sr^-1,",
-                 "# no cosine), 4 significant digits; benchmarks/bench_fit.py --make-fixtures.",
-                 "theta_i_deg,theta_o_deg,r,g,b"]
-        lines += [f"{a:g},{b:g}," + ",".join(f"{v:.4g}" for v in row)
-                  for a, b, row in zip(ti, to, rgb)]
-        (ROOT / "tests/fixtures/real" / name).write_text("\n".join(lines) + "\n")
-        print(f"wrote tests/fixtures/real/{name} ({ti.size} configurations)")
-
-
-def rgl_fixture_csv(name: str, out: Path) -> Path:
-    """The fixture as spectra (gonio's wide layout, 380–780 nm by 10), as ``gonio ingest``
-    makes them of an RGB ``.bsdf``: rgb @ the Mallett–Yuksel basis, negatives clipped."""
-    import numpy as np
-
-    from gonio_cli.spectra import rgb_reflectance_basis
-
-    table = np.loadtxt(ROOT / "tests/fixtures/real" / name, delimiter=",", comments="#",
-                       skiprows=4)
-    grid = np.arange(380.0, 781.0, 10.0)
-    brdf = np.maximum(table[:, 2:] @ rgb_reflectance_basis(grid).T, 0.0)
-    head = "theta_i_deg,theta_o_deg," + ",".join(f"{w:g}" for w in grid)
-    rows = [f"{a:g},{b:g}," + ",".join(f"{v:.6g}" for v in r)
-            for a, b, r in zip(table[:, 0], table[:, 1], brdf)]
-    out.write_text(head + "\n" + "\n".join(rows) + "\n")
-    return out
+#: RGL materials for the ``--auto`` table (their fixtures: :mod:`bench_fit_real`): a matte
+#: paper, a satin fabric, a colour-shifting wrap.
+RGL_FIXTURES = (("RGL cardboard (matte)", "cardboard_rgb"),
+                ("RGL purple satin", "satin_purple_rgb"),
+                ("RGL Ibiza Sunset wrap (colour shift)", "cc_ibiza_sunset_rgb"))
 
 
 def auto_on_data(tmp: Path, repeats: int = 3) -> None:
@@ -187,8 +136,9 @@ def auto_on_data(tmp: Path, repeats: int = 3) -> None:
                                               "sample_data/ink_blue_b.csv"], []),
             ("MA-T12 matte pigment (12 geometries)", ["tests/fixtures/real/ma_t12_clean.csv"],
              ["--quantity", "reflectance-factor", "--grid-nm", "400:700:10"])]
-    data += [(label, [rgl_fixture_csv(name, tmp / f"{name}")], [])
-             for label, name in RGL_FIXTURES]
+    data += [(label, [bench_fit_real.spectral_csv(bench_fit_real.FIXTURES / f"rgl_{stem}.csv",
+                                                  tmp / f"{stem}.csv")], [])
+             for label, stem in RGL_FIXTURES]
     print(f"\n## `gonio fit --model auto`, whole process (load average before: "
           f"{process.load_average()}; {os.cpu_count()} cores)\n")
     print("| data | configurations × wavelengths | chosen | held out / in sample "
@@ -212,9 +162,6 @@ def auto_on_data(tmp: Path, repeats: int = 3) -> None:
 
 
 def main() -> None:
-    if "--make-fixtures" in sys.argv:
-        make_rgl_fixtures(Path(sys.argv[sys.argv.index("--make-fixtures") + 1]))
-        return
     if "--auto" in sys.argv:
         with tempfile.TemporaryDirectory(prefix="gonio-bench-auto-") as tmp:
             repeats = (int(sys.argv[sys.argv.index("--repeats") + 1])
