@@ -13,8 +13,9 @@ import numpy as np
 from .. import brdf
 from ..brdf import MODELS
 from ..errors import ArtifactError
+from .records import Flag, Record
 from .spec import (COUNT, MAX_MAGNITUDE, NON_NEGATIVE, SECONDS, WAVELENGTHS, AnyOf, Array,
-                   ListOf, Number, Obj, Spec, Text, envelope_fields, json_kind, optional,
+                   ListOf, Number, Obj, Text, envelope_fields, json_kind, optional,
                    read_artifact_as, required, validate, write_artifact_as)
 
 
@@ -71,7 +72,7 @@ class Material:
                     "wavelength_nm": required(WAVELENGTHS),
                     **{k: required(PARAM_RANGES[k]) for k in m.scalar_params},
                     **{k: required(Array(1, PARAM_RANGES[k])) for k in m.spectral_params},
-                    "fit": optional(FitRecord(intervals_spec(model)))})
+                    "fit": optional(Record((("intervals", intervals_spec(model)),)))})
 
     @classmethod
     def from_document(cls, doc: dict[str, Any], path=None) -> "Material":
@@ -112,37 +113,6 @@ PARAM_RANGES: dict[str, Number] = {
     "c": Number(-C_MAX, C_MAX),
     "b0": NON_NEGATIVE, "h": Number(0.0, MAX_MAGNITUDE, lo_open=True),
 }
-
-
-class Flag(Spec):
-    """true or false."""
-
-    def check(self, value, where, path, fix):
-        if not isinstance(value, bool):
-            raise self.type_error(where, f"is {json_kind(value)}, expected true or false",
-                                  path, fix)
-        return value
-
-    def json(self):
-        return {"type": "boolean"}
-
-
-@dataclass(frozen=True)
-class FitRecord(Spec):
-    """The material's ``fit``: a free record (methods, verdict, gains …) whose
-    ``intervals``, when present, follow ``intervals`` (:func:`intervals_spec`); the
-    record is returned as it is."""
-
-    intervals: Obj
-
-    def check(self, value, where, path, fix):
-        Obj(None).check(value, where, path, fix)
-        if "intervals" in value:
-            self.intervals.check(value["intervals"], f"{where}.intervals", path, fix)
-        return value
-
-    def json(self):
-        return {"type": "object", "properties": {"intervals": self.intervals.json()}}
 
 
 _NUMBERS = AnyOf((Number(), Array(1, Number(), min_size=0)))
