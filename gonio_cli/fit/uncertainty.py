@@ -130,13 +130,6 @@ class Layout:
     def s(self) -> int:
         return len(self.scalars) + self.n_gains
 
-    @property
-    def size(self) -> int:
-        return self.s + len(self.spectral) * self.n_wavelengths
-
-    def spectral_index(self, k: int) -> np.ndarray:
-        return self.s + np.arange(self.n_wavelengths) * len(self.spectral) + k
-
 
 def _gain_basis(g: int) -> np.ndarray:
     """(g, g − 1) orthonormal basis of the log-gains whose sum is 0 (geometric mean 1)."""
@@ -200,34 +193,42 @@ def _gain_columns(data: FitData, f: np.ndarray, gains, g_rows, used) -> np.ndarr
     return np.einsum("ng,gz,nl->znl", np.eye(gains.gain.size)[groups], q, per_row)
 
 
-def _normal_matrix(js: np.ndarray, jl: np.ndarray, layout: Layout) -> np.ndarray:
-    """JᵀJ (P, P) assembled from its arrow blocks."""
-    m = np.zeros((layout.size, layout.size))
-    s, k, n_l = layout.s, len(layout.spectral), layout.n_wavelengths
-    m[:s, :s] = np.einsum("anl,bnl->ab", js, js)
-    b = np.einsum("anl,knl->alk", js, jl).reshape(s, n_l * k)
-    m[:s, s:], m[s:, :s] = b, b.T
-    d = np.einsum("knl,jnl->lkj", jl, jl)
-    for i in range(n_l):
-        m[s + i * k:s + (i + 1) * k, s + i * k:s + (i + 1) * k] = d[i]
-    return m
-
-
-def _covariance(m: np.ndarray):
-    """(C / σ², undetermined (P,) bool, rank) from JᵀJ by its normalised eigenvectors."""
-    diag = np.diag(m).copy()
+def _pinv_psd(m: np.ndarray):
+    """(pseudo-inverse, elements on a direction without curvature, rank) of symmetric
+    positive semi-definite matrices (..., k, k), normalised by their diagonals first."""
+    diag = np.einsum("...kk->...k", m)
     zero = diag <= 0
     scale = np.sqrt(np.where(zero, 1.0, diag))
-    mn = m / np.outer(scale, scale)
-    vals, vecs = np.linalg.eigh(mn)
-    null = vals <= NULL_EIG * max(float(vals.max()), 1e-300)
-    share = np.sum(vecs[:, null] ** 2, axis=1)
-    undetermined = zero | (share > NULL_SHARE)
+    vals, vecs = np.linalg.eigh(m / (scale[..., :, None] * scale[..., None, :]))
+    top = np.max(vals, axis=-1, keepdims=True) if vals.shape[-1] else vals
+    null = vals <= NULL_EIG * np.maximum(top, 1e-300)
+    share = np.sum(np.where(null[..., None, :], vecs ** 2, 0.0), axis=-1)
     inv = np.where(null, 0.0, 1.0 / np.where(null, 1.0, vals))
-    cov = (vecs * inv) @ vecs.T / np.outer(scale, scale)
-    cov[undetermined, :] = 0.0
-    cov[:, undetermined] = 0.0
-    return cov, undetermined, int((~null).sum())
+    pinv = np.einsum("...ik,...k,...jk->...ij", vecs, inv, vecs) / (
+        scale[..., :, None] * scale[..., None, :])
+    return pinv, zero | (share > NULL_SHARE), int((~null).sum())
+
+
+def _covariance(js: np.ndarray, jl: np.ndarray):
+    """(C_ss (s, s), C_sl (s, L, k), C_ll (L, k, k)) of (JᵀJ)⁻¹, the undetermined scalars
+    (s,) and spectral elements (L, k), and the rank. JᵀJ is an arrow matrix (module doc):
+    A = J_sᵀJ_s, B_l = J_sᵀJ_l, D_l = J_lᵀJ_l per wavelength; with the Schur complement
+    S = A − Σ B_l D_l⁻¹ B_lᵀ, C_ss = S⁻¹, C_sl = −S⁻¹ B_l D_l⁻¹ and
+    C_ll = D_l⁻¹ + D_l⁻¹ B_lᵀ S⁻¹ B_l D_l⁻¹ (block inversion; pseudo-inverses where a
+    direction has no curvature)."""
+    a = np.einsum("anl,bnl->ab", js, js)
+    b = np.einsum("anl,knl->lak", js, jl)                  # (L, s, k)
+    d_inv, und_l, rank_l = _pinv_psd(np.einsum("knl,jnl->lkj", jl, jl))
+    bd = np.einsum("lak,lkj->laj", b, d_inv)               # B_l D_l⁻¹
+    s_inv, und_s, rank_s = _pinv_psd(a - np.einsum("laj,lbj->ab", bd, b))
+    c_sl = -np.einsum("ab,lbk->alk", s_inv, bd)
+    c_ll = d_inv + np.einsum("lak,ab,lbj->lkj", bd, s_inv, bd)
+    c_ss = s_inv.copy()
+    c_ss[und_s, :] = c_ss[:, und_s] = 0.0
+    c_sl[und_s] = 0.0
+    c_sl[:, und_l] = 0.0
+    c_ll = np.where(und_l[:, :, None] | und_l[:, None, :], 0.0, c_ll)
+    return (c_ss, c_sl, c_ll), und_s, und_l, rank_s + rank_l
 
 
 # ------------------------------------------------------------------------- intervals --
@@ -272,7 +273,7 @@ def estimate(data: FitData, model: str, params: dict, gains=None) -> dict[str, A
     if n_gains:
         js = np.concatenate([js, _gain_columns(data, f, gains, g_rows, used)])
     layout = Layout(spec.scalar_params, spec.spectral_params, n_gains, n_l)
-    cov, undetermined, rank = _covariance(_normal_matrix(js, jl, layout))
+    cov, und_s, und_l, rank = _covariance(js, jl)
     n = int(used.sum())
     base = {"level": LEVEL, "method": METHOD, "residuals": data.residuals}
     if n <= rank:
@@ -280,20 +281,25 @@ def estimate(data: FitData, model: str, params: dict, gains=None) -> dict[str, A
                 "why": f"{n} weighted readings for {rank} parameters: no residual left to "
                        f"estimate the scatter"}
     sigma2 = float(np.sum(r0 ** 2) / (n - rank))
-    cov *= sigma2
-    sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    cov = tuple(c * sigma2 for c in cov)
+    sd_s = np.sqrt(np.maximum(np.diag(cov[0]), 0.0))
+    sd_l = np.sqrt(np.maximum(np.einsum("lkk->lk", cov[2]), 0.0))
     out = {**base, "available": True, "sigma2": sigma2, "dof": n - rank,
            "sigma2_from": "weighted residuals over n - p", "parameters": {}}
     for name in spec.scalar_params + spec.spectral_params:
         scalar = name in spec.scalar_params
-        idx = (np.array([spec.scalar_params.index(name)]) if scalar else
-               layout.spectral_index(spec.spectral_params.index(name)))
+        if scalar:
+            j = spec.scalar_params.index(name)
+            sd, undetermined = sd_s[j:j + 1], und_s[j:j + 1]
+        else:
+            j = spec.spectral_params.index(name)
+            sd, undetermined = sd_l[:, j], und_l[:, j]
         p = np.atleast_1d(np.asarray(params[name], dtype=float))
-        low, high = _interval(name, p, sides[name], sd[idx], undetermined[idx])
+        low, high = _interval(name, p, sides[name], sd, undetermined)
         entry = {"low": _as_json(low, scalar), "high": _as_json(high, scalar),
                  "transform": transform_of(name),
                  "one_sided_at": [int(i) for i in np.flatnonzero(sides[name])],
-                 "undetermined_at": [int(i) for i in np.flatnonzero(undetermined[idx])]}
+                 "undetermined_at": [int(i) for i in np.flatnonzero(undetermined)]}
         out["parameters"][name] = entry
     if n_gains:
         out["sweep_gain"] = _gain_intervals(gains, cov, layout)
@@ -316,7 +322,7 @@ def _full_gain_map(layout: Layout, gains) -> np.ndarray:
 def _gain_intervals(gains, cov: np.ndarray, layout: Layout) -> dict[str, Any]:
     n_p = len(layout.scalars)
     q = _gain_basis(gains.gain.size)
-    c = q @ cov[n_p:layout.s, n_p:layout.s] @ q.T
+    c = q @ cov[0][n_p:layout.s, n_p:layout.s] @ q.T
     sd = np.sqrt(np.maximum(np.diag(c), 0.0))
     return {"theta_i_deg": [float(t) for t in gains.theta_i_deg],
             "low": [float(v) for v in gains.gain * np.exp(-Z_TWO_SIDED * sd)],
@@ -324,20 +330,18 @@ def _gain_intervals(gains, cov: np.ndarray, layout: Layout) -> dict[str, Any]:
             "transform": "log"}
 
 
-def _blocks(cov: np.ndarray, layout: Layout, gains) -> dict[str, Any]:
+def _blocks(cov, layout: Layout, gains) -> dict[str, Any]:
     """The covariance as a draw needs it (module doc): the scalar block (the scalars, then
     log g per angle of incidence), the scalar–spectral blocks and the spectral blocks per
     wavelength, each element on its own scale (u, or linear where one-sided)."""
     t = _full_gain_map(layout, gains)
-    s, k = layout.s, len(layout.spectral)
-    spectral = cov[s:, s:].reshape(layout.n_wavelengths, k, layout.n_wavelengths, k)
+    c_ss, c_sl, c_ll = cov
     names = list(layout.scalars) + ([f"log_gain_{g:g}" for g in gains.theta_i_deg]
                                     if layout.n_gains else [])
     return {"scalar_names": names, "spectral_names": list(layout.spectral),
-            "scalar": (t @ cov[:s, :s] @ t.T).tolist(),
-            "cross": np.einsum("as,slk->lak", t, cov[:s, s:].reshape(
-                s, layout.n_wavelengths, k)).tolist(),
-            "spectral": np.einsum("lklj->lkj", spectral).tolist()}
+            "scalar": (t @ c_ss @ t.T).tolist(),
+            "cross": np.einsum("as,slk->lak", t, c_sl).tolist(),
+            "spectral": c_ll.tolist()}
 
 
 # ---------------------------------------------------------------------------- draws --
