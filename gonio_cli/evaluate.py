@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from . import log
-from .brdf import MODELS, evaluate
+from .brdf import MODELS
 from .errors import InputError
 from .fit import uncertainty
 from .fit.gains import SweepGains
@@ -151,9 +151,8 @@ def colour_band(material: Material, measurement: Measurement, f_model: np.ndarra
     if not covers_colour(wl):
         return {"available": False, "why": f"the grid does not cover "
                 f"{COLOUR_RANGE_NM[0]:g}-{COLOUR_RANGE_NM[1]:g} nm (no colour)"}
-    draws, log_g = uncertainty.draw(record, material.params, BAND_DRAWS, BAND_SEED)
-    cos = cosines_of(measurement)
-    f = np.stack([evaluate(material.model, cos, p) for p in draws])
+    f, log_g = uncertainty.propagate(record, material.model, cosines_of(measurement),
+                                     material.params, BAND_DRAWS, BAND_SEED)
     if gains is not None:
         g = gains.per_configuration(measurement.theta_i_deg)
         f = f * g[None, :, None]
@@ -161,7 +160,7 @@ def colour_band(material: Material, measurement: Measurement, f_model: np.ndarra
             idx = np.array([np.flatnonzero(np.abs(gains.theta_i_deg - t) <= 1e-6)[0]
                             for t in measurement.theta_i_deg])
             f = f * np.exp(log_g[:, idx])[:, :, None]
-    n, d = measurement.n_configurations, len(draws)
+    n, d = measurement.n_configurations, f.shape[0]
     de = colour_errors(wl, np.tile(measurement.theta_i_deg, d),
                        np.tile(measurement.theta_o_deg, d), np.tile(f_model, (d, 1)),
                        f.reshape(d * n, -1)).delta_e.reshape(d, n)
@@ -174,9 +173,10 @@ def colour_band(material: Material, measurement: Measurement, f_model: np.ndarra
                                     "theta_o_deg": float(measurement.theta_o_deg[k])},
             "draws": d, "seed": BAND_SEED, "percentile": BAND_PERCENTILE,
             "level": float(record.get("level", uncertainty.LEVEL)),
-            "method": "parameters drawn from the fit's Gaussian (fit.intervals.covariance); "
-                      "CIEDE2000 of each drawn model against the fitted one, D65, 10 degree "
-                      "observer, pairs with Y > 1 scaled to Y = 1"}
+            "method": "parameters drawn from the fit's Gaussian (fit.intervals.covariance), "
+                      "the model moved by the delta method (f + J du); CIEDE2000 of each "
+                      "drawn model against the fitted one, D65, 10 degree observer, pairs "
+                      "with Y > 1 scaled to Y = 1"}
 
 
 def band_text(band: dict[str, Any]) -> str:

@@ -162,10 +162,13 @@ def _steps(name: str, p: np.ndarray, side: np.ndarray, kind: str):
     return plus, minus, np.where(side == 0, 2.0 * FD_STEP, delta)
 
 
-def _jacobian(data: FitData, model: str, params: dict, sides: dict, g_rows, used):
-    """(J_scalar (s, N, L), J_spectral (k, N, L)): each column of J as an (N, L) array; a
-    spectral parameter's column at λ is its slice at λ (module doc)."""
+def jacobian(model: str, cos, params: dict, sides: dict, response=None):
+    """(J_scalar (s, N, L), J_spectral (k, N, L)) of ``response(f)`` (f itself by default)
+    with respect to each parameter element on its scale (u inside its range, linear at a
+    bound: ``sides``, :func:`at_bound`), f the model at ``cos``; a spectral parameter's
+    column at λ is its slice at λ, all found by one central difference (module doc)."""
     spec = MODELS[model]
+    response = response or (lambda f: f)
 
     def column(name):
         p = np.atleast_1d(np.asarray(params[name], dtype=float))
@@ -173,12 +176,13 @@ def _jacobian(data: FitData, model: str, params: dict, sides: dict, g_rows, used
         out = []
         for q in (plus, minus):
             moved = dict(params, **{name: q if np.ndim(params[name]) else float(q[0])})
-            out.append(_residuals(data, evaluate(model, data.cos, moved), g_rows, used))
+            out.append(response(evaluate(model, cos, moved)))
         return (out[0] - out[1]) / (div if np.ndim(params[name]) else div[0])
 
     js = [column(n) for n in spec.scalar_params]
     jl = [column(n) for n in spec.spectral_params]
-    shape = (0,) + data.y.shape
+    shape = (0,) + np.shape(cos.cos_theta_i) + (np.size(next(
+        (params[n] for n in spec.spectral_params), np.zeros(1))),)
     return (np.array(js) if js else np.zeros(shape)), (np.array(jl) if jl else np.zeros(shape))
 
 
@@ -268,7 +272,8 @@ def estimate(data: FitData, model: str, params: dict, gains=None) -> dict[str, A
     sides = {n: at_bound(n, params[n]) for n in spec.scalar_params + spec.spectral_params}
     f = evaluate(model, data.cos, params)
     r0 = _residuals(data, f, g_rows, used)
-    js, jl = _jacobian(data, model, params, sides, g_rows, used)
+    js, jl = jacobian(model, data.cos, params, sides,
+                      lambda f_moved: _residuals(data, f_moved, g_rows, used))
     n_gains = gains.gain.size - 1 if gains is not None and gains.gain.size > 1 else 0
     if n_gains:
         js = np.concatenate([js, _gain_columns(data, f, gains, g_rows, used)])
@@ -352,56 +357,54 @@ def _sqrt_psd(c: np.ndarray) -> np.ndarray:
     return vecs * np.sqrt(np.maximum(vals, 0.0))[..., None, :]
 
 
-def draw(record: dict[str, Any], params: dict, n: int, seed: int = 0):
-    """``n`` parameter sets drawn from the fit's Gaussian (``fit.intervals``): a list of
-    parameter dicts and (n, G) log-gain offsets (None without gains). Scalars first, then
-    each wavelength's spectral elements from their distribution given the scalars (module
-    doc), each element back on its own scale and within its bounds."""
+def draw(record: dict[str, Any], n: int, seed: int = 0):
+    """``n`` deviations drawn from the fit's Gaussian (``fit.intervals.covariance``):
+    (n, s') of the scalar block (the scalars, then the log-gains) and (n, L, k) of the
+    spectral elements (None without spectral parameters), each element on its own scale.
+    Scalars first, then each wavelength's elements from their distribution given the
+    scalars (module doc)."""
     cov = record["covariance"]
     rng = np.random.default_rng(seed)
-    css = np.asarray(cov["scalar"], dtype=float).reshape(len(cov["scalar_names"]), -1)
-    xs = rng.standard_normal((n, css.shape[0])) @ _sqrt_psd(css).T if css.size else \
-        np.zeros((n, 0))
-    spectral_names = cov["spectral_names"]
-    xl = None
-    if spectral_names:
-        cross = np.asarray(cov["cross"], dtype=float)              # (L, s', k)
-        cll = np.asarray(cov["spectral"], dtype=float)             # (L, k, k)
-        gain_ = (np.einsum("lak,ab->lkb", cross, np.linalg.pinv(css)) if css.size
-                 else np.zeros(cll.shape[:2] + (0,)))
-        cond = cll - (np.einsum("lkb,lbj->lkj", gain_, cross) if css.size else 0.0)
-        e = rng.standard_normal((n,) + cll.shape[:2])
-        xl = np.einsum("lkb,nb->nlk", gain_, xs) + np.einsum(
-            "lkj,nlj->nlk", _sqrt_psd(0.5 * (cond + np.swapaxes(cond, 1, 2))), e)
+    m = len(cov["scalar_names"])
+    css = np.asarray(cov["scalar"], dtype=float).reshape(m, m)
+    xs = rng.standard_normal((n, m)) @ _sqrt_psd(css).T if m else np.zeros((n, 0))
+    if not cov["spectral_names"]:
+        return xs, None
+    cll = np.asarray(cov["spectral"], dtype=float)                 # (L, k, k)
+    cross = np.asarray(cov["cross"], dtype=float).reshape(cll.shape[0], m, cll.shape[1])
+    reg = np.einsum("lak,ab->lkb", cross, np.linalg.pinv(css)) if m else \
+        np.zeros(cll.shape[:2] + (0,))
+    cond = cll - np.einsum("lkb,lbj->lkj", reg, cross)
+    e = rng.standard_normal((n,) + cll.shape[:2])
+    return xs, np.einsum("lkb,nb->nlk", reg, xs) + np.einsum(
+        "lkj,nlj->nlk", _sqrt_psd(0.5 * (cond + np.swapaxes(cond, 1, 2))), e)
+
+
+def propagate(record: dict[str, Any], model: str, cos, params: dict, n: int,
+              seed: int = 0):
+    """The model at ``cos`` for ``n`` parameter sets drawn from the fit's Gaussian, by the
+    delta method: f + J δu (J from :func:`jacobian`, δu from :func:`draw`), (n, N, L); and
+    the drawn log-gain deviations (n, G) (None without gains). Linear in δu, like the
+    Gaussian itself: parameters that trade off (ρ against ρ_d, kd against ks …) move f
+    together as the data allow, where pushing each far draw through the model would leave
+    the region in which the Gaussian means anything."""
+    cov = record["covariance"]
+    f = evaluate(model, cos, params)
+    sides = {}
+    for name in MODELS[model].scalar_params + MODELS[model].spectral_params:
+        side = at_bound(name, params[name])
+        one = np.zeros(side.shape, bool)
+        one[record["parameters"][name].get("one_sided_at", [])] = True
+        sides[name] = np.where(one, side, 0)
+    js, jl = jacobian(model, cos, params, sides)
+    xs, xl = draw(record, n, seed)
     names = cov["scalar_names"]
-    out = []
-    for i in range(n):
-        moved = dict(params)
-        for name, entry in record["parameters"].items():
-            if name in names:
-                delta = xs[i, names.index(name)]
-            else:
-                delta = xl[i, :, spectral_names.index(name)]
-            moved[name] = _moved(name, params[name], delta, entry)
-        out.append(moved)
+    idx = [names.index(nm) for nm in MODELS[model].scalar_params]
+    out = f[None] + np.einsum("na,a...->n...", xs[:, idx], js)
+    if xl is not None:
+        out = out + np.einsum("nlk,k...l->n...l", xl, jl)
     g = [j for j, nm in enumerate(names) if nm.startswith("log_gain_")]
     return out, (xs[:, g] if g else None)
-
-
-def _moved(name: str, value, delta, entry: dict):
-    """``value`` moved by ``delta`` on each element's scale (u, or linear where one-sided),
-    kept within the parameter's bounds."""
-    p = np.atleast_1d(np.asarray(value, dtype=float))
-    delta = np.broadcast_to(np.asarray(delta, dtype=float), p.shape)
-    linear = np.zeros(p.shape, bool)
-    linear[entry.get("one_sided_at", [])] = True
-    kind = entry.get("transform", transform_of(name))
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        u = to_u(kind, np.where(linear, 0.5, p))
-        q = np.where(linear, p + delta, from_u(kind, u + delta))
-    lo, hi = bounds_of(name)
-    q = np.clip(q, lo, hi if hi is not None else None)
-    return q if np.ndim(value) else float(q[0])
 
 
 def half_width_text(name: str, value: float, entry: dict) -> str:
