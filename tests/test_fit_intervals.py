@@ -20,7 +20,7 @@ from gonio_cli.fit.common import prepare
 from gonio_cli.fit.run import RunOptions, fit_intervals, run
 from gonio_cli.fit import uncertainty
 from gonio_cli.geometry import in_plane_cosines
-from gonio_cli.schemas import read_measurement, write_material, write_measurement
+from gonio_cli.schemas import read_material, read_measurement, write_material, write_measurement
 from gonio_cli.synthetic import ink_spectra, paper_geometry, synthetic_measurement
 
 FIXTURES = Path(__file__).parent / "fixtures" / "real"
@@ -217,3 +217,43 @@ def test_the_verdict_line_of_a_poor_glossy_fit_has_no_alarming_rel_rmse(run_goni
     mat = result.material
     assert mat.fit["methods"][mat.fit["final"]]["relative_rmse_percent"] > 100
     assert mat.fit["intervals"]["available"]
+
+
+def test_every_model_gets_finite_intervals_in_range_that_the_material_schema_reads(tmp_path):
+    """Each model of FITTERS, fitted to a synthetic diffuse + eq. 5 sample: intervals
+    available, every element finite, low <= value <= high within the parameter's range;
+    the material is written and read back (fit.intervals validated)."""
+    from gonio_cli.fit import FITTERS
+    from gonio_cli.schemas.material import PARAM_RANGES
+    truth = {**TRUTH, "rho_d": np.full(GRID.size, 0.02)}
+    m = synthetic_measurement("goniochromatic-diffuse", truth, TI, TO, grid_nm=GRID,
+                              noise=0.02, seed=0)
+    data = prepare(m, residuals="compressive")
+    for name in FITTERS:
+        result = fit(data, name)
+        rec = fit_intervals(data, result)
+        assert rec["available"], name
+        for k, e in rec["parameters"].items():
+            p = np.atleast_1d(result.params[k])
+            lo, hi = np.atleast_1d(e["low"]), np.atleast_1d(e["high"])
+            assert np.all(np.isfinite(lo)) and np.all(np.isfinite(hi)), (name, k)
+            assert np.all(lo <= p) and np.all(p <= hi), (name, k)
+            assert not PARAM_RANGES[k].outside(np.r_[lo, hi]).any(), (name, k)
+        write_material(tmp_path / f"{name}.json", to_material(result, judge(data, result),
+                                                               {"intervals": rec}))
+        assert read_material(tmp_path / f"{name}.json").fit["intervals"]["available"]
+
+
+@pytest.mark.parametrize("entry, text", [
+    ({"low": 0.176, "high": 0.184, "transform": "logit"}, "alpha 0.180 ± 0.004"),
+    ({"low": 0.12, "high": 0.27, "transform": "logit"}, "alpha 0.18 (0.12-0.27)"),
+    ({"low": 0.002, "high": 0.3, "transform": "logit"},
+     "alpha 0.18 (poorly determined: 0.002-0.3)"),
+    ({"low": 0.001, "high": 1.0, "transform": "logit"}, "alpha 0.18 (not determined by the data)"),
+    ({"low": 0.18, "high": 0.2, "transform": "logit", "one_sided_at": [0]},
+     "alpha 0.18 (at its bound, <= 0.2)"),
+])
+def test_a_parameter_on_the_verdict_line_reads_as_its_interval_says(entry, text):
+    """Symmetric within 20 %: ± the half-width to its first significant digit; else the
+    range; wider than two decades, reaching the search's bound or one-sided: in words."""
+    assert uncertainty.half_width_text("alpha", 0.18, entry) == text

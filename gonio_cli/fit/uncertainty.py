@@ -42,6 +42,10 @@ import numpy as np
 from ..brdf import MODELS, evaluate
 from ..schemas.material import PARAM_RANGES
 from .common import ALPHA_MAX, ALPHA_MIN, FitData
+from .cook_torrance_lobes import KS_MAX
+from .cook_torrance_profile import M_MAX, M_MIN
+from .gains import ANGLE_TOL_DEG
+from .layered import K_COAT_MAX
 from .separable import C_LIMIT
 
 #: Confidence level of the intervals, and its two- and one-sided normal quantiles.
@@ -64,9 +68,18 @@ NULL_SHARE = 1e-3
 
 #: The fits' own search bounds where they are narrower than the schema's range.
 FIT_BOUNDS = {**{k: (ALPHA_MIN, ALPHA_MAX) for k in ("alpha", "alpha_coat", "alpha_2")},
-              "c": (-C_LIMIT, C_LIMIT)}
+              **{k: (M_MIN, M_MAX) for k in ("m", "m_1", "m_2", "m_3")},
+              **{k: (0.0, KS_MAX) for k in ("ks_1", "ks_2", "ks_3")},
+              "k_coat": (0.0, K_COAT_MAX), "c": (-C_LIMIT, C_LIMIT)}
+
+#: A floor for divisions by a scale that may be 0 (the smallest normal float's order).
+TINY = 1e-300
 
 METHOD = "gauss-newton"
+
+#: A positive parameter whose interval spans more than this factor is "poorly determined"
+#: on the verdict line (two decades: the data fix its order of magnitude at best).
+POORLY_DETERMINED_RATIO = 100.0
 
 
 def transform_of(name: str) -> str:
@@ -108,8 +121,8 @@ def at_bound(name: str, p) -> np.ndarray:
     """-1 where an element sits at its lower bound, +1 at its upper, 0 inside."""
     p = np.atleast_1d(np.asarray(p, dtype=float))
     lo, hi = bounds_of(name)
-    scale = np.maximum(np.abs(p), 1e-300)
-    low = (p <= lo) | (np.abs(p - lo) <= BOUND_TOL * max(abs(lo), 1e-300)) if lo != 0 \
+    scale = np.maximum(np.abs(p), TINY)
+    low = (p <= lo) | (np.abs(p - lo) <= BOUND_TOL * max(abs(lo), TINY)) if lo != 0 \
         else p <= 0.0
     high = (p >= hi) | (np.abs(p - hi) <= BOUND_TOL * scale) if hi is not None \
         else np.zeros(p.shape, bool)
@@ -141,7 +154,7 @@ def _residuals(data: FitData, f: np.ndarray, g_rows: np.ndarray, used: np.ndarra
     gf = f * g_rows[:, None]
     if data.residuals == "log":
         with np.errstate(divide="ignore", invalid="ignore"):
-            r = np.sqrt(data.w) * (np.log(np.maximum(gf, 1e-300)) - np.log(
+            r = np.sqrt(data.w) * (np.log(np.maximum(gf, TINY)) - np.log(
                 np.where(data.positive, data.y, 1.0)))
     else:
         r = np.sqrt(data.w) * (gf - data.y)
@@ -188,7 +201,7 @@ def jacobian(model: str, cos, params: dict, sides: dict, response=None):
 
 def _gain_columns(data: FitData, f: np.ndarray, gains, g_rows, used) -> np.ndarray:
     """(G − 1, N, L): ∂r/∂z of the free log-gain coordinates z (log g = Q z)."""
-    groups = np.array([np.flatnonzero(np.abs(gains.theta_i_deg - t) <= 1e-6)[0]
+    groups = np.array([np.flatnonzero(np.abs(gains.theta_i_deg - t) <= ANGLE_TOL_DEG)[0]
                        for t in data.theta_i_deg])
     per_row = (np.sqrt(data.w) if data.residuals == "log"
                else np.sqrt(data.w) * f * g_rows[:, None])
@@ -205,7 +218,7 @@ def _pinv_psd(m: np.ndarray):
     scale = np.sqrt(np.where(zero, 1.0, diag))
     vals, vecs = np.linalg.eigh(m / (scale[..., :, None] * scale[..., None, :]))
     top = np.max(vals, axis=-1, keepdims=True) if vals.shape[-1] else vals
-    null = vals <= NULL_EIG * np.maximum(top, 1e-300)
+    null = vals <= NULL_EIG * np.maximum(top, TINY)
     share = np.sum(np.where(null[..., None, :], vecs ** 2, 0.0), axis=-1)
     inv = np.where(null, 0.0, 1.0 / np.where(null, 1.0, vals))
     pinv = np.einsum("...ik,...k,...jk->...ij", vecs, inv, vecs) / (
@@ -251,8 +264,10 @@ def _interval(name: str, p: np.ndarray, side: np.ndarray, sd: np.ndarray,
                        np.where(side < 0, p, p - Z_ONE_SIDED * sd))
         high = np.where(side == 0, from_u(kind, u + Z_TWO_SIDED * sd),
                         np.where(side > 0, p, p + Z_ONE_SIDED * sd))
-    low = np.where(undetermined, lo, np.clip(low, r.lo, top))
-    high = np.where(undetermined, top, np.clip(high, r.lo, top))
+    # an open end of the range (h > 0 …) is approached, never written
+    floor = np.nextafter(r.lo, np.inf) if r.lo_open else r.lo
+    low = np.clip(np.where(undetermined, lo, low), floor, top)
+    high = np.clip(np.where(undetermined, top, high), floor, top)
     # a logit/log interval rounds onto its open bound only in float: keep it a number
     return np.minimum(low, p), np.maximum(high, p)
 
@@ -409,13 +424,20 @@ def propagate(record: dict[str, Any], model: str, cos, params: dict, n: int,
 
 def half_width_text(name: str, value: float, entry: dict) -> str:
     """"alpha 0.180 ± 0.004" (symmetric to 20 %), "alpha 0.18 (0.12-0.27)" otherwise; a
-    one-sided or undetermined interval says so."""
+    one-sided interval, one spanning more than :data:`POORLY_DETERMINED_RATIO`, and one
+    that reaches an end of the range inside it (undetermined) say so."""
     low, high = float(entry["low"]), float(entry["high"])
-    if entry.get("undetermined_at"):
+    lo, hi = bounds_of(name)
+    edge = np.finfo(float).tiny
+    if entry.get("undetermined_at") or (not entry.get("one_sided_at") and (
+            low <= max(lo, 0.0) + edge or high >= hi)):
         return f"{name} {value:.3g} (not determined by the data)"
     if entry.get("one_sided_at"):
         return f"{name} {value:.3g} (at its bound, <= {high:.3g})" if low >= value else \
             f"{name} {value:.3g} (at its bound, >= {low:.3g})"
+    if entry.get("transform") in ("log", "logit") and (
+            low <= 0 or high > POORLY_DETERMINED_RATIO * low):
+        return f"{name} {value:.3g} (poorly determined: {low:.2g}-{high:.2g})"
     lo_w, hi_w = value - low, high - value
     if max(lo_w, hi_w) <= 1.2 * min(lo_w, hi_w) or max(lo_w, hi_w) == 0:
         half = 0.5 * (high - low)
