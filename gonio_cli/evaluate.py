@@ -29,8 +29,10 @@ import numpy as np
 from . import log
 from .brdf import MODELS
 from .errors import InputError
+from .fit import uncertainty
 from .fit.gains import SweepGains
 from .fit.plot import plot_fit
+from .fit.verdict import COLOUR_RANGE_NM, colour_errors, covers_colour
 from .geometry import measurement_cosines
 from .names import SWEEP_GAIN_NAMES, pick
 from .schemas import Material, Measurement, write_measurement
@@ -101,8 +103,7 @@ def evaluate_at(material: Material, measurement: Measurement, *, material_path=N
     """
     check_same_grid(material, measurement, material_path=material_path,
                     measurement_path=measurement_path)
-    f = material.evaluate(measurement_cosines(measurement.theta_i_deg, measurement.theta_o_deg,
-                                              measurement.phi_o_deg))
+    f = material.evaluate(cosines_of(measurement))
     if gains is not None:
         f = f * gains.per_configuration(measurement.theta_i_deg)[:, None]
     n = measurement.n_configurations
@@ -115,6 +116,91 @@ def evaluate_at(material: Material, measurement: Measurement, *, material_path=N
                         "brdf_min_per_sr": float(np.min(f)) if f.size else 0.0,
                         "brdf_max_per_sr": float(np.max(f)) if f.size else 0.0},
                        None if measurement.phi_o_deg is None else measurement.phi_o_deg.copy())
+
+
+def cosines_of(measurement: Measurement):
+    """The :class:`~gonio_cli.geometry.Cosines` of the measurement's configurations (the
+    one place eval turns its geometry into a model's arguments)."""
+    return measurement_cosines(measurement.theta_i_deg, measurement.theta_o_deg,
+                               measurement.phi_o_deg)
+
+
+#: The colour band: parameter sets drawn from the fit's covariance (seeded, so a band is
+#: the same at every run), and the percentile of CIEDE2000 per configuration it reports.
+#: 200 draws put the 95th percentile within ~±15 % of its value (binomial: ±√(0.95·0.05·200)
+#: ≈ 3 draws around the 10th largest).
+BAND_DRAWS = 200
+BAND_SEED = 0
+BAND_PERCENTILE = 95.0
+
+
+def colour_band(material: Material, measurement: Measurement, f_model: np.ndarray,
+                gains=None) -> dict[str, Any]:
+    """How far the model can move within the fit's intervals, in colour: per configuration
+    the :data:`BAND_PERCENTILE` th percentile of CIEDE2000 between the model drawn from the
+    fit's Gaussian (:func:`gonio_cli.fit.uncertainty.draw`, :data:`BAND_DRAWS` draws) and
+    the fitted one ``f_model`` (N, L), with the light-source ``gains`` (and their own
+    uncertainty) where eval applies them. A material without intervals (older files, a
+    failed fit) has ``available`` false and why."""
+    record = (material.fit or {}).get("intervals")
+    if not record:
+        return {"available": False, "why": "the material has no intervals (written before "
+                                           "gonio fit recorded them: fit it again)"}
+    if not record.get("available") or "covariance" not in record:
+        return {"available": False, "why": f"the fit has no intervals: "
+                                           f"{record.get('why', 'not recorded')}"}
+    wl = measurement.wavelength_nm
+    if not covers_colour(wl):
+        return {"available": False, "why": f"the grid does not cover "
+                f"{COLOUR_RANGE_NM[0]:g}-{COLOUR_RANGE_NM[1]:g} nm (no colour)"}
+    f, log_g = uncertainty.propagate(record, material.model, cosines_of(measurement),
+                                     material.params, BAND_DRAWS, BAND_SEED)
+    if gains is not None:
+        g = gains.per_configuration(measurement.theta_i_deg)
+        f = f * g[None, :, None]
+        if log_g is not None:
+            idx = np.array([np.flatnonzero(np.abs(gains.theta_i_deg - t) <= 1e-6)[0]
+                            for t in measurement.theta_i_deg])
+            f = f * np.exp(log_g[:, idx])[:, :, None]
+    n, d = measurement.n_configurations, f.shape[0]
+    po = measurement.phi_o_deg
+    de = colour_errors(wl, np.tile(measurement.theta_i_deg, d),
+                       np.tile(measurement.theta_o_deg, d), np.tile(f_model, (d, 1)),
+                       f.reshape(d * n, -1),
+                       None if po is None else np.tile(po, d)).delta_e.reshape(d, n)
+    band = np.percentile(de, BAND_PERCENTILE, axis=0)
+    k = int(np.argmax(band))
+    return {"available": True, "delta_e2000_p95": [float(v) for v in band],
+            "median_delta_e2000_p95": float(np.median(band)),
+            "worst_delta_e2000_p95": float(band[k]),
+            "worst_configuration": worst_configuration(measurement, k),
+            "draws": d, "seed": BAND_SEED, "percentile": BAND_PERCENTILE,
+            "level": float(record.get("level", uncertainty.LEVEL)),
+            "method": "parameters drawn from the fit's Gaussian (fit.intervals.covariance), "
+                      "the model moved by the delta method (f + J du); CIEDE2000 of each "
+                      "drawn model against the fitted one, D65, 10 degree observer, pairs "
+                      "with Y > 1 scaled to Y = 1"}
+
+
+def worst_configuration(measurement: Measurement, k: int) -> dict[str, float]:
+    """Configuration ``k`` by its angles (φo only out of the plane)."""
+    out = {"theta_i_deg": float(measurement.theta_i_deg[k]),
+           "theta_o_deg": float(measurement.theta_o_deg[k])}
+    if measurement.phi_o_deg is not None and measurement.phi_o_deg[k] != 0.0:
+        out["phi_o_deg"] = float(measurement.phi_o_deg[k])
+    return out
+
+
+def band_text(band: dict[str, Any]) -> str:
+    """The band on eval's stderr line."""
+    if not band.get("available"):
+        return f"; colour band not available: {band.get('why', '')}"
+    w = band["worst_configuration"]
+    return (f"; colour band of the fit's {100 * band['level']:g} % intervals: CIEDE2000 "
+            f"p{band['percentile']:g} median {band['median_delta_e2000_p95']:.2f}, worst "
+            f"{band['worst_delta_e2000_p95']:.2f} at theta_i {w['theta_i_deg']:g}, theta_o "
+            f"{w['theta_o_deg']:g}" + (f", phi_o {w['phi_o_deg']:g}" if "phi_o_deg" in w
+                                       else ""))
 
 
 def model_parameters(material: Material) -> dict[str, Any]:
@@ -170,6 +256,7 @@ def run(material: Material, measurement: Measurement, sweep_gain: str = "auto", 
                           measurement_path=measurement_path)
         model = evaluate_at(material, measurement, material_path=material_path,
                             measurement_path=measurement_path, gains=gains)
+        model.summary["colour_band"] = colour_band(material, measurement, model.brdf, gains)
     parameters = {"material": str(material_path), "at": str(measurement_path),
                   "sweep_gain": sweep_gain, **model_parameters(material)}
     return Evaluation(material, measurement, model, gains, sweep_gain, parameters,

@@ -186,18 +186,19 @@ def test_a_measurement_as_a_scene_material_names_the_key_and_the_command(good, t
 # ------------------------------------------------- figures a user can read (item 6) --
 
 def test_the_fit_verdict_says_what_decides_it_and_the_thresholds(good, tmp_path):
-    """The verdict line names the colour error's scale, the thresholds of a good fit and
-    which figures decide; the relative RMSE is shown as not judged. One line."""
+    """The verdict line leads with what decides it (the colour error, its scale and the
+    thresholds of a good fit), gives α with its 95 % interval and no relative RMSE. One
+    line."""
     out = tmp_path / "red.material.json"
     code, err = run("fit", good["measurement"], "-o", out, "--exclude-theta-i-deg", "70")
     assert code == 0, err
-    line = next(x for x in err.splitlines() if "verdict by" in x)
-    assert line.startswith(f"{out}: goniochromatic, CIEDE2000 mean ")
-    assert "(colour error; 1 ~ just noticeable)" in line
-    assert "; verdict by colour (good if mean <= 0.7, worst <= 1.5, peaks x0.75-1.33): " \
-        in line
-    assert line.endswith(": good") or ": poor (" in line
-    assert "rel-RMSE" in line and "not judged" in line
+    line = next(x for x in err.splitlines() if "good if" in x)
+    assert line.startswith(f"{out}: goniochromatic: colour error CIEDE2000 mean ")
+    assert "; good if mean <= 0.7, worst <= 1.5, peaks x0.75-1.33 (CIEDE2000 1 ~ just " \
+        "noticeable): " in line
+    assert ": good; alpha 0." in line or ": poor (" in line
+    assert " ± " in line and line.endswith(" (95 %)")
+    assert "rel-RMSE" not in line
 
 
 def test_the_verdict_line_carries_the_user_s_limit():
@@ -206,8 +207,9 @@ def test_the_verdict_line_carries_the_user_s_limit():
 
     from gonio_cli.commands.fit import verdict_line
 
-    result = SimpleNamespace(model="goniochromatic", result=SimpleNamespace(
-        errors={"relative_rmse_percent": 588.9}))
+    result = SimpleNamespace(model="goniochromatic", params={"alpha": 0.18},
+                             result=SimpleNamespace(
+                                 success=True, errors={"relative_rmse_percent": 588.9}))
     judgement = {"verdict": "poor", "reasons": ["mean CIEDE2000 3.86 > 2"],
                  "thresholds": {"mean_delta_e": 2.0, "worst_delta_e": 1.5,
                                 "peak_ratio_min": 0.75, "peak_ratio_max": 4 / 3},
@@ -215,10 +217,10 @@ def test_the_verdict_line_carries_the_user_s_limit():
                  "worst_colour_configuration": {"theta_i_deg": 50.0, "theta_o_deg": 80.0}}
     line = verdict_line("m.json", result, judgement)
     assert "\n" not in line
-    assert "rel-RMSE 588.9% (relative error of each reading of f, largest where f is " \
-           "small: not judged)" in line
-    assert line.endswith("; verdict by colour (good if mean <= 2, worst <= 2): poor (mean "
-                         "CIEDE2000 3.86 > 2)")
+    assert "588.9" not in line and "rel-RMSE" not in line
+    assert line == ("m.json: goniochromatic: colour error CIEDE2000 mean 3.86, worst 9.10 at "
+                    "theta_i 50, theta_o 80; good if mean <= 2, worst <= 2 (CIEDE2000 1 ~ "
+                    "just noticeable): poor (mean CIEDE2000 3.86 > 2)")
 
 
 def test_the_lobes_fit_line_gives_the_scale_of_its_figure(good, tmp_path):

@@ -64,7 +64,8 @@ def evaluate(
     result = stage.run(mat, data, sweep_gain, material_path=material, measurement_path=at)
     stage.write(result, output, plot=plot)
     log.info(f"{output}: {mat.model} at {data.n_configurations} configurations x "
-             f"{data.wavelength_nm.size} wavelengths of {at}{result.gains_text()}")
+             f"{data.wavelength_nm.size} wavelengths of {at}{result.gains_text()}"
+             f"{stage.band_text(result.model.summary['colour_band'])}")
 
 
 EXAMPLE = ("gonio eval red.material.json --at red.measurement.json -o red.model.json "

@@ -31,6 +31,7 @@ from ..names import SWEEP_GAIN_NAMES, pick
 from ..schemas import Material, Measurement, read_measurement, write_material
 from . import FITTERS, check_options, fit, fit_auto, judge, to_material
 from . import gains as sweep_gains
+from . import uncertainty
 from .auto import criterion
 from .common import FitData, prepare
 from .plot import plot_fit
@@ -170,6 +171,7 @@ def run(measurement: Measurement | str | os.PathLike, options: RunOptions | None
             why = sweep_gains.wanted(options.sweep_gain, measurement, data, path=path)
             model_fit, gains, auto = _fit(data, options, why)
             judgement = judge(data, model_fit, options.max_error, gains)
+            intervals = fit_intervals(data, model_fit, gains)
         except GonioError as exc:       # about the data (no usable readings …): name them
             if path is not None and exc.path is None and not exc.message.startswith("--"):
                 exc.path = str(path)
@@ -178,12 +180,25 @@ def run(measurement: Measurement | str | os.PathLike, options: RunOptions | None
     extra = {"auto": auto} if auto is not None else {}
     if gains is not None:
         extra["sweep_gain"] = gains.to_dict()
+    extra["intervals"] = intervals
     result = FitResult(options, measurement, path, data, model_fit, judgement,
                        to_material(model_fit, judgement, extra), gains, auto, t["time_s"])
     if data.excluded.get("non_positive_values") and options.residuals == "log":
         result.warnings.append(f"{_name(path)}: {data.excluded['non_positive_values']} "
                                "non-positive values left out of the log-residual fit")
     return result
+
+
+def fit_intervals(data: FitData, model_fit: ModelFit, gains=None) -> dict[str, Any]:
+    """The material's ``fit.intervals`` (:func:`.uncertainty.estimate`, 95 %), with the
+    time it took; a failed fit has none (``available`` False)."""
+    if not model_fit.result.success:
+        return {"level": uncertainty.LEVEL, "method": uncertainty.METHOD, "available": False,
+                "why": "the fit failed"}
+    with log.timer() as t:
+        out = uncertainty.estimate(data, model_fit.model, model_fit.params, gains)
+    out["time_s"] = t["time_s"]
+    return out
 
 
 def _fit(data: FitData, options: RunOptions, why: str | None):

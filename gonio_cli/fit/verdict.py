@@ -27,6 +27,7 @@ import numpy as np
 from .. import spectra
 from ..geometry import measurement_directions, reciprocal_configuration, reflect
 from .common import FitData, MIRROR_TOL_DEG
+from .uncertainty import LEVEL, half_width_text
 
 #: Limits of a ``good`` fit. Mean CIEDE2000 0.7: about half of a just-noticeable
 #: difference, the level of an instrument's inter-instrument agreement on a matte sample;
@@ -273,3 +274,16 @@ def verdict(success: bool, colour: ColourErrors | None,
         reasons.append("mirror peak off at theta_i " + ", ".join(
             f"{t:g} (x{r:.2f})" for t, r in off.items()))
     return ("poor" if reasons else "good"), reasons
+
+
+def parameters_text(params: dict[str, Any], intervals: dict[str, Any] | None) -> str:
+    """"alpha 0.180 ± 0.004 (95 %)": the scalar parameters with their intervals
+    (:mod:`.uncertainty`); "" for a model without scalars or a fit without intervals."""
+    if not intervals or not intervals.get("available"):
+        return ""
+    shown = [half_width_text(name, float(params[name]), entry)
+             for name, entry in intervals.get("parameters", {}).items()
+             if not isinstance(entry["low"], list) and name in params]
+    if not shown:
+        return ""
+    return f"{', '.join(shown)} ({100 * intervals.get('level', LEVEL):g} %)"

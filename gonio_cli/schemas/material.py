@@ -13,9 +13,10 @@ import numpy as np
 from .. import brdf
 from ..brdf import MODELS
 from ..errors import ArtifactError
-from .spec import (FREE, MAX_MAGNITUDE, NON_NEGATIVE, WAVELENGTHS, Array,
-                   Number, Obj, Text, envelope_fields, json_kind, optional, read_artifact_as,
-                   required, validate, write_artifact_as)
+from .records import Flag, Record
+from .spec import (COUNT, MAX_MAGNITUDE, NON_NEGATIVE, SECONDS, WAVELENGTHS, AnyOf, Array,
+                   ListOf, Number, Obj, Text, envelope_fields, json_kind, optional,
+                   read_artifact_as, required, validate, write_artifact_as)
 
 
 @dataclass
@@ -71,7 +72,7 @@ class Material:
                     "wavelength_nm": required(WAVELENGTHS),
                     **{k: required(PARAM_RANGES[k]) for k in m.scalar_params},
                     **{k: required(Array(1, PARAM_RANGES[k])) for k in m.spectral_params},
-                    "fit": optional(FREE)})
+                    "fit": optional(Record((("intervals", intervals_spec(model)),)))})
 
     @classmethod
     def from_document(cls, doc: dict[str, Any], path=None) -> "Material":
@@ -112,6 +113,40 @@ PARAM_RANGES: dict[str, Number] = {
     "c": Number(-C_MAX, C_MAX),
     "b0": NON_NEGATIVE, "h": Number(0.0, MAX_MAGNITUDE, lo_open=True),
 }
+
+
+_NUMBERS = AnyOf((Number(), Array(1, Number(), min_size=0)))
+_INDICES = ListOf(COUNT)
+
+
+def intervals_spec(model: str) -> Obj:
+    """``fit.intervals`` of a ``model`` material (gonio_cli.fit.uncertainty, docs/fit.md):
+    the level, the method, per parameter ``low``/``high`` (numbers, or lists per
+    wavelength), its transform and the elements at a bound or undetermined, the light-source
+    gains' intervals and the covariance blocks ``gonio eval`` draws from. Older materials
+    have none."""
+    m = MODELS[model]
+    entry = Obj({"low": required(_NUMBERS), "high": required(_NUMBERS),
+                 "transform": required(Text(("log", "logit", "identity"))),
+                 "one_sided_at": optional(_INDICES), "undetermined_at": optional(_INDICES)})
+    nested = ListOf(ListOf(Number()))
+    return Obj({
+        "level": required(Number(0.0, 1.0, lo_open=True, hi_open=True)),
+        "method": required(Text(("gauss-newton",))),
+        "available": required(Flag()), "why": optional(Text()),
+        "residuals": optional(Text()), "sigma2": optional(NON_NEGATIVE),
+        "dof": optional(COUNT), "sigma2_from": optional(Text()), "time_s": optional(SECONDS),
+        "parameters": optional(Obj({k: optional(entry)
+                                    for k in m.scalar_params + m.spectral_params})),
+        "sweep_gain": optional(Obj({"theta_i_deg": required(Array(1, Number())),
+                                    "low": required(Array(1, NON_NEGATIVE)),
+                                    "high": required(Array(1, NON_NEGATIVE)),
+                                    "transform": required(Text(("log",)))})),
+        "covariance": optional(Obj({"scalar_names": required(ListOf(Text())),
+                                    "spectral_names": required(ListOf(Text())),
+                                    "scalar": required(nested),
+                                    "cross": required(ListOf(nested)),
+                                    "spectral": required(ListOf(nested))}))})
 
 
 def read_material(path: str | os.PathLike) -> Material:

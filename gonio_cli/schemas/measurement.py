@@ -14,7 +14,8 @@ import numpy as np
 from ..artifact import write_artifact
 from ..errors import ArtifactError
 from ..geometry import canonical_azimuth
-from .spec import (FREE, NON_NEGATIVE, POSITIVE_COUNT, WAVELENGTHS, Array, Nullable, Number,
+from .records import MEASUREMENT_SUMMARY
+from .spec import (NON_NEGATIVE, POSITIVE_COUNT, WAVELENGTHS, Array, Nullable, Number,
                    Obj, Text, envelope_fields, optional, read_artifact_as, required, validate)
 
 
@@ -123,7 +124,7 @@ class Measurement:
                     "brdf_std": optional(Nullable(Array(2, NON_NEGATIVE))),
                     "n_repeats": optional(Array(1, POSITIVE_COUNT)),
                     "quantity": optional(Text(cls.QUANTITIES)),
-                    "summary": optional(FREE)})
+                    "summary": optional(MEASUREMENT_SUMMARY)})
 
     @classmethod
     def from_document(cls, doc: dict[str, Any], path=None) -> "Measurement":
