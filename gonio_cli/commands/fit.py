@@ -159,7 +159,8 @@ def verdict_line(output: Path, result, judgement: dict, intervals: dict | None =
         wc = judgement["worst_colour_configuration"]
         text.append(f" colour error CIEDE2000 mean {judgement['delta_e2000_mean']:.2f}, worst "
                     f"{judgement['delta_e2000_worst']:.2f} at theta_i {wc['theta_i_deg']:g}, "
-                    f"theta_o {wc['theta_o_deg']:g}")
+                    f"theta_o {wc['theta_o_deg']:g}"
+                    + (f", phi_o {wc['phi_o_deg']:g}" if "phi_o_deg" in wc else ""))
         decided.append(f"mean <= {mean_max:g}, worst <= {worst_max:g}")
     ratios = judgement.get("mirror_peak_y_ratio")
     if ratios:

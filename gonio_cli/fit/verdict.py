@@ -51,6 +51,7 @@ class ColourErrors:
     theta_i_deg: np.ndarray
     theta_o_deg: np.ndarray
     peak_ratio: dict[float, float]    # θi → Y_model / Y_data at θo = θi
+    phi_o_deg: np.ndarray | None = None   # (N,) out of the plane, else None
 
     @property
     def mean(self) -> float:
@@ -75,6 +76,8 @@ class ColourErrors:
                                            "delta_e2000": float(self.delta_e[k])},
             "colour": "CIEDE2000 of R = pi f, D65, 10 degree observer; pairs with data "
                       "Y > 1 scaled to data Y = 1"}
+        if self.phi_o_deg is not None and self.phi_o_deg[k] != 0.0:
+            out["worst_colour_configuration"]["phi_o_deg"] = float(self.phi_o_deg[k])
         if self.peak_ratio:
             out["mirror_peak_y_ratio"] = {f"{t:g}": float(r) for t, r in
                                           self.peak_ratio.items()}
@@ -115,9 +118,11 @@ class Reciprocity:
 
     def sentence(self) -> str:
         how = " (interpolated)" if self.interpolated else ""
+        phi = f", phi_o {self.phi_o_deg:g}" if self.phi_o_deg else ""
         return (f"the data are not reciprocal: theta_i {self.theta_i_deg:g}, theta_o "
-                f"{self.theta_o_deg:g} and its reverse theta_i {self.reverse_theta_i_deg:g}, "
-                f"theta_o {self.reverse_theta_o_deg:g}{how} differ by CIEDE2000 "
+                f"{self.theta_o_deg:g}{phi} and its reverse theta_i "
+                f"{self.reverse_theta_i_deg:g}, theta_o {self.reverse_theta_o_deg:g}{phi}{how} "
+                f"differ by CIEDE2000 "
                 f"{self.delta_e:.2f}: no BRDF, being reciprocal, can match both (a "
                 f"calibration or alignment that differs between the sweeps?)")
 
@@ -242,7 +247,8 @@ def colour_errors(wavelength_nm, theta_i_deg, theta_o_deg, f_data, f_model,
                      & (True if phi_o_deg is None else np.asarray(phi_o_deg) == 0))[0]
         if k.size and y[k[0]] > 0:
             peak[float(t)] = float(xyz_m[k[0], 1] / y[k[0]])
-    return ColourErrors(de, ti, to, peak)
+    return ColourErrors(de, ti, to, peak,
+                        None if phi_o_deg is None else np.asarray(phi_o_deg, dtype=float))
 
 
 def fit_colour_errors(data: FitData, f_model) -> ColourErrors | None:
