@@ -35,7 +35,7 @@ from .verdict import THRESHOLDS, colour_errors, covers_colour, fit_colour_errors
 CANDIDATES = ("goniochromatic", "goniochromatic-diffuse", "torrance-sparrow",
               "cook-torrance", "cook-torrance-2", "cook-torrance-3", "goniochromatic-coat",
               "goniochromatic-undercoat", "goniochromatic-two-lobe",
-              "goniochromatic-backscatter")
+              "goniochromatic-backscatter", "sheen", "tabulated-colour")
 
 
 #: Held-out colour errors closer than this (CIEDE2000) are a tie, kept by the earlier,
