@@ -8,7 +8,8 @@ kind; the table takes any smooth one.
 For a fixed α the model is linear in (ρ_d, T) with one design matrix X (N, 1 + n_h n_d)
 for every wavelength: a column 1/π and, per node, its bilinear weight times g. The table
 is kept smooth by a second-difference penalty along θh and along θd (R = D_hᵀD_h + D_dᵀD_d,
-over the node indices; its null space is the bilinear tables, which it leaves alone), so
+divided differences over the node angles; its null space is the tables linear in each
+angle, which it leaves alone), so
 each wavelength solves
 
     (Xᵀ W_λ X + μ_λ R) β = Xᵀ W_λ y_λ,   μ_λ = κ · mean diag of the table block of Xᵀ W_λ X,
@@ -65,13 +66,27 @@ ALPHA_POINTS = 25
 OPTIMIZERS = {"nlopt-bobyqa": minimize_log_alpha, "nlopt-lbfgs": minimize_log_alpha}
 
 
-def second_differences(n_h: int, n_d: int) -> np.ndarray:
-    """R (n_h n_d, n_h n_d) = D_hᵀD_h + D_dᵀD_d, D the second differences over the node
-    indices along θh (rows a) and θd (columns b) of the table flattened as a n_d + b."""
-    def d2(n):
-        return np.diff(np.eye(n), 2, axis=0) if n > 2 else np.zeros((0, n))
-    dh = np.kron(d2(n_h), np.eye(n_d))
-    dd = np.kron(np.eye(n_h), d2(n_d))
+def second_differences(theta_h_nodes_deg, theta_d_nodes_deg) -> np.ndarray:
+    """R (n_h n_d, n_h n_d) = D_hᵀD_h + D_dᵀD_d, D the second divided differences along θh
+    (rows a) and θd (columns b) of the table flattened as a n_d + b, each scaled by its
+    axis's mean node spacing squared (on even nodes: 1, −2, 1). Tables linear in each
+    angle (a + b θh + c θd + d θh θd) are its null space."""
+    def d2(nodes):
+        x = np.asarray(nodes, dtype=float)
+        n = x.size
+        out = np.zeros((max(n - 2, 0), n))
+        if n < 3:
+            return out
+        h1, h2 = np.diff(x)[:-1], np.diff(x)[1:]
+        scale = 2.0 * np.mean(np.diff(x)) ** 2 / (h1 + h2)
+        rows = np.arange(n - 2)
+        out[rows, rows] = scale / h1
+        out[rows, rows + 1] = -scale * (1 / h1 + 1 / h2)
+        out[rows, rows + 2] = scale / h2
+        return out
+    nh, nd = len(theta_h_nodes_deg), len(theta_d_nodes_deg)
+    dh = np.kron(d2(theta_h_nodes_deg), np.eye(nd))
+    dd = np.kron(np.eye(nh), d2(theta_d_nodes_deg))
     return dh.T @ dh + dd.T @ dd
 
 
@@ -90,7 +105,7 @@ class TableProblem:
         self.hats = np.where(hats < TINY, 0.0, hats)     # round-off of t = 0 or 1: exact 0
         k = 1 + self.hats.shape[1]
         self.R = np.zeros((k, k))
-        self.R[1:, 1:] = second_differences(*self.shape)
+        self.R[1:, 1:] = second_differences(*self.nodes)
         self.rows = np.sum(self.w > 0, axis=0)                            # n_λ
         # the pairs of nodes some configuration weighs together (≤ 16 per row): the table
         # block of XᵀWX is Σ_n w g² h_j h_k over these only (one matrix product per α)
