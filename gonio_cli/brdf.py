@@ -22,7 +22,7 @@ from typing import Callable
 import numpy as np
 
 from .errors import InputError
-from .brdf_surfaces import TABLE_PARAMS, charlie_sheen, table_colour
+from .brdf_surfaces import FIBRE_F0, TABLE_PARAMS, charlie_sheen, table_colour
 from .geometry import Cosines, cos_half_sum, refracted_cosines
 
 #: Exponent ceiling for exp(): exp(700) ≈ 1e304 is still finite in float64, so a huge c
@@ -421,9 +421,9 @@ def goniochromatic_two_lobe(cos: Cosines, alpha, rho, c, rho_d, alpha_2, rho_2) 
 
 def sheen(cos: Cosines, r_sheen, alpha, k_spec, rho_d, rho_sheen) -> np.ndarray:
     """Fabric (felt, satin), sr⁻¹: ρ_d(λ)/π + ρ_sheen(λ) D V (the Charlie sheen,
-    :func:`gonio_cli.brdf_surfaces.charlie_sheen`) + k_spec :func:`ggx_lobe` (α)."""
+    :func:`gonio_cli.brdf_surfaces.charlie_sheen`) + k_spec :func:`torrance_sparrow` (α, 0.04)."""
     return (lambertian(rho_d) + np.asarray(rho_sheen, dtype=float) * _col(charlie_sheen(
-        cos, r_sheen, COS_EPS)) + float(k_spec) * _col(ggx_lobe(cos, alpha)))
+        cos, r_sheen, COS_EPS)) + float(k_spec) * torrance_sparrow(cos, alpha, FIBRE_F0))
 
 
 def tabulated_colour(cos: Cosines, alpha, rho_d, colour_table, theta_h_nodes_deg,

@@ -124,12 +124,12 @@ def _goniochromatic_two_lobe(p):
 
 def _sheen(p):
     """The body, the Charlie sheen (ρ_sheen D V, grazing rather than about the mirror, but
-    integrated over the whole hemisphere all the same) and the achromatic GGX lobe."""
+    integrated over the whole hemisphere all the same) and the achromatic specular lobe."""
     zero = np.zeros_like(np.asarray(p["rho_d"], dtype=float))
     fibres = Component("sheen", GLOSSY, lambda cos: brdf.sheen(
         cos, p["r_sheen"], p["alpha"], 0.0, zero, p["rho_sheen"]))
-    spec = Component("specular", GLOSSY, lambda cos: float(p["k_spec"]) * brdf.ggx_lobe(
-        cos, p["alpha"])[..., None] * np.ones_like(zero))
+    spec = Component("specular", GLOSSY, lambda cos: float(p["k_spec"]) * brdf.torrance_sparrow(
+        cos, p["alpha"], brdf.FIBRE_F0) * np.ones_like(zero))
     return [_diffuse(p["rho_d"]), fibres, spec]
 
 

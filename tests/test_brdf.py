@@ -110,12 +110,11 @@ def hand_model(name, ti, to, p):
         return p["kd"] / np.pi + hand_schlick(td, p["f0"]) * lobes * g / (np.pi * ci * co)
     if name == "sheen":
         # Charlie D (2 + 1/r) sin^(1/r) θh / 2π and V = 1/(4 (cos θi + cos θo − cos θi cos θo))
-        # of glTF KHR_materials_sheen, plus k_spec × the GGX Torrance–Sparrow lobe without F
+        # of glTF KHR_materials_sheen, plus k_spec × Torrance–Sparrow with Schlick F0 0.04
         d = (2 + 1 / p["r_sheen"]) * np.abs(np.sin(th)) ** (1 / p["r_sheen"]) / (2 * np.pi)
         v = 1 / (4 * (ci + co - ci * co))
-        g = hand_smith_g1(ti, p["alpha"])[:, None] * hand_smith_g1(to, p["alpha"])[:, None]
-        return (p["rho_d"] / np.pi + p["rho_sheen"] * d * v
-                + p["k_spec"] * g * hand_ggx(th, p["alpha"]) / (4.0 * ci * co))
+        spec = hand_model("torrance-sparrow", ti, to, {"alpha": p["alpha"], "f0": 0.04})
+        return p["rho_d"] / np.pi + p["rho_sheen"] * d * v + p["k_spec"] * spec
     if name == "tabulated-colour":
         # the table holds a bilinear function of (θh, θd) in degrees, which bilinear
         # interpolation between the nodes reproduces exactly

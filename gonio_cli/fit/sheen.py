@@ -1,10 +1,11 @@
-"""Fit of ``sheen``, a fabric: f = ρ_d(λ)/π + ρ_sheen(λ) D V + k_spec GGX(α)
+"""Fit of ``sheen``, a fabric: f = ρ_d(λ)/π + ρ_sheen(λ) D V + k_spec TS(α)
 (:func:`gonio_cli.brdf.sheen`; D V the Charlie sheen of Estevez & Kulla 2017 as glTF
 ``KHR_materials_sheen`` defines it, :mod:`gonio_cli.brdf_surfaces`).
 
 For fixed sheen roughness r and specular α the model is linear in ρ_d(λ), ρ_sheen(λ) and
-the one achromatic k_spec: three known columns (N,) a = 1/π, b = D V (r), e = GGX lobe (α)
-(:func:`gonio_cli.brdf.ggx_lobe`). k_spec is shared by the wavelengths, so it is found
+the one achromatic k_spec: three known columns (N,) a = 1/π, b = D V (r), e = the
+Torrance–Sparrow lobe (α) with F0 0.04 (:func:`gonio_cli.brdf.torrance_sparrow`,
+:data:`gonio_cli.brdf_surfaces.FIBRE_F0`). k_spec is shared by the wavelengths, so it is found
 first from the joint normal equations with the per-wavelength pairs eliminated (the Schur
 complement: k = Σ_λ (q_λ − c_λᵀ A_λ⁻¹ p_λ) / Σ_λ (s_λ − c_λᵀ A_λ⁻¹ c_λ), A_λ the 2 × 2
 normal matrix of (a, b), c_λ their products with e, p_λ, q_λ with the data), then
@@ -21,8 +22,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..brdf import COS_EPS, evaluate, ggx_lobe
-from ..brdf_surfaces import charlie_sheen
+from ..brdf import COS_EPS, evaluate, torrance_sparrow
+from ..brdf_surfaces import FIBRE_F0, charlie_sheen
 from ..errors import FitError, InputError
 from .alpha import choose_optimizer
 from .common import ALPHA_MAX, ALPHA_MIN, BestPoint, FitData
@@ -78,7 +79,7 @@ class SheenProblem:
         """(params, cost (L,)) for fixed r and α."""
         w, y, a = self.w, self.data.y, self.a
         b = charlie_sheen(self.data.cos, r, COS_EPS)
-        e = ggx_lobe(self.data.cos, alpha)
+        e = torrance_sparrow(self.data.cos, alpha, FIBRE_F0)[:, 0]
         wb, we = w * b[:, None], w * e[:, None]
         s_ab, s_bb, s_ae, s_be, s_ee = a @ wb, b @ wb, a @ we, b @ we, e @ we
         s_bt, s_et = b @ (w * y), e @ (w * y)

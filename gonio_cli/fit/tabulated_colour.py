@@ -18,7 +18,8 @@ the weight relative to the data's own scale (the same κ means the same smoothne
 α, any units). κ is chosen by generalised cross-validation (Golub, Heath & Wahba 1979):
 among :data:`SMOOTHNESS_GRID`, the one minimising Σ_λ n_λ RSS_λ / (n_λ − tr H_λ)², tr H_λ =
 tr((A + μR)⁻¹ A); it is chosen at the α of a first search with κ = :data:`SMOOTHNESS_START`
-and α searched again with it. α is a 1-D search (:func:`~.alpha.minimize_log_alpha`) of
+and α searched again with it (a fold of ``--model auto`` takes the κ of the fit to all the
+data: :data:`SMOOTHNESS_NEAR`). α is a 1-D search (:func:`~.alpha.minimize_log_alpha`) of
 the penalised profile cost. Nodes where the solve gives T < 0 are set to 0 (f ≥ 0), and
 ρ_d solved again.
 """
@@ -61,6 +62,12 @@ TINY = 1e-12
 
 #: Scan points of the α search (every 33 % in α, as :mod:`.layered`).
 ALPHA_POINTS = 25
+
+#: The key of :attr:`FitOptions.stages <.results.FitOptions>` under which the first fit of
+#: a run (``--model auto``: the fit to all the data) leaves its κ for the folds, which
+#: search α near that fit's (:mod:`.warm`) with the same smoothness instead of choosing
+#: it again.
+SMOOTHNESS_NEAR = "tabulated-colour: smoothness"
 
 #: ``--optimizer``: the refinement of the 1-D α search.
 OPTIMIZERS = {"nlopt-bobyqa": minimize_log_alpha, "nlopt-lbfgs": minimize_log_alpha}
@@ -204,10 +211,16 @@ def fit(data: FitData, options: FitOptions) -> ModelFit:
         raise FitError("no wavelength has a positive reading of positive weight",
                        fix="check the measurement (all values zero or negative?)")
     warm = near(options, "alpha")
+    memo = options.stages if options.stages is not None else {}
     success, message, n = True, "alpha fixed", 0
     if options.alpha is not None:
         alpha = float(options.alpha)
         kappa, score = problem.gcv(alpha)
+    elif warm is not None and SMOOTHNESS_NEAR in memo:
+        # a fold of auto: the smoothness of the fit to all the data, α searched near its α
+        kappa, score = memo[SMOOTHNESS_NEAR], float("nan")
+        found = _alpha(problem, kappa, optimizer, search, warm["alpha"])
+        alpha, success, message, n = found.alpha, found.success, found.message, found.evaluations
     else:
         first = _alpha(problem, SMOOTHNESS_START, optimizer, search,
                        warm["alpha"] if warm else None)
@@ -215,6 +228,7 @@ def fit(data: FitData, options: FitOptions) -> ModelFit:
         found = _alpha(problem, kappa, optimizer, search, first.alpha)
         alpha, success, message = found.alpha, found.success, found.message
         n = first.evaluations + found.evaluations
+    memo.setdefault(SMOOTHNESS_NEAR, kappa)
     params, clipped = problem.params(alpha, kappa)
     failed = [float(x) for x in data.wavelength_nm[~problem.signal]]
     if failed:
