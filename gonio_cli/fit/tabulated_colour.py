@@ -236,7 +236,10 @@ def fit(data: FitData, options: FitOptions) -> ModelFit:
                    f"rho_d = T = 0 there. " + message)
     status = "success" if success and not failed else "failed"
     f = evaluate(MODEL, data.cos, params)
-    extra = {"smoothness": kappa, "gcv": score, "table_entries_clipped": clipped}
+    # no GCV score: a fold of auto (the full fit's κ), or fewer configurations than the
+    # table's effective parameters (κ stays SMOOTHNESS_START)
+    extra = {"smoothness": kappa, "gcv": score if np.isfinite(score) else None,
+             "table_entries_clipped": clipped}
     report = FitReport(METHOD, status, message, params, error_figures(data, f), optimizer,
                        n, sw.lap(), failed, extra)
     return ModelFit(MODEL, data.wavelength_nm, {METHOD: report}, METHOD, data.excluded)
