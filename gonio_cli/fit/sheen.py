@@ -10,7 +10,7 @@ first from the joint normal equations with the per-wavelength pairs eliminated (
 complement: k = Σ_λ (q_λ − c_λᵀ A_λ⁻¹ p_λ) / Σ_λ (s_λ − c_λᵀ A_λ⁻¹ c_λ), A_λ the 2 × 2
 normal matrix of (a, b), c_λ their products with e, p_λ, q_λ with the data), then
 (ρ_d, ρ_sheen) ≥ 0 per wavelength in closed form (:func:`~.separable.nnls2`) on the data
-less k e, and k again from those, twice (the constraints may bind). What remains is the
+less k e and k again from those, :data:`ROUNDS` times (the constraints may bind). What remains is the
 profile cost over (log r, log α): a look at :data:`R_STARTS` × :data:`ALPHA_STARTS`
 then nlopt BOBYQA (each evaluation a few sums over N × L: milliseconds).
 
@@ -47,9 +47,9 @@ ALPHA_STARTS = (0.03, 0.1, 0.3)
 #: Evaluations allowed to the 2-D BOBYQA refinement of (log r, log α).
 MAXEVAL = 200
 
-#: Rounds of k_spec and (ρ_d, ρ_sheen) in turn after the joint solve (the constraints
+#: Rounds of (ρ_d, ρ_sheen) and k_spec in turn after the joint solve (the constraints
 #: ρ ≥ 0, k ≥ 0 may bind; without them the joint solve is already exact).
-ROUNDS = 2
+ROUNDS = 3
 
 #: ``--optimizer``: the (log r, log α) search is BOBYQA.
 OPTIMIZERS = {"nlopt-bobyqa": None}
@@ -93,7 +93,7 @@ class SheenProblem:
         num = np.where(ok, s_et - quad(s_ae, s_be, self.s_at, s_bt), 0.0)
         den = np.where(ok, s_ee - quad(s_ae, s_be, s_ae, s_be), 0.0)
         k = max(float(np.sum(num)) / float(np.sum(den)), 0.0) if np.sum(den) > 0 else 0.0
-        for _ in range(ROUNDS + 1):
+        for _ in range(ROUNDS):
             rho_d, rho_s, cost = nnls2(self.s_aa, s_ab, s_bb, self.s_at - k * s_ae,
                                        s_bt - k * s_be,
                                        self.s_tt - 2 * k * s_et + k * k * s_ee)
