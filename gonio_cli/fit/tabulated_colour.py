@@ -55,9 +55,9 @@ SMOOTHNESS_GRID = (1e-5, 1e-4, 1e-3, 1e-2, 1e-1, 1.0)
 #: the data do not reach a node and the penalty's bilinear null space leaves it free.
 RIDGE = 1e-9
 
-#: Weights and lobe values below this (relative to the lobe's peak) are set to 0: they
-#: change no sum a float64 can hold, and their products are subnormal numbers, which make
-#: the matrix products 20-50× slower (measured at α = 0.001).
+#: Interpolation weights below this (round-off of a node's own angle) and lobe values below
+#: this times the lobe's peak are set to 0: they change no sum of the normal equations
+#: beyond round-off, and products of such values can underflow into subnormal numbers.
 TINY = 1e-12
 
 #: Scan points of the α search (every 33 % in α, as :mod:`.layered`).
@@ -128,7 +128,7 @@ class TableProblem:
     def normal(self, alpha: float):
         """(A (L, K, K), b (L, K), g (N,)) of the design at α: XᵀW_λX and XᵀW_λy."""
         g = ggx_lobe(self.data.cos, alpha)
-        g = np.where(g < TINY * np.max(g), 0.0, g)   # products of these are subnormal: slow
+        g = np.where(g < TINY * np.max(g), 0.0, g)
         n_l, k = self.w.shape[1], 1 + self.hats.shape[1]
         A = np.zeros((n_l, k, k))
         A[:, 0, 0] = self.s_aa
