@@ -22,6 +22,7 @@ from typing import Callable
 import numpy as np
 
 from .errors import InputError
+from .brdf_surfaces import FIBRE_F0, TABLE_PARAMS, charlie_sheen, table_colour
 from .geometry import Cosines, cos_half_sum, refracted_cosines
 
 #: Exponent ceiling for exp(): exp(700) ≈ 1e304 is still finite in float64, so a huge c
@@ -88,7 +89,6 @@ def log_ggx_d(cos_theta_h, alpha) -> np.ndarray:
     sin2 = (1.0 - ch) * (1.0 + ch)  # exact near cos θh = 1, unlike 1 − cos²
     denom = a2 * ch * ch + sin2
     return np.log(a2) - np.log(np.pi) - 2.0 * np.log(denom)
-
 
 
 def goniochromatic_exponent_arg(cos_theta_i, cos_theta_o) -> np.ndarray:
@@ -184,7 +184,6 @@ def smith_g1_ggx(cos_theta, alpha) -> np.ndarray:
     return 2.0 * ct / np.maximum(denom, COS_EPS)
 
 
-
 def smith_g_ggx(cos: Cosines, alpha) -> np.ndarray:
     """Separable Smith shadowing-masking G = G1(ωi) G1(ωo) for GGX."""
     return smith_g1_ggx(cos.cos_theta_i, alpha) * smith_g1_ggx(cos.cos_theta_o, alpha)
@@ -233,7 +232,6 @@ def beckmann_d(cos_theta_h, m) -> np.ndarray:
     m2 = np.asarray(m, dtype=float) ** 2
     tan2 = (1.0 - ch * ch) / (ch * ch)
     return np.exp(-tan2 / m2) / (m2 * ch ** 4)
-
 
 
 def vgroove_g(cos: Cosines) -> np.ndarray:
@@ -421,6 +419,20 @@ def goniochromatic_two_lobe(cos: Cosines, alpha, rho, c, rho_d, alpha_2, rho_2) 
             + np.asarray(rho_2, dtype=float) * _col(ggx_lobe(cos, alpha_2)))
 
 
+def sheen(cos: Cosines, r_sheen, alpha, k_spec, rho_d, rho_sheen) -> np.ndarray:
+    """Fabric (felt, satin), sr⁻¹: ρ_d(λ)/π + ρ_sheen(λ) D V (the Charlie sheen,
+    :func:`gonio_cli.brdf_surfaces.charlie_sheen`) + k_spec :func:`torrance_sparrow` (α, 0.04)."""
+    return (lambertian(rho_d) + np.asarray(rho_sheen, dtype=float) * _col(charlie_sheen(
+        cos, r_sheen, COS_EPS)) + float(k_spec) * torrance_sparrow(cos, alpha, FIBRE_F0))
+
+
+def tabulated_colour(cos: Cosines, alpha, rho_d, colour_table, theta_h_nodes_deg,
+                     theta_d_nodes_deg) -> np.ndarray:
+    """ρ_d/π + T(θh, θd, λ) :func:`ggx_lobe` (α) in sr⁻¹, T of :mod:`.brdf_surfaces`."""
+    t = table_colour(cos, colour_table, theta_h_nodes_deg, theta_d_nodes_deg)
+    return lambertian(rho_d) + t * _col(ggx_lobe(cos, alpha))
+
+
 # ----------------------------------------------------------------------------- registry --
 
 @dataclass(frozen=True)
@@ -428,14 +440,14 @@ class Model:
     """A reflectance model: its name, parameters and evaluation.
 
     ``scalar_params`` are wavelength independent (e.g. ``alpha``), ``spectral_params`` are
-    (n_λ,) arrays; ``evaluate(cos, **params)`` returns f in sr⁻¹, shape (..., n_λ).
-    """
-
+    (n_λ,) arrays, ``table_params`` a table (n_h, n_d, n_λ) and its nodes; ``evaluate(cos,
+    **params)`` returns f in sr⁻¹, shape (..., n_λ)."""
     name: str
     scalar_params: tuple[str, ...]
     spectral_params: tuple[str, ...]
     evaluate: Callable[..., np.ndarray]
     citation: str
+    table_params: tuple[str, ...] = ()
 
 
 MODELS: dict[str, Model] = {
@@ -470,6 +482,11 @@ MODELS: dict[str, Model] = {
     "cook-torrance-3": Model("cook-torrance-3", ("ks_1", "m_1", "ks_2", "m_2", "ks_3", "m_3"),
                              ("kd", "f0"), cook_torrance_3,
                              "seed 004 eqs. 9-12, three Beckmann lobes"),
+    "sheen": Model("sheen", ("r_sheen", "alpha", "k_spec"), ("rho_d", "rho_sheen"), sheen,
+                   "Lambertian + Charlie sheen (Estevez & Kulla 2017; KHR_materials_sheen) + GGX"),
+    "tabulated-colour": Model("tabulated-colour", ("alpha",), ("rho_d",), tabulated_colour,
+                              "Lambertian + GGX lobe x (theta_h, theta_d) table (AxF CPA2)",
+                              TABLE_PARAMS),
 }
 
 
@@ -478,5 +495,6 @@ def evaluate(model: str, cos: Cosines, params: dict) -> np.ndarray:
     if model not in MODELS:
         raise InputError(f"unknown model {model!r}", fix=f"use one of {', '.join(MODELS)}")
     spec = MODELS[model]
-    kwargs = {k: params[k] for k in spec.scalar_params + spec.spectral_params}
+    kwargs = {k: params[k] for k in spec.scalar_params + spec.spectral_params
+              + spec.table_params}
     return spec.evaluate(cos, **kwargs)

@@ -122,6 +122,25 @@ def _goniochromatic_two_lobe(p):
     return [_diffuse(p["rho_d"]), _eq5(p), second]
 
 
+def _sheen(p):
+    """The body, the Charlie sheen (ρ_sheen D V, grazing rather than about the mirror, but
+    integrated over the whole hemisphere all the same) and the achromatic specular lobe."""
+    zero = np.zeros_like(np.asarray(p["rho_d"], dtype=float))
+    fibres = Component("sheen", GLOSSY, lambda cos: brdf.sheen(
+        cos, p["r_sheen"], p["alpha"], 0.0, zero, p["rho_sheen"]))
+    spec = Component("specular", GLOSSY, lambda cos: float(p["k_spec"]) * brdf.torrance_sparrow(
+        cos, p["alpha"], brdf.FIBRE_F0) * np.ones_like(zero))
+    return [_diffuse(p["rho_d"]), fibres, spec]
+
+
+def _tabulated_colour(p):
+    zero = np.zeros_like(np.asarray(p["rho_d"], dtype=float))
+    table = {k: p[k] for k in brdf.MODELS["tabulated-colour"].table_params}
+    lobe = Component("table", GLOSSY, lambda cos: brdf.tabulated_colour(
+        cos, p["alpha"], zero, **table))
+    return [_diffuse(p["rho_d"]), lobe]
+
+
 #: Model name → its lobes (one entry per model of :data:`gonio_cli.brdf.MODELS`).
 COMPONENTS: dict[str, Callable[[dict], list[Component]]] = {
     "goniochromatic": _goniochromatic,
@@ -134,6 +153,8 @@ COMPONENTS: dict[str, Callable[[dict], list[Component]]] = {
     "goniochromatic-two-lobe": _goniochromatic_two_lobe,
     "cook-torrance-2": _cook_torrance_n(2),
     "cook-torrance-3": _cook_torrance_n(3),
+    "sheen": _sheen,
+    "tabulated-colour": _tabulated_colour,
 }
 
 

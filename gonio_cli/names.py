@@ -16,7 +16,7 @@ from .errors import InputError
 FIT_MODEL_NAMES = ("goniochromatic", "goniochromatic-diffuse", "goniochromatic-coat",
                    "goniochromatic-backscatter", "goniochromatic-undercoat",
                    "goniochromatic-two-lobe", "torrance-sparrow", "cook-torrance",
-                   "cook-torrance-2", "cook-torrance-3")
+                   "cook-torrance-2", "cook-torrance-3", "sheen", "tabulated-colour")
 #: The ``--model`` value that chooses among the fitters by held-out error.
 AUTO_MODEL = "auto"
 FIT_MODEL_CHOICES = FIT_MODEL_NAMES + (AUTO_MODEL,)
@@ -37,6 +37,8 @@ OPTIMIZERS_BY_MODEL = {
     "cook-torrance": ("golden-section", "scipy-least-squares"),
     "cook-torrance-2": ("nlopt-bobyqa",),
     "cook-torrance-3": ("nlopt-bobyqa",),
+    "sheen": ("nlopt-bobyqa",),
+    "tabulated-colour": ("nlopt-bobyqa", "nlopt-lbfgs"),
 }
 #: Every ``--optimizer`` value, in order of first appearance.
 OPTIMIZER_NAMES = tuple(dict.fromkeys(n for v in OPTIMIZERS_BY_MODEL.values() for n in v))

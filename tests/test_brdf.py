@@ -108,10 +108,40 @@ def hand_model(name, ti, to, p):
                     for j in range(1, int(name[-1]) + 1))
         g = hand_vgroove(ti[:, None], to[:, None], th, td)
         return p["kd"] / np.pi + hand_schlick(td, p["f0"]) * lobes * g / (np.pi * ci * co)
+    if name == "sheen":
+        # Charlie D (2 + 1/r) sin^(1/r) θh / 2π and V = 1/(4 (cos θi + cos θo − cos θi cos θo))
+        # of glTF KHR_materials_sheen, plus k_spec × Torrance–Sparrow with Schlick F0 0.04
+        d = (2 + 1 / p["r_sheen"]) * np.abs(np.sin(th)) ** (1 / p["r_sheen"]) / (2 * np.pi)
+        v = 1 / (4 * (ci + co - ci * co))
+        spec = hand_model("torrance-sparrow", ti, to, {"alpha": p["alpha"], "f0": 0.04})
+        return p["rho_d"] / np.pi + p["rho_sheen"] * d * v + p["k_spec"] * spec
+    if name == "tabulated-colour":
+        # the table holds a bilinear function of (θh, θd) in degrees, which bilinear
+        # interpolation between the nodes reproduces exactly
+        g = hand_smith_g1(ti, p["alpha"])[:, None] * hand_smith_g1(to, p["alpha"])[:, None]
+        return (p["rho_d"] / np.pi + bilinear_colour(np.degrees(np.abs(th)),
+                                                     np.degrees(np.abs(td)), p["_coef"])
+                * g * hand_ggx(th, p["alpha"]) / (4.0 * ci * co))
     assert name == "cook-torrance"
     g = hand_vgroove(ti[:, None], to[:, None], th, td)
     return p["kd"] / np.pi + (p["ks"] * hand_schlick(td, p["f0"]) * hand_beckmann(th, p["m"])
                               * g / (np.pi * ci * co))
+
+
+def bilinear_colour(th_deg, td_deg, coef):
+    """a + b θh + c θd + d θh θd (..., n_λ), each coefficient (n_λ,)."""
+    a, b, c, d = coef
+    return a + b * th_deg + c * td_deg + d * th_deg * td_deg
+
+
+def table_params(rng):
+    """``tabulated-colour`` parameters whose table is bilinear in (θh, θd) (degrees)."""
+    nh, nd = np.array([0.0, 5.0, 15.0, 40.0, 90.0]), np.linspace(0.0, 90.0, 6)
+    coef = (rng.uniform(0.2, 1.0, N_LAMBDA), rng.uniform(0.0, 0.005, N_LAMBDA),
+            rng.uniform(-0.002, 0.002, N_LAMBDA), rng.uniform(0.0, 1e-4, N_LAMBDA))
+    table = bilinear_colour(nh[:, None, None], nd[None, :, None], coef)
+    return {"alpha": 0.2, "rho_d": rng.uniform(0.05, 0.8, N_LAMBDA), "colour_table": table,
+            "theta_h_nodes_deg": nh, "theta_d_nodes_deg": nd, "_coef": coef}
 
 
 def model_params(name, rng):
@@ -141,6 +171,9 @@ def model_params(name, rng):
         "cook-torrance-3": lambda: {"kd": u(0.0, 0.5), "f0": u(0.02, 1.0), "ks_1": 0.1,
                                     "m_1": 0.05, "ks_2": 0.4, "m_2": 0.2, "ks_3": 0.3,
                                     "m_3": 0.5},
+        "sheen": lambda: {"r_sheen": 0.4, "alpha": 0.15, "k_spec": 0.3,
+                          "rho_d": u(0.05, 0.8), "rho_sheen": u(0.0, 1.0)},
+        "tabulated-colour": lambda: table_params(rng),
     }[name]()
 
 

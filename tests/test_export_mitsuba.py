@@ -177,7 +177,7 @@ def _hemisphere(rng, n):
     return np.stack([s * np.cos(phi), s * np.sin(phi), z], -1)
 
 
-@pytest.mark.parametrize("model", list(brdf.MODELS))
+@pytest.mark.parametrize("model", list(port.MODELS))
 def test_drjit_port_equals_numpy_models(model):
     """Every model's port against its numpy definition, 400 direction pairs × 5 spectral
     samples, in float32 (Dr.Jit's ``ArrayXf``). Tolerance: relative 3e-5 of the value
@@ -197,7 +197,7 @@ def test_drjit_port_equals_numpy_models(model):
     np.testing.assert_allclose(got, truth, rtol=3e-5, atol=1e-6 * np.abs(truth).max())
 
 
-@pytest.mark.parametrize("model", list(brdf.MODELS))
+@pytest.mark.parametrize("model", list(port.MODELS))
 def test_drjit_port_at_grazing_and_mirror_is_finite(model):
     """Cosines 0, 1e-9 (below COS_EPS), 1e-3 and 1 in every combination, with the
     smallest roughness a fit gives (1e-3) and the largest c: finite and ≥ 0, and equal to
@@ -216,6 +216,14 @@ def test_drjit_port_at_grazing_and_mirror_is_finite(model):
         k: (float(v[0]) if np.ndim(v) else v) for k, v in params.items()}))
     assert np.all(np.isfinite(got)) and np.all(got >= 0)
     np.testing.assert_allclose(got, truth, rtol=1e-4, atol=1e-6 * truth.max())
+
+
+@pytest.mark.parametrize("model", sorted(set(brdf.MODELS) - set(port.MODELS)))
+def test_a_model_without_a_port_is_refused_in_one_line(model):
+    """A model of brdf.MODELS that the Dr.Jit port lacks (sheen, tabulated-colour) is
+    refused before anything is written, naming the exportable ones."""
+    with pytest.raises(InputError, match=f"model '{model}' cannot be exported to Mitsuba"):
+        check_model(model, "m.json")
 
 
 def test_exported_port_is_the_same_file(run_gonio, tmp_path):
@@ -370,7 +378,7 @@ def _quadrature_albedo(bsdf, si, n=64):
     return weight @ _eval(bsdf, si, wo)
 
 
-@pytest.mark.parametrize("model", list(brdf.MODELS))
+@pytest.mark.parametrize("model", list(port.MODELS))
 def test_white_furnace_of_the_plugins_sampling(run_gonio, tmp_path, llvm, model):
     """At θ = 0°, 40°, 70°: the mean of sample()'s weights over n stratified samples
     (4000 in scalar_rgb; 200 000 in llvm_ad_spectral at four wavelengths) equals the

@@ -17,6 +17,10 @@ The registry :data:`FITTERS` maps a model name (``--model``) to its fitter; each
 - ``cook-torrance``: seed 004 eqs. 9–12 per wavelength; :mod:`.cook_torrance`
 - ``cook-torrance-2``, ``cook-torrance-3``: seed 004 eq. 11 with two or three Beckmann lobes
   (a clear coat and flake lobes), kd(λ), F0(λ); :mod:`.cook_torrance_lobes`
+- ``sheen``: a fabric, ρ_d(λ), the Charlie sheen ρ_sheen(λ) (r) and an achromatic GGX lobe
+  k_spec (α); :mod:`.sheen`
+- ``tabulated-colour``: ρ_d(λ) and a GGX lobe (α) coloured by a table T(θh, θd, λ);
+  :mod:`.tabulated_colour`
 
 ``auto`` (:data:`AUTO`) fits the candidates and keeps the best on held-out angles
 (:mod:`.auto`); every fit is judged by :mod:`.verdict`. A multi-angle instrument's lamps
@@ -34,7 +38,8 @@ from ..brdf import MODELS, evaluate
 from ..errors import FitError
 from ..names import AUTO_MODEL, FIT_MODEL_CHOICES, OPTIMIZER_NAMES, pick
 from ..schemas import Material
-from . import auto, cook_torrance, cook_torrance_lobes, goniochromatic, layered, torrance_sparrow
+from . import (auto, cook_torrance, cook_torrance_lobes, goniochromatic, layered, sheen,
+               tabulated_colour, torrance_sparrow)
 from .alpha import choose_optimizer
 from .common import FitData
 from .gains import NOTE_RATIO
@@ -52,6 +57,8 @@ FITTERS: dict[str, Callable[[FitData, FitOptions], ModelFit]] = {
     "cook-torrance": cook_torrance.fit,
     "cook-torrance-2": cook_torrance_lobes.fit_2,
     "cook-torrance-3": cook_torrance_lobes.fit_3,
+    "sheen": sheen.fit,
+    "tabulated-colour": tabulated_colour.fit,
 }
 
 #: Each fitter's ``{--optimizer name: callable}``, the first its default; the names are
@@ -67,6 +74,8 @@ OPTIMIZERS_BY_MODEL: dict[str, dict[str, Callable]] = {
     "cook-torrance": cook_torrance.OPTIMIZERS,
     "cook-torrance-2": cook_torrance_lobes.OPTIMIZERS,
     "cook-torrance-3": cook_torrance_lobes.OPTIMIZERS,
+    "sheen": sheen.OPTIMIZERS,
+    "tabulated-colour": tabulated_colour.OPTIMIZERS,
 }
 
 #: The ``--model`` value that chooses among :data:`FITTERS` by held-out error.

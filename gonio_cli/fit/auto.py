@@ -35,7 +35,7 @@ from .verdict import THRESHOLDS, colour_errors, covers_colour, fit_colour_errors
 CANDIDATES = ("goniochromatic", "goniochromatic-diffuse", "torrance-sparrow",
               "cook-torrance", "cook-torrance-2", "cook-torrance-3", "goniochromatic-coat",
               "goniochromatic-undercoat", "goniochromatic-two-lobe",
-              "goniochromatic-backscatter")
+              "goniochromatic-backscatter", "sheen", "tabulated-colour")
 
 
 #: Held-out colour errors closer than this (CIEDE2000) are a tie, kept by the earlier,
@@ -179,10 +179,12 @@ TOGETHER = (("goniochromatic-coat", "goniochromatic-backscatter"),
 
 #: Rough cost of each candidate's fits, relative (measured on an MA-T12 matte pigment and
 #: an RGL wrap, all folds: the layered models with a coat search 1.8-3.5 s each, the
-#: two-lobe model's 2-D search 1.9-2.2 s, the others 0.02-0.6 s; unlisted: 0.5): the
-#: costliest go first, so the processes end together.
+#: two-lobe model's 2-D search 1.9-2.2 s, the others 0.02-0.6 s; unlisted: 0.5; on RGL
+#: cardboard, CPU s with one BLAS thread: the coat 2.4, tabulated-colour 1.4, sheen 0.2):
+#: the costliest go first, so the processes end together.
 COST = {"goniochromatic-coat": 3.0, "goniochromatic-backscatter": 2.5,
-        "goniochromatic-undercoat": 3.0, "goniochromatic-two-lobe": 2.0}
+        "goniochromatic-undercoat": 3.0, "goniochromatic-two-lobe": 2.0,
+        "tabulated-colour": 1.8}
 
 
 def _groups(candidates) -> list[tuple[str, ...]]:

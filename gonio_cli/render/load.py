@@ -100,7 +100,8 @@ def on_grid(material, grid_nm: np.ndarray, path: Path):
     log.warn(f"{path}: material resampled from {material.wavelength_nm.size} wavelengths "
              f"onto the render's grid ({grid_nm.size} samples)")
     params = dict(material.params)
-    for name in MODELS[material.model].spectral_params:
+    spec = MODELS[material.model]
+    for name in spec.spectral_params + spec.table_params[:1]:   # a table's last axis is λ
         params[name] = resample(material.wavelength_nm, params[name], grid_nm)
     return type(material)(material.model, np.asarray(grid_nm, float), params,
                           material.status, material.fit)

@@ -72,6 +72,7 @@ class Material:
                     "wavelength_nm": required(WAVELENGTHS),
                     **{k: required(PARAM_RANGES[k]) for k in m.scalar_params},
                     **{k: required(Array(1, PARAM_RANGES[k])) for k in m.spectral_params},
+                    **{k: required(TABLE_SPECS[k]) for k in m.table_params},
                     "fit": optional(Record((("intervals", intervals_spec(model)),)))})
 
     @classmethod
@@ -91,6 +92,7 @@ class Material:
             if params[name].shape != wl.shape:
                 raise ArtifactError(f"field {name!r} has {params[name].size} values for "
                                     f"{wl.size} wavelengths", path=path, fix=cls.FIX)
+        params.update(_table(f, spec.table_params, wl.size, path, cls.FIX))
         status = f.get("status", cls.STATUSES[version][0])
         return cls(model, wl, params, status, dict(f.get("fit") or {}))
 
@@ -112,6 +114,8 @@ PARAM_RANGES: dict[str, Number] = {
                                  "k_coat")},
     "c": Number(-C_MAX, C_MAX),
     "b0": NON_NEGATIVE, "h": Number(0.0, MAX_MAGNITUDE, lo_open=True),
+    # sheen: the Charlie roughness r in (0, 1] (glTF's sheenRoughness²), its colour, a scale
+    "r_sheen": Number(0.0, 1.0, lo_open=True), "rho_sheen": NON_NEGATIVE, "k_spec": NON_NEGATIVE,
 }
 
 
@@ -147,6 +151,28 @@ def intervals_spec(model: str) -> Obj:
                                     "scalar": required(nested),
                                     "cross": required(ListOf(nested)),
                                     "spectral": required(ListOf(nested))}))})
+
+
+#: The table parameters of a model (:attr:`gonio_cli.brdf.Model.table_params`,
+#: ``tabulated-colour``): the table T (n_h, n_d, n_λ) ≥ 0 and its node angles, increasing,
+#: in [0, 90]°.
+TABLE_SPECS = {"colour_table": Array(3, NON_NEGATIVE),
+               **{k: Array(1, Number(0.0, 90.0), increasing=True)
+                  for k in ("theta_h_nodes_deg", "theta_d_nodes_deg")}}
+
+
+def _table(f: dict, names: tuple, n_wavelengths: int, path, fix: str) -> dict[str, Any]:
+    """The validated table parameters ``names`` of ``f``, the table's shape checked
+    against its nodes and the wavelengths (a table of another shape is one error)."""
+    if not names:
+        return {}
+    table, nh, nd = (f[k] for k in names)
+    want = (nh.size, nd.size, n_wavelengths)
+    if table.shape != want:
+        raise ArtifactError(f"field {names[0]!r} has shape {'x'.join(map(str, table.shape))}"
+                            f", not {'x'.join(map(str, want))} ({names[1]} x {names[2]} x "
+                            f"wavelength_nm)", path=path, fix=fix)
+    return {k: f[k] for k in names}
 
 
 def read_material(path: str | os.PathLike) -> Material:
