@@ -257,7 +257,7 @@ def test_every_model_gets_finite_intervals_in_range_that_the_material_schema_rea
      "alpha 0.18 (poorly determined: 0.002-0.3)"),
     ({"low": 0.001, "high": 1.0, "transform": "logit"}, "alpha 0.18 (not determined by the data)"),
     ({"low": 0.18, "high": 0.2, "transform": "logit", "one_sided_at": [0]},
-     "alpha 0.18 (at its bound, <= 0.2)"),
+     "alpha 0.18 (at its lower bound; 95 % <= 0.2)"),
 ])
 def test_a_parameter_on_the_verdict_line_reads_as_its_interval_says(entry, text):
     """Symmetric within 20 %: ± the half-width to its first significant digit; else the

@@ -419,8 +419,10 @@ def _blocks(cov, layout: Layout, gains, table=None) -> dict[str, Any]:
 
 def half_width_text(name: str, value: float, entry: dict) -> str:
     """"alpha 0.180 ± 0.004" (symmetric to 20 %), "alpha 0.18 (0.12-0.27)" otherwise; a
-    one-sided interval, one spanning more than :data:`POORLY_DETERMINED_RATIO`, and one
-    that reaches an end of the range inside it (undetermined) say so."""
+    one-sided interval ("r_sheen 1 (at its upper bound; 95 % >= 0.57)", its far end; "not
+    determined below it" where that reaches the range's other end), one spanning more than
+    :data:`POORLY_DETERMINED_RATIO`, and one that reaches an end of the range inside it
+    (undetermined) say so."""
     low, high = float(entry["low"]), float(entry["high"])
     lo, hi = bounds_of(name)
     edge = np.finfo(float).tiny
@@ -428,8 +430,13 @@ def half_width_text(name: str, value: float, entry: dict) -> str:
             low <= max(lo, 0.0) + edge or high >= hi)):
         return f"{name} {value:.3g} (not determined by the data)"
     if entry.get("one_sided_at"):
-        return f"{name} {value:.3g} (at its bound, <= {high:.3g})" if low >= value else \
-            f"{name} {value:.3g} (at its bound, >= {low:.3g})"
+        upper = low < value if (low < value or high > value) else value >= hi
+        far = low if upper else high
+        bound, side = ("upper", "below") if upper else ("lower", "above")
+        if far <= max(lo, 0.0) + edge or far >= hi:        # it reaches the other end
+            return f"{name} {value:.3g} (at its {bound} bound; not determined {side} it)"
+        return (f"{name} {value:.3g} (at its {bound} bound; {100 * LEVEL:g} % "
+                f"{'>=' if upper else '<='} {far:.2g})")
     if entry.get("transform") in ("log", "logit") and (
             low <= 0 or high > POORLY_DETERMINED_RATIO * low):
         return f"{name} {value:.3g} (poorly determined: {low:.2g}-{high:.2g})"
