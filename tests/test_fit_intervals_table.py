@@ -18,7 +18,7 @@ from gonio_cli.brdf import evaluate
 from gonio_cli.evaluate import colour_band
 from gonio_cli.fit import fit, judge, to_material
 from gonio_cli.fit.common import prepare
-from gonio_cli.fit.run import RunOptions, fit_intervals, run
+from gonio_cli.fit.run import fit_intervals
 from gonio_cli.fit import uncertainty, uncertainty_table
 from gonio_cli.fit.tabulated_colour import THETA_D_NODES_DEG, THETA_H_NODES_DEG
 from gonio_cli.geometry import in_plane_cosines
