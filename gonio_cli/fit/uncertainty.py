@@ -18,7 +18,9 @@ model error included, which on real data exceeds the repeatability.
 stays in range: log for a positive one (ρ, kd, ks, k_coat, h …), logit for one in (0, 1)
 (α, m, F0), none for c. A parameter element at a bound of its range or of the fit's
 search (ρ = 0, α = 10⁻³ …) is linearised on the linear scale, one-sided into the range,
-and its interval is one-sided: [bound, bound + 1.645 σ] (95 % one-sided). An element the
+and its interval is one-sided: [bound, bound + δ], δ where the local model of the cost
+(its slope into the range and its curvature) has risen by 1.645² σ², 1.645 σ where the
+fit does not press against the bound (:func:`_reach`). An element the
 data do not determine (a direction of JᵀJ with no curvature) gets its whole range and is
 named in ``undetermined``: never a NaN.
 
@@ -419,7 +421,7 @@ def _blocks(cov, layout: Layout, gains, table=None) -> dict[str, Any]:
 
 def half_width_text(name: str, value: float, entry: dict) -> str:
     """"alpha 0.180 ± 0.004" (symmetric to 20 %), "alpha 0.18 (0.12-0.27)" otherwise; a
-    one-sided interval ("r_sheen 1 (at its upper bound; 95 % >= 0.57)", its far end; "not
+    one-sided interval ("r_sheen 1 (at its upper bound; 95 % >= 0.62)", its far end; "not
     determined below it" where that reaches the range's other end), one spanning more than
     :data:`POORLY_DETERMINED_RATIO`, and one that reaches an end of the range inside it
     (undetermined) say so."""
