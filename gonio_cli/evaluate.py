@@ -29,7 +29,7 @@ import numpy as np
 from . import log
 from .brdf import MODELS
 from .errors import InputError
-from .fit import uncertainty
+from .fit import uncertainty, uncertainty_draws
 from .fit.gains import SweepGains
 from .fit.plot import plot_fit
 from .fit.verdict import COLOUR_RANGE_NM, colour_errors, covers_colour
@@ -138,7 +138,7 @@ def colour_band(material: Material, measurement: Measurement, f_model: np.ndarra
                 gains=None) -> dict[str, Any]:
     """How far the model can move within the fit's intervals, in colour: per configuration
     the :data:`BAND_PERCENTILE` th percentile of CIEDE2000 between the model drawn from the
-    fit's Gaussian (:func:`gonio_cli.fit.uncertainty.draw`, :data:`BAND_DRAWS` draws) and
+    fit's Gaussian (:func:`gonio_cli.fit.uncertainty_draws.draw`, :data:`BAND_DRAWS` draws) and
     the fitted one ``f_model`` (N, L), with the light-source ``gains`` (and their own
     uncertainty) where eval applies them. A material without intervals (older files, a
     failed fit) has ``available`` false and why."""
@@ -153,7 +153,7 @@ def colour_band(material: Material, measurement: Measurement, f_model: np.ndarra
     if not covers_colour(wl):
         return {"available": False, "why": f"the grid does not cover "
                 f"{COLOUR_RANGE_NM[0]:g}-{COLOUR_RANGE_NM[1]:g} nm (no colour)"}
-    f, log_g = uncertainty.propagate(record, material.model, cosines_of(measurement),
+    f, log_g = uncertainty_draws.propagate(record, material.model, cosines_of(measurement),
                                      material.params, BAND_DRAWS, BAND_SEED)
     if gains is not None:
         g = gains.per_configuration(measurement.theta_i_deg)

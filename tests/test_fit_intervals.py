@@ -99,6 +99,10 @@ def test_the_block_inverse_is_the_dense_inverse_and_spectral_columns_stay_at_the
     for name, spec in MODELS.items():
         params = {p: 0.3 for p in spec.scalar_params}
         params.update({p: np.full(GRID.size, 0.4) for p in spec.spectral_params})
+        if spec.table_params:                  # tabulated-colour's table and its nodes
+            params.update(colour_table=np.full((3, 2, GRID.size), 0.4),
+                          theta_h_nodes_deg=np.array([0.0, 10.0, 90.0]),
+                          theta_d_nodes_deg=np.array([0.0, 90.0]))
         f0 = evaluate(name, cos, params)
         for p in spec.spectral_params:
             moved = dict(params, **{p: params[p] * np.where(np.arange(GRID.size) == 5, 1.1, 1)})
@@ -225,6 +229,7 @@ def test_every_model_gets_finite_intervals_in_range_that_the_material_schema_rea
     the material is written and read back (fit.intervals validated)."""
     from gonio_cli.fit import FITTERS
     from gonio_cli.schemas.material import PARAM_RANGES
+    from gonio_cli.schemas.spec import NON_NEGATIVE
     truth = {**TRUTH, "rho_d": np.full(GRID.size, 0.02)}
     m = synthetic_measurement("goniochromatic-diffuse", truth, TI, TO, grid_nm=GRID,
                               noise=0.02, seed=0)
@@ -238,7 +243,8 @@ def test_every_model_gets_finite_intervals_in_range_that_the_material_schema_rea
             lo, hi = np.atleast_1d(e["low"]), np.atleast_1d(e["high"])
             assert np.all(np.isfinite(lo)) and np.all(np.isfinite(hi)), (name, k)
             assert np.all(lo <= p) and np.all(p <= hi), (name, k)
-            assert not PARAM_RANGES[k].outside(np.r_[lo, hi]).any(), (name, k)
+            ranges = PARAM_RANGES.get(k, NON_NEGATIVE)          # the colour table: T >= 0
+            assert not ranges.outside(np.r_[lo.ravel(), hi.ravel()]).any(), (name, k)
         write_material(tmp_path / f"{name}.json", to_material(result, judge(data, result),
                                                                {"intervals": rec}))
         assert read_material(tmp_path / f"{name}.json").fit["intervals"]["available"]
@@ -251,7 +257,7 @@ def test_every_model_gets_finite_intervals_in_range_that_the_material_schema_rea
      "alpha 0.18 (poorly determined: 0.002-0.3)"),
     ({"low": 0.001, "high": 1.0, "transform": "logit"}, "alpha 0.18 (not determined by the data)"),
     ({"low": 0.18, "high": 0.2, "transform": "logit", "one_sided_at": [0]},
-     "alpha 0.18 (at its bound, <= 0.2)"),
+     "alpha 0.18 (at its lower bound; 95 % <= 0.2)"),
 ])
 def test_a_parameter_on_the_verdict_line_reads_as_its_interval_says(entry, text):
     """Symmetric within 20 %: ± the half-width to its first significant digit; else the

@@ -196,7 +196,8 @@ def fit_intervals(data: FitData, model_fit: ModelFit, gains=None) -> dict[str, A
         return {"level": uncertainty.LEVEL, "method": uncertainty.METHOD, "available": False,
                 "why": "the fit failed"}
     with log.timer() as t:
-        out = uncertainty.estimate(data, model_fit.model, model_fit.params, gains)
+        out = uncertainty.estimate(data, model_fit.model, model_fit.params, gains,
+                                   model_fit.result.extra.get("smoothness"))
     out["time_s"] = t["time_s"]
     return out
 

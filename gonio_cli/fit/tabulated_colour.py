@@ -97,6 +97,23 @@ def second_differences(theta_h_nodes_deg, theta_d_nodes_deg) -> np.ndarray:
     return dh.T @ dh + dd.T @ dd
 
 
+def penalty_weights(A: np.ndarray, kappa: float) -> tuple[np.ndarray, np.ndarray]:
+    """(μ_λ, ridge_λ) (L,) of the normal matrices A (L, K, K) (ρ_d first): the penalty
+    weight κ · mean diag of the table block (module doc) and :data:`RIDGE` · mean diag."""
+    diag = np.einsum("lkk->lk", A)
+    return kappa * np.mean(diag[:, 1:], axis=1), RIDGE * np.mean(diag, axis=1)
+
+
+def penalty(data: FitData, alpha: float, kappa: float):
+    """(μ (L,), R (n_h n_d, n_h n_d), ridge (L,)): what the fit at (α, κ) added to the
+    table block of each wavelength's normal matrix, μ_λ R + ridge_λ I (module doc), for the
+    covariance of the penalised estimator (:mod:`.uncertainty_table`). ``data`` as the
+    fit saw them (divided by the light-source gains where it had them)."""
+    problem = TableProblem(data)
+    mu, ridge = penalty_weights(problem.normal(alpha)[0], kappa)
+    return mu, problem.R[1:, 1:], ridge
+
+
 class TableProblem:
     """The regularised linear problem of one data set for any α (module doc)."""
 
@@ -142,11 +159,9 @@ class TableProblem:
         """(β (L, K), RSS (L,), penalty (L,), tr H (L,) (with ``trace``, else None), g) at
         α with smoothness κ. RSS = yᵀWy − 2βᵀb + βᵀAβ, from the normal equations."""
         A, b, g = self.normal(alpha)
-        diag = np.einsum("lkk->lk", A)
-        mu = kappa * np.mean(diag[:, 1:], axis=1)                          # (L,)
+        mu, ridge = penalty_weights(A, kappa)
         k = A.shape[1]
-        M = A + mu[:, None, None] * self.R + (RIDGE * np.mean(diag, axis=1))[:, None, None] \
-            * np.eye(k)
+        M = A + mu[:, None, None] * self.R + ridge[:, None, None] * np.eye(k)
         M = np.where(self.signal[:, None, None], M, np.eye(k))
         beta = np.linalg.solve(M, np.where(self.signal[:, None], b, 0.0)[..., None])[..., 0]
         rss = np.maximum(self.s_yy - 2 * np.sum(beta * b, axis=1)

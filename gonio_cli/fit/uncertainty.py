@@ -18,7 +18,9 @@ model error included, which on real data exceeds the repeatability.
 stays in range: log for a positive one (ρ, kd, ks, k_coat, h …), logit for one in (0, 1)
 (α, m, F0), none for c. A parameter element at a bound of its range or of the fit's
 search (ρ = 0, α = 10⁻³ …) is linearised on the linear scale, one-sided into the range,
-and its interval is one-sided: [bound, bound + 1.645 σ] (95 % one-sided). An element the
+and its interval is one-sided: [bound, bound + δ], δ where the local model of the cost
+(its slope into the range and its curvature) has risen by 1.645² σ², 1.645 σ where the
+fit does not press against the bound (:func:`_reach`). An element the
 data do not determine (a direction of JᵀJ with no curvature) gets its whole range and is
 named in ``undetermined``: never a NaN.
 
@@ -29,7 +31,8 @@ parameters, whatever the number of wavelengths. JᵀJ is then an arrow matrix (a
 scalar block, block-diagonal k × k per wavelength); the covariance is kept as its scalar
 block, the scalar–spectral blocks and the k × k blocks per wavelength. Spectral elements
 at two wavelengths are independent given the scalars (the precision matrix has no block
-between them), so those blocks are all a draw needs (:func:`draw`, ``gonio eval``'s band).
+between them), so those blocks are all a draw needs (:mod:`.uncertainty_draws`,
+``gonio eval``'s band). The colour table of ``tabulated-colour``: :mod:`.uncertainty_table`.
 """
 
 from __future__ import annotations
@@ -47,6 +50,7 @@ from .cook_torrance_profile import M_MAX, M_MIN
 from .gains import ANGLE_TOL_DEG
 from .layered import K_COAT_MAX
 from .separable import C_LIMIT
+from . import uncertainty_table
 
 #: Confidence level of the intervals, and its two- and one-sided normal quantiles.
 LEVEL = 0.95
@@ -228,14 +232,19 @@ def _pinv_psd(m: np.ndarray):
 
 def _covariance(js: np.ndarray, jl: np.ndarray):
     """(C_ss (s, s), C_sl (s, L, k), C_ll (L, k, k)) of (JᵀJ)⁻¹, the undetermined scalars
-    (s,) and spectral elements (L, k), and the rank. JᵀJ is an arrow matrix (module doc):
-    A = J_sᵀJ_s, B_l = J_sᵀJ_l, D_l = J_lᵀJ_l per wavelength; with the Schur complement
-    S = A − Σ B_l D_l⁻¹ B_lᵀ, C_ss = S⁻¹, C_sl = −S⁻¹ B_l D_l⁻¹ and
+    (s,) and spectral elements (L, k), and the rank (:func:`_covariance_of_blocks`)."""
+    return _covariance_of_blocks(np.einsum("anl,bnl->ab", js, js),
+                                 np.einsum("anl,knl->lak", js, jl),
+                                 np.einsum("knl,jnl->lkj", jl, jl))
+
+
+def _covariance_of_blocks(a: np.ndarray, b: np.ndarray, d: np.ndarray):
+    """:func:`_covariance` of the arrow matrix [[A, B], [Bᵀ, D]] (module doc):
+    A = J_sᵀJ_s, B_l = J_sᵀJ_l (L, s, k), D_l = J_lᵀJ_l (L, k, k) per wavelength; with the
+    Schur complement S = A − Σ B_l D_l⁻¹ B_lᵀ, C_ss = S⁻¹, C_sl = −S⁻¹ B_l D_l⁻¹ and
     C_ll = D_l⁻¹ + D_l⁻¹ B_lᵀ S⁻¹ B_l D_l⁻¹ (block inversion; pseudo-inverses where a
     direction has no curvature)."""
-    a = np.einsum("anl,bnl->ab", js, js)
-    b = np.einsum("anl,knl->lak", js, jl)                  # (L, s, k)
-    d_inv, und_l, rank_l = _pinv_psd(np.einsum("knl,jnl->lkj", jl, jl))
+    d_inv, und_l, rank_l = _pinv_psd(d)
     bd = np.einsum("lak,lkj->laj", b, d_inv)               # B_l D_l⁻¹
     s_inv, und_s, rank_s = _pinv_psd(a - np.einsum("laj,lbj->ab", bd, b))
     c_sl = -np.einsum("ab,lbk->alk", s_inv, bd)
@@ -250,10 +259,24 @@ def _covariance(js: np.ndarray, jl: np.ndarray):
 
 # ------------------------------------------------------------------------- intervals --
 
+def _reach(sd: np.ndarray, grad_in: np.ndarray, sigma2: float) -> np.ndarray:
+    """How far a one-sided interval reaches into the range from its bound: the δ at which
+    the local model of the cost, Σr̂² + g δ + σ² δ²/sd² (g ≥ 0 the cost's slope into the
+    range, sd² the element's variance), has risen by z² σ², z the one-sided 95 % quantile
+    (the likelihood ratio at a boundary, Self & Liang 1987, *J. Am. Stat. Assoc.* 82, 605).
+    z · sd where the slope is 0; shorter where the fit presses the element against its
+    bound, as a profile of the cost would show."""
+    b = np.maximum(np.asarray(grad_in, dtype=float), 0.0) / max(sigma2, TINY)
+    z2 = Z_ONE_SIDED ** 2
+    var = np.where(sd > 0, sd * sd, 1.0)
+    return np.where(sd > 0, 2.0 * z2 / (b + np.sqrt(b * b + 4.0 * z2 / var)), 0.0)
+
+
 def _interval(name: str, p: np.ndarray, side: np.ndarray, sd: np.ndarray,
-              undetermined: np.ndarray):
+              undetermined: np.ndarray, reach: np.ndarray):
     """(low, high) per element (module doc): in the transform inside, one-sided at a
-    bound, the whole range where undetermined."""
+    bound (reaching ``reach`` into the range, :func:`_reach`), the whole range where
+    undetermined."""
     kind = transform_of(name)
     lo, hi = bounds_of(name)
     r = PARAM_RANGES[name]
@@ -261,9 +284,9 @@ def _interval(name: str, p: np.ndarray, side: np.ndarray, sd: np.ndarray,
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         u = to_u(kind, np.where(side == 0, p, 0.5))
         low = np.where(side == 0, from_u(kind, u - Z_TWO_SIDED * sd),
-                       np.where(side < 0, p, p - Z_ONE_SIDED * sd))
+                       np.where(side < 0, p, p - reach))
         high = np.where(side == 0, from_u(kind, u + Z_TWO_SIDED * sd),
-                        np.where(side > 0, p, p + Z_ONE_SIDED * sd))
+                        np.where(side > 0, p, p + reach))
     # an open end of the range (h > 0 …) is approached, never written
     floor = np.nextafter(r.lo, np.inf) if r.lo_open else r.lo
     low = np.clip(np.where(undetermined, lo, low), floor, top)
@@ -276,11 +299,21 @@ def _as_json(x, scalar: bool):
     return float(x[0]) if scalar else [float(v) for v in x]
 
 
-def estimate(data: FitData, model: str, params: dict, gains=None) -> dict[str, Any]:
+def _entry(name: str, low, high, side, undetermined, scalar: bool) -> dict[str, Any]:
+    return {"low": _as_json(low, scalar), "high": _as_json(high, scalar),
+            "transform": transform_of(name),
+            "one_sided_at": [int(i) for i in np.flatnonzero(side)],
+            "undetermined_at": [int(i) for i in np.flatnonzero(undetermined)]}
+
+
+def estimate(data: FitData, model: str, params: dict, gains=None,
+             smoothness: float | None = None) -> dict[str, Any]:
     """The 95 % intervals of every parameter of a fit (module doc), as the material's
-    ``fit.intervals``: ``available`` False (and ``why``) where the data cannot give them."""
+    ``fit.intervals``: ``available`` False (and ``why``) where the data cannot give them.
+    ``smoothness``: the κ of a ``tabulated-colour`` fit (its report's ``smoothness``);
+    with it the table's entries are parameters under the fit's own penalty
+    (:mod:`.uncertainty_table`), without it the table is taken as known."""
     spec = MODELS[model]
-    n_l = data.wavelength_nm.size
     g_rows = (gains.per_configuration(data.theta_i_deg) if gains is not None
               else np.ones(data.n_configurations))
     used = (data.w > 0) & (data.positive if data.residuals == "log" else True)
@@ -289,41 +322,53 @@ def estimate(data: FitData, model: str, params: dict, gains=None) -> dict[str, A
     r0 = _residuals(data, f, g_rows, used)
     js, jl = jacobian(model, data.cos, params, sides,
                       lambda f_moved: _residuals(data, f_moved, g_rows, used))
+    grads = (2 * np.einsum("anl,nl->a", js, r0), 2 * np.einsum("knl,nl->lk", jl, r0))
     n_gains = gains.gain.size - 1 if gains is not None and gains.gain.size > 1 else 0
     if n_gains:
         js = np.concatenate([js, _gain_columns(data, f, gains, g_rows, used)])
-    layout = Layout(spec.scalar_params, spec.spectral_params, n_gains, n_l)
-    cov, und_s, und_l, rank = _covariance(js, jl)
+    layout = Layout(spec.scalar_params, spec.spectral_params, n_gains, data.wavelength_nm.size)
+    table = (uncertainty_table.blocks(data, model, params, js, jl, f, r0, g_rows, used,
+                                      smoothness)
+             if spec.table_params and smoothness is not None else None)
+    if table is None:
+        cov, und_s, und_l, rank = _covariance(js, jl)
+        p_eff = float(rank)
+    else:
+        cov, und_s, und_l, rank = _covariance_of_blocks(table.a, table.b, table.d)
+        p_eff = uncertainty_table.effective_parameters(cov, table)
     n = int(used.sum())
     base = {"level": LEVEL, "method": METHOD, "residuals": data.residuals}
-    if n <= rank:
+    if n <= p_eff + 0.5:
         return {**base, "available": False,
-                "why": f"{n} weighted readings for {rank} parameters: no residual left to "
-                       f"estimate the scatter"}
-    sigma2 = float(np.sum(r0 ** 2) / (n - rank))
+                "why": f"{n} weighted readings for {p_eff:.4g} parameters: no residual left "
+                       f"to estimate the scatter"}
+    sigma2 = float(np.sum(r0 ** 2) / (n - p_eff))
     cov = tuple(c * sigma2 for c in cov)
     sd_s = np.sqrt(np.maximum(np.diag(cov[0]), 0.0))
     sd_l = np.sqrt(np.maximum(np.einsum("lkk->lk", cov[2]), 0.0))
     out = {**base, "available": True, "sigma2": sigma2, "dof": n - rank,
            "sigma2_from": "weighted residuals over n - p", "parameters": {}}
+    if table is not None:
+        out.update(dof=n - p_eff, effective_parameters=p_eff, sigma2_from=(
+            "weighted residuals over n - tr H (the penalised fit's effective parameters)"))
     for name in spec.scalar_params + spec.spectral_params:
         scalar = name in spec.scalar_params
-        if scalar:
-            j = spec.scalar_params.index(name)
-            sd, undetermined = sd_s[j:j + 1], und_s[j:j + 1]
-        else:
-            j = spec.spectral_params.index(name)
-            sd, undetermined = sd_l[:, j], und_l[:, j]
+        j = (spec.scalar_params if scalar else spec.spectral_params).index(name)
+        sd, undetermined, grad = ((sd_s[j:j + 1], und_s[j:j + 1], grads[0][j:j + 1])
+                                  if scalar else (sd_l[:, j], und_l[:, j], grads[1][:, j]))
         p = np.atleast_1d(np.asarray(params[name], dtype=float))
-        low, high = _interval(name, p, sides[name], sd, undetermined)
-        entry = {"low": _as_json(low, scalar), "high": _as_json(high, scalar),
-                 "transform": transform_of(name),
-                 "one_sided_at": [int(i) for i in np.flatnonzero(sides[name])],
-                 "undetermined_at": [int(i) for i in np.flatnonzero(undetermined)]}
-        out["parameters"][name] = entry
+        reach = _reach(sd, -sides[name] * grad, sigma2)
+        low, high = _interval(name, p, sides[name], sd, undetermined, reach)
+        out["parameters"][name] = _entry(name, low, high, sides[name], undetermined, scalar)
+    if table is not None:
+        k = len(spec.spectral_params)
+        out["parameters"][spec.table_params[0]] = uncertainty_table.table_entry(
+            params[spec.table_params[0]], sd_l[:, k:], und_l[:, k:],
+            _reach(sd_l[:, k:], table.grad, sigma2), Z_TWO_SIDED)
+        out["smoothness"] = float(smoothness)
     if n_gains:
         out["sweep_gain"] = _gain_intervals(gains, cov, layout)
-    out["covariance"] = _blocks(cov, layout, gains)
+    out["covariance"] = _blocks(cov, layout, gains, table)
     return out
 
 
@@ -350,82 +395,36 @@ def _gain_intervals(gains, cov: np.ndarray, layout: Layout) -> dict[str, Any]:
             "transform": "log"}
 
 
-def _blocks(cov, layout: Layout, gains) -> dict[str, Any]:
+def _blocks(cov, layout: Layout, gains, table=None) -> dict[str, Any]:
     """The covariance as a draw needs it (module doc): the scalar block (the scalars, then
     log g per angle of incidence), the scalar–spectral blocks and the spectral blocks per
-    wavelength, each element on its own scale (u, or linear where one-sided)."""
+    wavelength, each element on its own scale (u, or linear where one-sided); with a
+    ``table`` (:mod:`.uncertainty_table`) each wavelength's elements end with the table's
+    nodes (``table_shape``, flattened in C order)."""
     t = _full_gain_map(layout, gains)
     c_ss, c_sl, c_ll = cov
     names = list(layout.scalars) + ([f"log_gain_{g:g}" for g in gains.theta_i_deg]
                                     if layout.n_gains else [])
-    return {"scalar_names": names, "spectral_names": list(layout.spectral),
-            "scalar": (t @ c_ss @ t.T).tolist(),
-            "cross": np.einsum("as,slk->lak", t, c_sl).tolist(),
-            "spectral": c_ll.tolist()}
-
-
-# ---------------------------------------------------------------------------- draws --
-
-def _sqrt_psd(c: np.ndarray) -> np.ndarray:
-    """A square root L (L Lᵀ = C) of positive semi-definite matrices (..., k, k)."""
-    vals, vecs = np.linalg.eigh(c)
-    return vecs * np.sqrt(np.maximum(vals, 0.0))[..., None, :]
-
-
-def draw(record: dict[str, Any], n: int, seed: int = 0):
-    """``n`` deviations drawn from the fit's Gaussian (``fit.intervals.covariance``):
-    (n, s') of the scalar block (the scalars, then the log-gains) and (n, L, k) of the
-    spectral elements (None without spectral parameters), each element on its own scale.
-    Scalars first, then each wavelength's elements from their distribution given the
-    scalars (module doc)."""
-    cov = record["covariance"]
-    rng = np.random.default_rng(seed)
-    m = len(cov["scalar_names"])
-    css = np.asarray(cov["scalar"], dtype=float).reshape(m, m)
-    xs = rng.standard_normal((n, m)) @ _sqrt_psd(css).T if m else np.zeros((n, 0))
-    if not cov["spectral_names"]:
-        return xs, None
-    cll = np.asarray(cov["spectral"], dtype=float)                 # (L, k, k)
-    cross = np.asarray(cov["cross"], dtype=float).reshape(cll.shape[0], m, cll.shape[1])
-    reg = np.einsum("lak,ab->lkb", cross, np.linalg.pinv(css)) if m else \
-        np.zeros(cll.shape[:2] + (0,))
-    cond = cll - np.einsum("lkb,lbj->lkj", reg, cross)
-    e = rng.standard_normal((n,) + cll.shape[:2])
-    return xs, np.einsum("lkb,nb->nlk", reg, xs) + np.einsum(
-        "lkj,nlj->nlk", _sqrt_psd(0.5 * (cond + np.swapaxes(cond, 1, 2))), e)
-
-
-def propagate(record: dict[str, Any], model: str, cos, params: dict, n: int,
-              seed: int = 0):
-    """The model at ``cos`` for ``n`` parameter sets drawn from the fit's Gaussian, by the
-    delta method: f + J δu (J from :func:`jacobian`, δu from :func:`draw`), (n, N, L); and
-    the drawn log-gain deviations (n, G) (None without gains). Linear in δu, like the
-    Gaussian itself: parameters that trade off (ρ against ρ_d, kd against ks …) move f
-    together as the data allow, where pushing each far draw through the model would leave
-    the region in which the Gaussian means anything."""
-    cov = record["covariance"]
-    f = evaluate(model, cos, params)
-    sides = {}
-    for name in MODELS[model].scalar_params + MODELS[model].spectral_params:
-        side = at_bound(name, params[name])
-        one = np.zeros(side.shape, bool)
-        one[record["parameters"][name].get("one_sided_at", [])] = True
-        sides[name] = np.where(one, side, 0)
-    js, jl = jacobian(model, cos, params, sides)
-    xs, xl = draw(record, n, seed)
-    names = cov["scalar_names"]
-    idx = [names.index(nm) for nm in MODELS[model].scalar_params]
-    out = f[None] + np.einsum("na,a...->n...", xs[:, idx], js)
-    if xl is not None:
-        out = out + np.einsum("nlk,k...l->n...l", xl, jl)
-    g = [j for j, nm in enumerate(names) if nm.startswith("log_gain_")]
-    return out, (xs[:, g] if g else None)
+    out = {"scalar_names": names, "spectral_names": list(layout.spectral),
+           "scalar": (t @ c_ss @ t.T).tolist(),
+           "cross": np.einsum("as,slk->lak", t, c_sl).tolist(),
+           "spectral": c_ll.tolist()}
+    if table is not None:   # (n_λ, 65, 65) blocks: ~3 MB of JSON; a factor of those given
+        # the scalars instead, what a draw needs (:func:`draw`)
+        out["table_shape"] = [int(v) for v in table.shape]
+        cond = uncertainty_table.conditional(np.asarray(out.pop("spectral")), out["cross"],
+                                             np.asarray(out["scalar"]))[1]
+        out["conditional_factor"] = uncertainty_table.factor(cond, table.d0)
+        out["cross"] = uncertainty_table.significant(out["cross"]).tolist()
+    return out
 
 
 def half_width_text(name: str, value: float, entry: dict) -> str:
     """"alpha 0.180 ± 0.004" (symmetric to 20 %), "alpha 0.18 (0.12-0.27)" otherwise; a
-    one-sided interval, one spanning more than :data:`POORLY_DETERMINED_RATIO`, and one
-    that reaches an end of the range inside it (undetermined) say so."""
+    one-sided interval ("r_sheen 1 (at its upper bound; 95 % >= 0.62)", its far end; "not
+    determined below it" where that reaches the range's other end), one spanning more than
+    :data:`POORLY_DETERMINED_RATIO`, and one that reaches an end of the range inside it
+    (undetermined) say so."""
     low, high = float(entry["low"]), float(entry["high"])
     lo, hi = bounds_of(name)
     edge = np.finfo(float).tiny
@@ -433,8 +432,13 @@ def half_width_text(name: str, value: float, entry: dict) -> str:
             low <= max(lo, 0.0) + edge or high >= hi)):
         return f"{name} {value:.3g} (not determined by the data)"
     if entry.get("one_sided_at"):
-        return f"{name} {value:.3g} (at its bound, <= {high:.3g})" if low >= value else \
-            f"{name} {value:.3g} (at its bound, >= {low:.3g})"
+        upper = low < value if (low < value or high > value) else value >= hi
+        far = low if upper else high
+        bound, side = ("upper", "below") if upper else ("lower", "above")
+        if far <= max(lo, 0.0) + edge or far >= hi:        # it reaches the other end
+            return f"{name} {value:.3g} (at its {bound} bound; not determined {side} it)"
+        return (f"{name} {value:.3g} (at its {bound} bound; {100 * LEVEL:g} % "
+                f"{'>=' if upper else '<='} {far:.2g})")
     if entry.get("transform") in ("log", "logit") and (
             low <= 0 or high > POORLY_DETERMINED_RATIO * low):
         return f"{name} {value:.3g} (poorly determined: {low:.2g}-{high:.2g})"

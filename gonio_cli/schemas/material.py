@@ -125,13 +125,19 @@ _INDICES = ListOf(COUNT)
 
 def intervals_spec(model: str) -> Obj:
     """``fit.intervals`` of a ``model`` material (gonio_cli.fit.uncertainty, docs/fit.md):
-    the level, the method, per parameter ``low``/``high`` (numbers, or lists per
-    wavelength), its transform and the elements at a bound or undetermined, the light-source
-    gains' intervals and the covariance blocks ``gonio eval`` draws from. Older materials
-    have none."""
+    the level, the method, per parameter ``low``/``high`` (numbers, lists per wavelength,
+    or for the colour table nested as the table, n_h x n_d x n_λ), its transform and the
+    elements at a bound or undetermined (flat indices), the light-source gains' intervals
+    and the covariance blocks ``gonio eval`` draws from (per wavelength as blocks, or for
+    the table's model as a factor F of each block given the scalars, F Fᵀ, with
+    ``table_shape``). Older
+    materials have none."""
     m = MODELS[model]
     entry = Obj({"low": required(_NUMBERS), "high": required(_NUMBERS),
                  "transform": required(Text(("log", "logit", "identity"))),
+                 "one_sided_at": optional(_INDICES), "undetermined_at": optional(_INDICES)})
+    table = Obj({"low": required(Array(3, NON_NEGATIVE)), "high": required(Array(3, NON_NEGATIVE)),
+                 "transform": required(Text(("identity",))),
                  "one_sided_at": optional(_INDICES), "undetermined_at": optional(_INDICES)})
     nested = ListOf(ListOf(Number()))
     return Obj({
@@ -139,9 +145,12 @@ def intervals_spec(model: str) -> Obj:
         "method": required(Text(("gauss-newton",))),
         "available": required(Flag()), "why": optional(Text()),
         "residuals": optional(Text()), "sigma2": optional(NON_NEGATIVE),
-        "dof": optional(COUNT), "sigma2_from": optional(Text()), "time_s": optional(SECONDS),
-        "parameters": optional(Obj({k: optional(entry)
-                                    for k in m.scalar_params + m.spectral_params})),
+        "dof": optional(Number(0.0, None)), "sigma2_from": optional(Text()),
+        "time_s": optional(SECONDS),
+        "effective_parameters": optional(NON_NEGATIVE), "smoothness": optional(NON_NEGATIVE),
+        "parameters": optional(Obj({**{k: optional(entry)
+                                       for k in m.scalar_params + m.spectral_params},
+                                    **{k: optional(table) for k in m.table_params[:1]}})),
         "sweep_gain": optional(Obj({"theta_i_deg": required(Array(1, Number())),
                                     "low": required(Array(1, NON_NEGATIVE)),
                                     "high": required(Array(1, NON_NEGATIVE)),
@@ -150,7 +159,9 @@ def intervals_spec(model: str) -> Obj:
                                     "spectral_names": required(ListOf(Text())),
                                     "scalar": required(nested),
                                     "cross": required(ListOf(nested)),
-                                    "spectral": required(ListOf(nested))}))})
+                                    "spectral": optional(ListOf(nested)),
+                                    "conditional_factor": optional(ListOf(nested)),
+                                    "table_shape": optional(ListOf(COUNT))}))})
 
 
 #: The table parameters of a model (:attr:`gonio_cli.brdf.Model.table_params`,
