@@ -6,9 +6,11 @@ import os
 import tempfile
 from dataclasses import dataclass
 
-# One BLAS thread, as a gonio process has (gonio_cli/__main__.py, BLAS_THREADS_DEFAULT):
-# read by OpenBLAS once, when numpy loads, so set before the first numpy import.
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+from gonio_cli.__main__ import use_blas_threads
+
+# One BLAS thread, as a gonio process has: read by OpenBLAS once, when numpy loads, so set
+# before the first numpy import.
+use_blas_threads()
 
 import numpy as np
 import pytest
