@@ -19,6 +19,7 @@ from gonio_cli.geometry import (Cosines, canonical_azimuth, in_plane_cosines, me
 from gonio_cli.ingest.hemisphere import hemisphere_grid, mirror_ring, parse_mirror
 from gonio_cli.schemas import Measurement, read_material, read_measurement
 from gonio_cli.synthetic import ink_spectra, paper_geometry, synthetic_measurement
+from test_brdf import model_params
 
 THETA_I = (20.0, 30.0, 40.0, 50.0, 60.0, 70.0)
 
@@ -150,20 +151,9 @@ def test_a_fit_that_ignored_the_azimuth_would_be_caught():
 
 # ----------------------------------------------------------- (c) reciprocity --
 
-MODEL_PARAMS = {
-    "alpha": 0.2, "alpha_coat": 0.05, "k_coat": 0.5, "f0_coat": 0.04, "b0": 0.5, "h": 0.1,
-    "alpha_2": 0.3, "ks_1": 0.3, "m_1": 0.2, "ks_2": 0.2, "m_2": 0.4, "ks_3": 0.1,
-    "m_3": 0.6,
-}
-SPECTRAL = {"rho": [0.1, 0.3], "c": [0.5, 3.0], "rho_d": [0.2, 0.05], "rho_2": [0.3, 0.6],
-            "f0": [0.04, 0.9], "kd": [0.1, 0.3], "ks": [0.4, 0.2], "m": [0.2, 0.35]}
-
-
 @pytest.mark.parametrize("model", sorted(brdf.MODELS))
 def test_every_model_is_reciprocal_out_of_plane(model):
-    spec = brdf.MODELS[model]
-    params = {k: MODEL_PARAMS[k] for k in spec.scalar_params}
-    params.update({k: np.array(SPECTRAL[k]) for k in spec.spectral_params})
+    params = model_params(model, np.random.default_rng(5))   # every model's, test_brdf.py
     rng = np.random.default_rng(11)
     ti, to, po = rng.uniform(0, 85, 300), rng.uniform(-85, 85, 300), rng.uniform(-180, 180, 300)
     to, po = canonical_azimuth(to, po)
