@@ -63,18 +63,32 @@ def to_material(x) -> OpenPbrMaterial:
 
 
 def starts(base) -> list[np.ndarray]:
-    """The vectors of :data:`STARTS` with the base colour ``base`` (3,)."""
-    return [np.array([*base, metal, 1, 1, 1, r, 1.5, coat, 1, 1, 1, r_c, 1.6], float)
-            for metal, r, coat, r_c in STARTS]
+    """The vectors of :data:`STARTS` with the base colour ``base`` (3,), and a smooth
+    white metal under a rough, index-matched coat of ``base``'s hue (the coat's
+    view-dependent absorption is what shifts a goniochromatic ink's colour)."""
+    out = [np.array([*base, metal, 1, 1, 1, r, 1.5, coat, 1, 1, 1, r_c, 1.6], float)
+           for metal, r, coat, r_c in STARTS]
+    hue = np.clip(np.asarray(base, float) / max(float(np.max(base)), 1e-6), 0.02, 1.0)
+    out.append(np.array([0.8, 0.8, 0.8, 1.0, 1, 1, 1, 0.05, 1.5, 1.0, *hue, 0.35, 1.0]))
+    return out
 
+
+#: Starts continued after the screening (:meth:`~.standard_fit.Problem.solve`; the
+#: others run :data:`~.standard_fit.SCREEN_NFEV` steps), and the steps each then takes.
+KEEP_STARTS = 2
+START_NFEV = 100
+
+#: Colour inputs that change their own channel of f only (base, specular and coat colour).
+CHANNELS = ((0, 1, 2), (4, 5, 6), (10, 11, 12))
 
 SPACE = Space(NAMES, LOWER, UPPER, starts,
-              lambda cos, x: openpbr_brdf(cos, to_material(x)), to_material)
+              lambda cos, x: openpbr_brdf(cos, to_material(x)), to_material, CHANNELS)
 
 
 def fit_openpbr(target_rgb: Callable[[Cosines], np.ndarray], directions=None) -> ExportFit:
     """The OpenPBR Surface closest to ``target_rgb`` (f (..., 3) linear sRGB, sr⁻¹)."""
-    return fit_standard(target_rgb, SPACE, directions)
+    return fit_standard(target_rgb, SPACE, directions, keep=KEEP_STARTS,
+                        max_nfev=START_NFEV)
 
 
 def _document(m: OpenPbrMaterial, extras: dict):

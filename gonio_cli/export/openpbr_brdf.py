@@ -187,9 +187,36 @@ def _lerp_axis(grid: np.ndarray, value: float) -> tuple[int, float]:
     return k, t
 
 
+class _Memo:
+    """Values of a pure function of (an array, scalars), kept for the last array seen
+    (by identity): the export's fit evaluates the BRDF thousands of times at one sample
+    set, most Jacobian columns at the same roughness. Callers never change a value."""
+
+    def __init__(self, size: int = 64):
+        self.owner, self.values, self.size = None, {}, size
+
+    def get(self, owner, key, compute):
+        if self.owner is not owner:
+            self.owner, self.values = owner, {}
+        value = self.values.get(key)
+        if value is None:
+            if len(self.values) >= self.size:
+                self.values.clear()
+            value = self.values[key] = compute()
+        return value
+
+
+_ALBEDO, _LOBE = _Memo(), _Memo()
+
+
 def lobe_albedo(mu_o, roughness: float, eta: float | None) -> np.ndarray:
     """E(μo) (...,) of the GGX lobe of ``roughness`` with the dielectric Fresnel of
     ``eta`` (None: F = 1), interpolated in :func:`albedo_tables`."""
+    return _ALBEDO.get(mu_o, (float(roughness), None if eta is None else float(eta)),
+                       lambda: _lobe_albedo(mu_o, roughness, eta))
+
+
+def _lobe_albedo(mu_o, roughness: float, eta: float | None) -> np.ndarray:
     t = albedo_tables()
     k, a = _lerp_axis(TABLE_ROUGHNESS, float(roughness))
     if eta is None:
@@ -212,7 +239,8 @@ def compensation(mu_o, roughness: float, f0) -> np.ndarray:
 # -------------------------------------------------------------------------- lobes --
 
 def _lobe(cos: Cosines, roughness: float) -> np.ndarray:
-    return specular_brdf(cos, float(roughness) ** 2)[..., None]
+    return _LOBE.get(cos, float(roughness),
+                     lambda: specular_brdf(cos, float(roughness) ** 2)[..., None])
 
 
 def dielectric_lobe(cos: Cosines, roughness: float, eta: float, tint) -> tuple:
