@@ -173,8 +173,11 @@ def test_round_trip_recovers_an_openpbr_surface():
         assert getattr(got, key) == pytest.approx(getattr(TRUTH, key), abs=0.01), key
     for key in ("base_color", "specular_color", "coat_color"):
         np.testing.assert_allclose(getattr(got, key), getattr(TRUTH, key), atol=0.01)
-    for key in ("specular_ior", "coat_ior"):                   # range [1, 3]
-        assert getattr(got, key) == pytest.approx(getattr(TRUTH, key), abs=0.02), key
+    assert got.coat_ior == pytest.approx(TRUTH.coat_ior, abs=0.02)       # range [1, 3]
+    # under the coat the base's Fresnel sees one ratio, lerp(n_b, n_b/n_c, C) with the
+    # spec's TIR fix (n_c/n_b where the coat is denser), which two n_b can give: what
+    # the fit can recover is that ratio
+    assert ob.specular_eta(got) == pytest.approx(ob.specular_eta(TRUTH), abs=0.02)
     de = judge(SpectralTruth(lambda cos: openpbr_brdf(cos, TRUTH)),
                lambda cos: openpbr_brdf(cos, got), *in_plane_grid()).delta_e
     assert de.mean() < 0.5

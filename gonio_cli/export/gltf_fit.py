@@ -35,6 +35,9 @@ NAMES = ("base_r", "base_g", "base_b", "metallic", "roughness", "specular",
 LOWER = np.array([0, 0, 0, 0, ROUGHNESS_MIN, 0, 0, 0, 0, 0, ROUGHNESS_MIN], dtype=float)
 UPPER = np.array([1, 1, 1, 1, 1, 1, F0_MAX, F0_MAX, F0_MAX, 1, 1], dtype=float)
 
+#: Starts polished on CIEDE2000 (the lowest in the smooth loss; :meth:`Problem.solve`).
+POLISHED = 3
+
 #: KHR_materials_iridescence's parameters, appended to :data:`NAMES` for the second
 #: stage: ``iridescenceFactor``, ``iridescenceIor`` and the thickness (nm).
 FILM_NAMES = ("iridescence", "iridescence_ior", "iridescence_thickness_nm")
@@ -118,11 +121,11 @@ def fit_gltf(target_rgb: Callable[[Cosines], np.ndarray], directions=None,
     t0 = time.perf_counter()
     problem = Problem(target_rgb, directions)
     first = starts(problem.first_base())
-    best = problem.polish(SPACE, problem.solve(SPACE, first).x)
+    best = problem.solve(SPACE, first, polish=POLISHED)
     n = len(first)
     if film:
         tried = film_starts(problem, best.x)
-        filmed = problem.polish(FILM_SPACE, problem.solve(FILM_SPACE, tried, FILM_KEEP).x)
+        filmed = problem.solve(FILM_SPACE, tried, FILM_KEEP, polish=FILM_KEEP)
         n += len(tried)
         plain = SPACE.to_material(best.x)
         if (problem.delta_e(FILM_SPACE, filmed.x).mean()

@@ -224,18 +224,22 @@ class Problem:
                              x_scale="jac", max_nfev=max_nfev)
 
     def solve(self, space: Space, starts, keep: int | None = None,
-              max_nfev: int = START_NFEV):
-        """The best (lowest cost) ``least_squares`` result from ``starts``, each run for
-        ``max_nfev`` steps; with ``keep``, every start runs :data:`SCREEN_NFEV` steps
-        first and only the ``keep`` best are continued."""
+              max_nfev: int = START_NFEV, polish: int = 1):
+        """The best ``least_squares`` result from ``starts``, each run for ``max_nfev``
+        steps (with ``keep``, every start runs :data:`SCREEN_NFEV` steps first and only
+        the ``keep`` best are continued), then :meth:`polish`-ed: the ``polish`` lowest
+        in the smooth loss, and of those the lowest mean CIEDE2000 (starts that reach
+        one smooth optimum can leave it along different flat directions)."""
         if keep is None:
-            return min((self._run(space, x0, max_nfev) for x0 in starts),
-                       key=lambda r: r.cost)
-        screened = sorted((self._run(space, x0, SCREEN_NFEV) for x0 in starts),
-                          key=lambda r: r.cost)
-        done = [r if r.status != 0 else self._run(space, r.x, max_nfev)
-                for r in screened[:keep]]
-        return min(done, key=lambda r: r.cost)
+            done = [self._run(space, x0, max_nfev) for x0 in starts]
+        else:
+            screened = sorted((self._run(space, x0, SCREEN_NFEV) for x0 in starts),
+                              key=lambda r: r.cost)
+            done = [r if r.status != 0 else self._run(space, r.x, max_nfev)
+                    for r in screened[:keep]]
+        polished = [self.polish(space, r.x)
+                    for r in sorted(done, key=lambda r: r.cost)[:polish]]
+        return min(polished, key=lambda r: float(np.mean(self.delta_e(space, r.x))))
 
     def polish(self, space: Space, x):
         """``x`` polished on CIEDE2000 itself (:data:`POLISH_NFEV` evaluations)."""
@@ -257,7 +261,7 @@ def fit_standard(target_rgb: Callable[[Cosines], np.ndarray], space: Space,
     t0 = time.perf_counter()
     problem = Problem(target_rgb, directions)
     starts = space.starts(problem.first_base())
-    best = problem.polish(space, problem.solve(space, starts, keep, max_nfev).x)
+    best = problem.solve(space, starts, keep, max_nfev)
     return finished(problem, space, best, len(starts), t0)
 
 
