@@ -263,3 +263,23 @@ def test_demo_coat_is_judged_at_its_measurement(demo_coat):
     # normal as no microfacet lobe does; glTF reaches 3.7
     assert rep["delta_e2000_mean"] < OPENPBR_COAT_BOUND
     assert rep["delta_e2000_mean"] > own["delta_e2000_mean"]
+
+
+@pytest.mark.parametrize("target", ["openpbr", "gltf", "gltf-film"])
+def test_channel_jacobian_is_the_finite_difference_one(rng, target):
+    # the fit's Jacobian takes a colour input's three columns from one evaluation
+    # (Space.channels: each changes only its own channel of f) and reuses memoised lobes;
+    # scipy's central differences of the same residuals, column by column, are the truth
+    from scipy.optimize._numdiff import approx_derivative
+
+    from gonio_cli.export import gltf_fit, openpbr
+    from gonio_cli.export.standard_fit import Problem
+
+    space = {"openpbr": openpbr.SPACE, "gltf": gltf_fit.SPACE,
+             "gltf-film": gltf_fit.FILM_SPACE}[target]
+    problem = Problem(lambda cos: openpbr_brdf(cos, TRUTH))
+    x = space.lower + rng.uniform(0.2, 0.8, space.lower.size) * (space.upper - space.lower)
+    got = problem.jacobian(space, x)
+    truth = approx_derivative(lambda v: problem.residuals(space, v), x, method="3-point")
+    # forward differences: O(h) ≈ 1e-8 of the curvature; 1e-5 of the largest entry
+    np.testing.assert_allclose(got, truth, atol=1e-5 * np.abs(truth).max())
