@@ -13,14 +13,13 @@ KHR_materials_specular's ``specularColorFactor`` (``f0`` over that channel, in [
 
 from __future__ import annotations
 
-import time
 from typing import Callable
 
 import numpy as np
 
 from ..geometry import Cosines
 from .gltf_brdf import GltfMaterial, f0_ior, gltf_brdf
-from .standard_fit import ExportFit, Problem, Space, finished
+from .standard_fit import ExportFit, FilmStage, Space, fit_standard
 
 #: Smallest roughness searched (α = roughness² ≥ 1e-4): below, the lobe is narrower than
 #: any half-vector sample of the fit's directions (0.25°) and cannot be fitted.
@@ -98,16 +97,15 @@ FILM_SPACE = Space(NAMES + FILM_NAMES,
                    starts, _brdf, to_material, ((0, 1, 2),))
 
 
-def film_starts(problem: Problem, x) -> list[np.ndarray]:
-    """The :data:`FILM_STARTS` best films of the grid (iridescence 1), by the smooth
-    loss, on the first stage's material ``x`` and on its plain dielectric (its base
-    colour and roughness, specular 1, F0 0.04, no coat: a film is what tints its lobe
-    then, where the first stage had to tint F0)."""
-    plain = np.array([*x[0:3], 0.0, x[4], 1.0, 0.04, 0.04, 0.04, 0.0, x[10]])
-    tried = [np.array([*v, 1.0, n, d]) for v in (x, plain)
-             for n in FILM_GRID_IOR for d in FILM_GRID_NM]
-    cost = [float(np.sum(problem.residuals(FILM_SPACE, v) ** 2)) for v in tried]
-    return [tried[k] for k in np.argsort(cost)[:FILM_STARTS]]
+def plain_variants(x) -> list[np.ndarray]:
+    """The first stage's vector ``x`` and its plain dielectric (its base colour and
+    roughness, specular 1, F0 0.04, no coat: a film is what tints its lobe then, where
+    the first stage had to tint F0)."""
+    return [np.asarray(x), np.array([*x[0:3], 0.0, x[4], 1.0, 0.04, 0.04, 0.04, 0.0, x[10]])]
+
+
+FILM = FilmStage(FILM_SPACE, FILM_GRID_IOR, FILM_GRID_NM, plain_variants,
+                 FILM_STARTS, FILM_KEEP, gain=FILM_GAIN)
 
 
 def fit_gltf(target_rgb: Callable[[Cosines], np.ndarray], directions=None,
@@ -118,17 +116,5 @@ def fit_gltf(target_rgb: Callable[[Cosines], np.ndarray], directions=None,
     from the best of a grid, kept when it lowers the mean CIEDE2000 at the sample set
     by :data:`FILM_GAIN` (the material without it then an ``alternative``, which the
     export writes instead if it is closer at the judged configurations)."""
-    t0 = time.perf_counter()
-    problem = Problem(target_rgb, directions)
-    first = starts(problem.first_base())
-    best = problem.solve(SPACE, first, polish=POLISHED)
-    n = len(first)
-    if film:
-        tried = film_starts(problem, best.x)
-        filmed = problem.solve(FILM_SPACE, tried, FILM_KEEP, polish=FILM_KEEP)
-        n += len(tried)
-        plain = SPACE.to_material(best.x)
-        if (problem.delta_e(FILM_SPACE, filmed.x).mean()
-                < problem.delta_e(SPACE, best.x).mean() - FILM_GAIN):
-            return finished(problem, FILM_SPACE, filmed, n, t0, [plain])
-    return finished(problem, SPACE, best, n, t0)
+    return fit_standard(target_rgb, SPACE, directions, polish=POLISHED,
+                        film=FILM if film else None)

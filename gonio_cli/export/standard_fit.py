@@ -252,17 +252,54 @@ class Problem:
 
 
 def fit_standard(target_rgb: Callable[[Cosines], np.ndarray], space: Space,
-                 directions=None, keep: int | None = None,
-                 max_nfev: int = START_NFEV) -> ExportFit:
+                 directions=None, keep: int | None = None, max_nfev: int = START_NFEV,
+                 polish: int = 1, film: FilmStage | None = None) -> ExportFit:
     """The parameters of ``space`` whose BRDF is closest to ``target_rgb`` (f (..., 3)
     linear sRGB, sr⁻¹) over ``directions`` ((ωi, ωo), default
-    :func:`hemisphere_directions`); ``keep``, ``max_nfev``: :meth:`Problem.solve`'s;
-    module docstring."""
+    :func:`hemisphere_directions`); ``keep``, ``max_nfev``, ``polish``:
+    :meth:`Problem.solve`'s; then ``film`` (:func:`with_film`); module docstring."""
     t0 = time.perf_counter()
     problem = Problem(target_rgb, directions)
     starts = space.starts(problem.first_base())
-    best = problem.solve(space, starts, keep, max_nfev)
+    best = problem.solve(space, starts, keep, max_nfev, polish)
+    if film is not None:
+        return with_film(problem, space, best, film, len(starts), t0)
     return finished(problem, space, best, len(starts), t0)
+
+
+@dataclass(frozen=True)
+class FilmStage:
+    """A thin film fitted after a target's first stage: ``space`` is the target's space
+    with (weight, film index, thickness) appended; the films of ``grid_ior`` ×
+    ``grid_thickness`` (weight 1) are tried on each of ``variants(x)`` (the first
+    stage's vector and others made from it), the ``starts`` best by the smooth loss run
+    :data:`SCREEN_NFEV` steps, the ``keep`` best of those to ``max_nfev``."""
+
+    space: Space
+    grid_ior: tuple
+    grid_thickness: tuple
+    variants: Callable[[np.ndarray], list]
+    starts: int = 6
+    keep: int = 2
+    max_nfev: int = START_NFEV
+    gain: float = 0.05          # mean CIEDE2000 at the sample set the film must win by
+
+
+def with_film(problem: Problem, space: Space, best, stage: FilmStage, starts: int,
+              t0: float) -> ExportFit:
+    """The first stage's ``best`` in ``space``, or with the film of ``stage`` when that
+    lowers the mean CIEDE2000 at the sample set by ``stage.gain`` (the film-less
+    material then an ``alternative``: the export writes the closer as judged)."""
+    tried = [np.array([*v, 1.0, n, d]) for v in stage.variants(best.x)
+             for n in stage.grid_ior for d in stage.grid_thickness]
+    cost = [float(np.sum(problem.residuals(stage.space, v) ** 2)) for v in tried]
+    chosen = [tried[k] for k in np.argsort(cost)[:stage.starts]]
+    filmed = problem.solve(stage.space, chosen, stage.keep, stage.max_nfev, polish=stage.keep)
+    starts += len(chosen)
+    if (problem.delta_e(stage.space, filmed.x).mean()
+            < problem.delta_e(space, best.x).mean() - stage.gain):
+        return finished(problem, stage.space, filmed, starts, t0, [space.to_material(best.x)])
+    return finished(problem, space, best, starts, t0)
 
 
 def finished(problem: Problem, space: Space, res, starts: int, t0: float,
