@@ -184,15 +184,20 @@ class Problem:
         """The smooth residuals (3N,) of ``x``, in :data:`DE_UNIT`."""
         return self._of_f(self.brdf(space, x))
 
-    def jacobian(self, space: Space, x) -> np.ndarray:
+    def _de_of_f(self, f) -> np.ndarray:
+        return delta_e_2000(self.lab_t, self.lab(np.pi * f)) / DE_UNIT
+
+    def jacobian(self, space: Space, x, of_f=None) -> np.ndarray:
         """Forward differences (3N, n) of :meth:`residuals`, one BRDF evaluation for each
         triplet of ``space.channels`` (its three columns from one perturbed f), one per
-        other parameter; a step that would leave the bounds goes the other way."""
+        other parameter; a step that would leave the bounds goes the other way.
+        ``of_f``: the residuals of an f (default the smooth ones)."""
+        of_f = self._of_f if of_f is None else of_f
         x = np.asarray(x, dtype=float)
         h = np.sqrt(np.finfo(float).eps) * np.maximum(1.0, np.abs(x))
         h = np.where(x + h > space.upper, -h, h)
         f0 = self.brdf(space, x)
-        r0 = self._of_f(f0)
+        r0 = of_f(f0)
         jac = np.empty((r0.size, x.size))
         grouped = {i for g in space.channels for i in g}
         for group in space.channels:
@@ -202,12 +207,12 @@ class Problem:
             for c, i in enumerate(group):
                 f = f0.copy()
                 f[..., c] = fp[..., c]
-                jac[:, i] = (self._of_f(f) - r0) / h[i]
+                jac[:, i] = (of_f(f) - r0) / h[i]
         for i in range(x.size):
             if i not in grouped:
                 xp = x.copy()
                 xp[i] += h[i]
-                jac[:, i] = (self.residuals(space, xp) - r0) / h[i]
+                jac[:, i] = (of_f(self.brdf(space, xp)) - r0) / h[i]
         return jac
 
     def delta_e(self, space: Space, x) -> np.ndarray:
@@ -242,13 +247,14 @@ class Problem:
         return min(polished, key=lambda r: float(np.mean(self.delta_e(space, r.x))))
 
     def polish(self, space: Space, x):
-        """``x`` polished on CIEDE2000 itself (:data:`POLISH_NFEV` evaluations)."""
+        """``x`` polished on CIEDE2000 itself (:data:`POLISH_NFEV` steps, the Jacobian
+        as :meth:`jacobian`'s)."""
         from scipy.optimize import least_squares
 
-        res = least_squares(lambda v: self.delta_e(space, v) / DE_UNIT, x,
-                            bounds=(space.lower, space.upper), method="trf",
-                            x_scale="jac", max_nfev=POLISH_NFEV)
-        return res
+        return least_squares(lambda v: self._de_of_f(self.brdf(space, v)), x,
+                             jac=lambda v: self.jacobian(space, v, self._de_of_f),
+                             bounds=(space.lower, space.upper), method="trf",
+                             x_scale="jac", max_nfev=POLISH_NFEV)
 
 
 def fit_standard(target_rgb: Callable[[Cosines], np.ndarray], space: Space,
