@@ -16,8 +16,10 @@ bounds, starts and BRDF); the loop here is the same for all:
   :func:`gonio_cli.export.mitsuba.rgb_weights`; the standards' colours are linear sRGB).
 * **How close.** L*a*b* differences with CIE94's chroma weight, each configuration scaled
   by 1 / max(1, Y) of the material's R (a highlight counts by its relative error, as the
-  judgement's CIEDE2000 does); ``scipy.optimize.least_squares`` (trust region, bounded)
-  from the space's fixed starts, the best polished on CIEDE2000 itself: deterministic.
+  judgement's CIEDE2000 does); ``scipy.optimize.least_squares`` (trust region, bounded,
+  the Jacobian by :meth:`Problem.jacobian`) from the space's fixed starts, the best
+  polished on CIEDE2000 itself (:meth:`Problem.solve`), then a target's thin film
+  (:class:`FilmStage`, :func:`with_film`): deterministic.
 """
 
 from __future__ import annotations
