@@ -388,7 +388,10 @@ def test_demo_coat_is_judged_at_its_measurement(demo_coat):
 
 
 @pytest.mark.xfail(strict=True, reason="glTF reaches mean CIEDE2000 3.7 on the demo's coat "
-                   "paint: its blue is outside sRGB (floor 1.5) and seed 000 eq. 5 has no "
-                   "microfacet lobe's angular shape (docs/export.md, 'What glTF loses')")
+                   "paint, with or without KHR_materials_iridescence (the film does not "
+                   "lower it), and 3.55 even fitted at the 195 judged configurations "
+                   "themselves: its blue is outside sRGB (floor 1.5) and seed 000 eq. 5's "
+                   "highlight at grazing (worst 18 at θi 60° θo 85°) has no microfacet "
+                   "lobe's shape (docs/export.md, 'What glTF loses')")
 def test_demo_coat_reaches_the_issue_target(demo_coat):
     assert demo_coat["delta_e2000_mean"] < 3.0

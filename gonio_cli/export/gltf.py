@@ -6,7 +6,8 @@
   :func:`gonio_cli.render.mesh.uv_sphere`, with its normals; no texture, so no texture
   coordinates) and
   one material: glTF 2.0's metallic-roughness PBR with ``KHR_materials_specular``,
-  ``KHR_materials_ior`` and, when the fit wants a coat, ``KHR_materials_clearcoat``
+  ``KHR_materials_ior`` and, when the fit wants them, ``KHR_materials_clearcoat`` and
+  ``KHR_materials_iridescence``
   (none *required*: a viewer without them still shows the core material). The
   parameters are a fit of glTF's own BRDF to the material
   (:mod:`gonio_cli.export.gltf_fit`), rounded to
@@ -36,7 +37,8 @@ from .judge import Fitted, export_judged
 PREVIEW_SEGMENTS = 64
 
 #: The extensions a written material may use (all ratified; none is required).
-EXTENSIONS = ("KHR_materials_specular", "KHR_materials_ior", "KHR_materials_clearcoat")
+EXTENSIONS = ("KHR_materials_specular", "KHR_materials_ior", "KHR_materials_clearcoat",
+              "KHR_materials_iridescence")
 
 
 def _accessor(gltf, blob: bytearray, array: np.ndarray, kind: str, target: int,
@@ -68,6 +70,13 @@ def _material(m: GltfMaterial):
     if m.clearcoat > 0:
         ext["KHR_materials_clearcoat"] = {"clearcoatFactor": m.clearcoat,
                                           "clearcoatRoughnessFactor": m.clearcoat_roughness}
+    if m.iridescence > 0:
+        # no thickness texture: the film is iridescenceThicknessMaximum thick; the
+        # minimum (used only with a texture) is written equal to it
+        ext["KHR_materials_iridescence"] = {
+            "iridescenceFactor": m.iridescence, "iridescenceIor": m.iridescence_ior,
+            "iridescenceThicknessMinimum": m.iridescence_thickness_nm,
+            "iridescenceThicknessMaximum": m.iridescence_thickness_nm}
     pbr = g.PbrMetallicRoughness(baseColorFactor=[*m.base_color, 1.0],
                                  metallicFactor=m.metallic, roughnessFactor=m.roughness)
     return g.Material(name=m.name or None, pbrMetallicRoughness=pbr, extensions=ext), list(ext)

@@ -17,6 +17,13 @@ the light ωi, V the viewer ωo, docs/conventions.md):
   and ``KHR_materials_specular`` (whose ``fresnel_mix`` weights the diffuse base by
   1 − max over the channels);
 * ``material = (1 − metallic) · dielectric_brdf + metallic · metal_brdf``;
+* ``KHR_materials_iridescence`` (when ``iridescence`` > 0): the extension's
+  ``iridescent_conductor_layer`` and ``iridescent_dielectric_layer`` — the metal's
+  Schlick F and the dielectric's specular · F mixed by ``iridescence`` with the thin-film
+  Fresnel of :func:`gonio_cli.export.gltf_iridescence.iridescent_fresnel` (Belcour &
+  Barla 2017 as the extension writes it; F0 the metal's ``baseColor``, the dielectric's
+  specular · min(F0(ior) · specularColor, 1)), the dielectric's diffuse base weighted by
+  1 − max over the channels of that mix (the extension's ``rgb_mix``);
 * ``KHR_materials_clearcoat``: ``mix(material, specular_brdf(clearcoatRoughness²),
   clearcoat · Fc)``, Fc = 0.04 + 0.96 (1 − |N·V|)⁵ (the coat's Fresnel at the *view*
   angle, as the extension writes it: so a coated material is not reciprocal).
@@ -33,6 +40,7 @@ import numpy as np
 
 from ..brdf import ggx_d, schlick_fresnel
 from ..geometry import Cosines
+from .gltf_iridescence import iridescent_fresnel
 
 #: The core's dielectric index of refraction (glTF 2.0 Appendix B: F0 = 0.04).
 DEFAULT_IOR = 1.5
@@ -64,7 +72,9 @@ class GltfMaterial:
 
     ``base_color``, ``specular_color``: (3,) linear sRGB; the rest scalars, each as the
     glTF property of the same name (``metallicFactor``, ``roughnessFactor``,
-    ``specularFactor``, ``ior``, ``clearcoatFactor``, ``clearcoatRoughnessFactor``).
+    ``specularFactor``, ``ior``, ``clearcoatFactor``, ``clearcoatRoughnessFactor``,
+    ``iridescenceFactor``, ``iridescenceIor``; ``iridescence_thickness_nm`` is
+    ``iridescenceThicknessMaximum``, the film's thickness without a texture).
     """
 
     base_color: tuple = (1.0, 1.0, 1.0)
@@ -75,6 +85,9 @@ class GltfMaterial:
     ior: float = DEFAULT_IOR
     clearcoat: float = 0.0
     clearcoat_roughness: float = 0.0
+    iridescence: float = 0.0
+    iridescence_ior: float = 1.3
+    iridescence_thickness_nm: float = 400.0
     name: str = field(default="", compare=False)
 
     def to_dict(self) -> dict:
@@ -120,13 +133,22 @@ def dielectric_fresnel(cos_theta_d, specular, specular_color, ior) -> np.ndarray
 
 
 def core_brdf(cos: Cosines, m: GltfMaterial) -> np.ndarray:
-    """The metallic-roughness material (with KHR_materials_specular and _ior), (..., 3)."""
+    """The metallic-roughness material (with KHR_materials_specular, _ior and
+    _iridescence), (..., 3)."""
     base = np.asarray(m.base_color, dtype=float)
     lobe = specular_brdf(cos, float(m.roughness) ** 2)[..., None]
     f_d = dielectric_fresnel(cos.cos_theta_d, m.specular, m.specular_color, m.ior)
+    f_m = schlick_fresnel(cos.cos_theta_d, base)
+    if m.iridescence > 0.0:
+        s = float(m.iridescence)
+        film = lambda f0: iridescent_fresnel(cos.cos_theta_o, m.iridescence_ior,  # noqa: E731
+                                             m.iridescence_thickness_nm, f0)
+        f0_d = float(m.specular) * np.minimum(ior_f0(m.ior)
+                                              * np.asarray(m.specular_color, dtype=float), 1.0)
+        f_d = (1.0 - s) * f_d + s * film(f0_d)
+        f_m = (1.0 - s) * f_m + s * film(base)
     dielectric = f_d * lobe + (1.0 - f_d.max(axis=-1, keepdims=True)) * base / np.pi
-    metal = schlick_fresnel(cos.cos_theta_d, base) * lobe
-    f = (1.0 - m.metallic) * dielectric + m.metallic * metal
+    f = (1.0 - m.metallic) * dielectric + m.metallic * f_m * lobe
     above = (cos.cos_theta_i > COS_EPS) & (cos.cos_theta_o > COS_EPS)
     return np.where(above[..., None], f, 0.0)
 

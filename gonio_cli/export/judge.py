@@ -217,9 +217,14 @@ def export_judged(kind: Fitted, material, material_path, out) -> tuple[list[Path
     returns both paths and the report's payload (``kind.target`` holds the parameters)."""
     check_colour_grid(material, material_path)
     fit = kind.fit(material_rgb(material))
-    m = kind.written(rounded(replace(fit.material,
-                                     name=Path(material_path).name.split(".")[0])))
-    rep = report(kind.target, material, material_path, lambda cos: kind.brdf(cos, m))
+    best = None
+    for found in [fit.material, *fit.alternatives]:      # the closer one, as judged
+        m = kind.written(rounded(replace(found, name=Path(material_path).name.split(".")[0])))
+        rep = report(kind.target, material, material_path,
+                     lambda cos, m=m: kind.brdf(cos, m))
+        if best is None or rep["delta_e2000_mean"] < best[1]["delta_e2000_mean"]:
+            best = (m, rep)
+    m, rep = best
     out, rpath = Path(out), report_path(out)
     extras = {"gonio": {"material": str(material_path),
                         "material_sha256": sha256_file(material_path),

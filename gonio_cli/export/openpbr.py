@@ -32,7 +32,8 @@ from ..geometry import Cosines
 from . import check_file_output, get_target
 from .judge import Fitted, export_judged
 from .openpbr_brdf import COAT_DARKENING, OpenPbrMaterial, openpbr_brdf
-from .standard_fit import ExportFit, Space, fit_standard
+from . import gltf_fit
+from .standard_fit import ExportFit, FilmStage, Space, fit_standard
 
 #: Smallest roughness searched (the tables' first; α = 1e-4, narrower than any sample).
 ROUGHNESS_MIN = 0.01
@@ -53,28 +54,61 @@ STARTS = ((0.0, 0.5, 0.0, 0.3), (1.0, 0.5, 0.0, 0.3), (1.0, 0.2, 0.0, 0.3),
           (0.0, 0.5, 1.0, 0.1), (0.0, 0.5, 1.0, 0.35))   # metalness, roughness, coat, r_c
 
 
+#: Films of the grid that start the film's stage, and the steps the best then takes
+#: (fewer than glTF's: an OpenPBR evaluation costs twice a glTF one).
+FILM_STARTS = 3
+FILM_NFEV = 60
+
+#: The thin film's inputs, appended to :data:`NAMES` in the second stage
+#: (:class:`~.standard_fit.FilmStage`: glTF's grid, the thickness in µm).
+FILM_NAMES = ("thin_film_weight", "thin_film_ior", "thin_film_thickness")
+
+
 def to_material(x) -> OpenPbrMaterial:
-    """The :class:`OpenPbrMaterial` of a parameter vector (:data:`NAMES`)."""
+    """The :class:`OpenPbrMaterial` of a parameter vector (:data:`NAMES`, and
+    :data:`FILM_NAMES` after them when the vector is that long)."""
     x = [float(v) for v in x]
+    film = dict(zip(FILM_NAMES, x[15:18]))
     return OpenPbrMaterial(base_color=tuple(x[0:3]), base_metalness=x[3],
                            specular_color=tuple(x[4:7]), specular_roughness=x[7],
                            specular_ior=x[8], coat_weight=x[9], coat_color=tuple(x[10:13]),
-                           coat_roughness=x[13], coat_ior=x[14])
+                           coat_roughness=x[13], coat_ior=x[14], **film)
 
 
 def starts(base) -> list[np.ndarray]:
-    """The vectors of :data:`STARTS` with the base colour ``base`` (3,)."""
-    return [np.array([*base, metal, 1, 1, 1, r, 1.5, coat, 1, 1, 1, r_c, 1.6], float)
-            for metal, r, coat, r_c in STARTS]
+    """The vectors of :data:`STARTS` with the base colour ``base`` (3,), and a smooth
+    white metal under a rough, index-matched coat of ``base``'s hue (the coat's
+    view-dependent absorption is what shifts a goniochromatic ink's colour)."""
+    out = [np.array([*base, metal, 1, 1, 1, r, 1.5, coat, 1, 1, 1, r_c, 1.6], float)
+           for metal, r, coat, r_c in STARTS]
+    hue = np.clip(np.asarray(base, float) / max(float(np.max(base)), 1e-6), 0.02, 1.0)
+    out.append(np.array([0.8, 0.8, 0.8, 1.0, 1, 1, 1, 0.05, 1.5, 1.0, *hue, 0.35, 1.0]))
+    return out
 
+
+#: Starts continued after the screening (:meth:`~.standard_fit.Problem.solve`; the
+#: others run :data:`~.standard_fit.SCREEN_NFEV` steps), and the steps each then takes.
+KEEP_STARTS = 2
+START_NFEV = 100
+
+#: Colour inputs that change their own channel of f only (base, specular and coat colour).
+CHANNELS = ((0, 1, 2), (4, 5, 6), (10, 11, 12))
 
 SPACE = Space(NAMES, LOWER, UPPER, starts,
-              lambda cos, x: openpbr_brdf(cos, to_material(x)), to_material)
+              lambda cos, x: openpbr_brdf(cos, to_material(x)), to_material, CHANNELS)
+_UM = np.array(gltf_fit.FILM_THICKNESS_NM) / 1e3          # the thickness range in µm
+FILM = FilmStage(
+    Space(NAMES + FILM_NAMES, np.concatenate([LOWER, [0.0, gltf_fit.FILM_IOR[0], _UM[0]]]),
+          np.concatenate([UPPER, [1.0, gltf_fit.FILM_IOR[1], _UM[1]]]),
+          starts, SPACE.brdf, to_material, CHANNELS),
+    gltf_fit.FILM_GRID_IOR, tuple(d / 1e3 for d in gltf_fit.FILM_GRID_NM),
+    lambda x: [np.asarray(x)], FILM_STARTS, 1, FILM_NFEV, gltf_fit.FILM_GAIN)
 
 
 def fit_openpbr(target_rgb: Callable[[Cosines], np.ndarray], directions=None) -> ExportFit:
     """The OpenPBR Surface closest to ``target_rgb`` (f (..., 3) linear sRGB, sr⁻¹)."""
-    return fit_standard(target_rgb, SPACE, directions)
+    return fit_standard(target_rgb, SPACE, directions, keep=KEEP_STARTS,
+                        max_nfev=START_NFEV, film=FILM)
 
 
 def _document(m: OpenPbrMaterial, extras: dict):

@@ -30,9 +30,16 @@ lobes" (non-reciprocal albedo scaling, as its MaterialX reference implementation
   cosines refracted into the coat); the base's roughness widened by the coat's
   (the spec's "Roughening" formula).
 
+* the thin film (``thin_film_weight``, ``_thickness`` in µm, ``_ior``): the base lobes'
+  Fresnel (dielectric and metal) mixed by the weight with Belcour & Barla 2017's
+  two-interface term in KHR_materials_iridescence's approximation (:func:`film_fresnel`,
+  the same function as glTF's, at V·H, from air); the directional albedos that weight
+  the diffuse base stay the film-less lobe's (an approximation, within the film's
+  change of F: the spec leaves the layering to the implementation).
+
 Not modelled: coat darkening (the export writes ``coat_darkening`` 0, whose meaning by
 the spec, the coated base's albedo F + E_b (1 − F), is what albedo scaling gives),
-thin film, fuzz, transmission, subsurface, anisotropy (all written at their off values).
+fuzz, transmission, subsurface, anisotropy (all written at their off values).
 """
 
 from __future__ import annotations
@@ -46,6 +53,7 @@ from ..cache import cached_arrays
 from ..geometry import Cosines
 from .gltf_brdf import (ALPHA_MIN, COS_EPS, ior_f0, parameters_dict, specular_brdf,
                         visibility)
+from .gltf_iridescence import iridescent_fresnel
 
 #: μ̄ of F82-tint: the cosine (about 82°) where ``specular_color`` sets the metal's edge.
 MU_BAR = 1.0 / 7.0
@@ -82,6 +90,9 @@ class OpenPbrMaterial:
     coat_color: tuple = (1.0, 1.0, 1.0)
     coat_roughness: float = 0.0
     coat_ior: float = 1.6
+    thin_film_weight: float = 0.0
+    thin_film_thickness: float = 0.5        # µm, the spec's unit for this input
+    thin_film_ior: float = 1.4
     name: str = field(default="", compare=False)
 
     def to_dict(self) -> dict:
@@ -187,9 +198,36 @@ def _lerp_axis(grid: np.ndarray, value: float) -> tuple[int, float]:
     return k, t
 
 
+class _Memo:
+    """Values of a pure function of (an array, scalars), kept for the last array seen
+    (by identity): the export's fit evaluates the BRDF thousands of times at one sample
+    set, most Jacobian columns at the same roughness. Callers never change a value."""
+
+    def __init__(self, size: int = 64):
+        self.owner, self.values, self.size = None, {}, size
+
+    def get(self, owner, key, compute):
+        if self.owner is not owner:
+            self.owner, self.values = owner, {}
+        value = self.values.get(key)
+        if value is None:
+            if len(self.values) >= self.size:
+                self.values.clear()
+            value = self.values[key] = compute()
+        return value
+
+
+_ALBEDO, _LOBE = _Memo(), _Memo()
+
+
 def lobe_albedo(mu_o, roughness: float, eta: float | None) -> np.ndarray:
     """E(μo) (...,) of the GGX lobe of ``roughness`` with the dielectric Fresnel of
     ``eta`` (None: F = 1), interpolated in :func:`albedo_tables`."""
+    return _ALBEDO.get(mu_o, (float(roughness), None if eta is None else float(eta)),
+                       lambda: _lobe_albedo(mu_o, roughness, eta))
+
+
+def _lobe_albedo(mu_o, roughness: float, eta: float | None) -> np.ndarray:
     t = albedo_tables()
     k, a = _lerp_axis(TABLE_ROUGHNESS, float(roughness))
     if eta is None:
@@ -212,17 +250,36 @@ def compensation(mu_o, roughness: float, f0) -> np.ndarray:
 # -------------------------------------------------------------------------- lobes --
 
 def _lobe(cos: Cosines, roughness: float) -> np.ndarray:
-    return specular_brdf(cos, float(roughness) ** 2)[..., None]
+    return _LOBE.get(cos, float(roughness),
+                     lambda: specular_brdf(cos, float(roughness) ** 2)[..., None])
 
 
-def dielectric_lobe(cos: Cosines, roughness: float, eta: float, tint) -> tuple:
-    """(f (..., 3), E(ωo) (..., 3)) of a compensated GGX dielectric reflection, tinted."""
+def dielectric_lobe(cos: Cosines, roughness: float, eta: float, tint,
+                    m: OpenPbrMaterial | None = None) -> tuple:
+    """(f (..., 3), E(ωo) (..., 3)) of a compensated GGX dielectric reflection, tinted;
+    under ``m``'s thin film (:func:`film_fresnel`) when ``m`` has one."""
     f0 = float(ior_f0(eta))
     comp = compensation(cos.cos_theta_o, roughness, np.array([f0]))
     tint = np.asarray(tint, dtype=float)
-    f = tint * fresnel_dielectric(cos.cos_theta_d, eta)[..., None] * _lobe(cos, roughness)
+    fresnel = film_fresnel(cos, m, fresnel_dielectric(cos.cos_theta_d, eta)[..., None],
+                           np.full(3, f0))
+    f = tint * fresnel * _lobe(cos, roughness)
     e = tint * (lobe_albedo(cos.cos_theta_o, roughness, eta)[..., None] * comp)
     return f * comp, e
+
+
+def film_fresnel(cos: Cosines, m: OpenPbrMaterial | None, fresnel, f0) -> np.ndarray:
+    """``fresnel`` (..., 3) of a base lobe of normal-incidence reflectance ``f0`` (3,)
+    under ``m``'s thin film: lerp(F, F_film, ``thin_film_weight``), F_film the
+    Belcour & Barla 2017 two-interface term as KHR_materials_iridescence writes it
+    (:func:`gonio_cli.export.gltf_iridescence.iridescent_fresnel`), at the microfacet's
+    angle (V·H), from air (the coat's interface with the film left out, as glTF does),
+    ``thin_film_thickness`` in µm."""
+    if m is None or m.thin_film_weight <= 0.0:
+        return fresnel
+    film = iridescent_fresnel(cos.cos_theta_d, m.thin_film_ior,
+                              1000.0 * float(m.thin_film_thickness), f0)
+    return (1.0 - m.thin_film_weight) * fresnel + m.thin_film_weight * film
 
 
 def coat_transmittance(cos: Cosines, m: OpenPbrMaterial) -> np.ndarray:
@@ -237,11 +294,12 @@ def coat_transmittance(cos: Cosines, m: OpenPbrMaterial) -> np.ndarray:
 def base_brdf(cos: Cosines, m: OpenPbrMaterial) -> np.ndarray:
     """The base substrate (..., 3): lerp(glossy-diffuse dielectric, F82 metal, M)."""
     r = coated_roughness(m)
-    f_spec, e_spec = dielectric_lobe(cos, r, specular_eta(m), m.specular_color)
+    f_spec, e_spec = dielectric_lobe(cos, r, specular_eta(m), m.specular_color, m)
     diffuse = float(m.base_weight) * np.asarray(m.base_color, dtype=float) / np.pi
     dielectric = f_spec + (1.0 - e_spec) * diffuse
     f0 = float(m.base_weight) * np.asarray(m.base_color, dtype=float)
-    metal = (float(m.specular_weight) * f82_tint(cos.cos_theta_d, f0, m.specular_color)
+    metal = (float(m.specular_weight)
+             * film_fresnel(cos, m, f82_tint(cos.cos_theta_d, f0, m.specular_color), f0)
              * _lobe(cos, r) * compensation(cos.cos_theta_o, r, f0))
     return (1.0 - m.base_metalness) * dielectric + m.base_metalness * metal
 
