@@ -146,7 +146,7 @@ def test_a_candidate_that_misses_the_mirror_peaks_wins_only_if_every_one_does(mo
                           ((True, True), "goniochromatic"),
                           ((False, False), "goniochromatic"),
                           ((None, None), "goniochromatic")):
-        monkeypatch.setattr(auto, "_fit_groups", lambda g, w, j, p=peaks: candidates(p))
+        monkeypatch.setattr(auto, "_judge", lambda c, w, j, pr, p=peaks: candidates(p))
         best, _ = auto.fit_auto(data, FitOptions(), fit, candidates=tuple(fits))
         assert best.model == chosen, peaks
 
@@ -169,3 +169,33 @@ def test_auto_records_whether_each_candidate_matches_the_mirror_peaks():
     _, cands = fit_auto(_data(MA_T12_TI, MA_T12_TO), FitOptions(), fit,
                         candidates=("goniochromatic",))
     assert cands[0].peaks_match is None
+
+
+def test_candidates_that_cannot_win_are_not_held_out_and_the_choice_is_the_same():
+    # eq. 5 plus a Lambertian term: the diffuse model leads; eq. 5 alone and
+    # Torrance-Sparrow miss all the data by more than the diffuse model misses the
+    # configurations it did not see, so their folds are left out, and the choice, and every
+    # held-out error that is computed, are those of judging every candidate
+    from recovery import rgl_like_geometry
+
+    rho, c = ink_spectra("green")
+    p = {"alpha": 0.15, "rho": rho, "c": c, "rho_d": 0.05 + 0.1 * rho}
+    ti, to = rgl_like_geometry()
+    keep = np.isin(ti, (20.0, 40.0, 60.0))
+    data = prepare(synthetic_measurement("goniochromatic-diffuse", p, ti[keep], to[keep],
+                                         noise=0.01, seed=2), residuals="compressive")
+    models = ("goniochromatic", "goniochromatic-diffuse", "torrance-sparrow")
+    best_all, every = fit_auto(data, FitOptions(), fit, candidates=models, prune=False)
+    best, pruned = fit_auto(data, FitOptions(), fit, candidates=models, jobs=2)
+    assert best.model == best_all.model == "goniochromatic-diffuse"
+    by = {c.model: c for c in pruned}
+    left_out = [m for m in models if by[m].not_held_out]
+    assert left_out == ["goniochromatic", "torrance-sparrow"]
+    for a in every:
+        b = by[a.model]
+        assert b.in_sample_delta_e == a.in_sample_delta_e
+        if b.not_held_out:
+            assert not np.isfinite(b.held_out_delta_e) and "not held out" in b.notes[-1]
+            assert a.held_out_delta_e > by[best.model].held_out_delta_e  # it could not win
+        else:
+            assert b.held_out_delta_e == a.held_out_delta_e

@@ -90,7 +90,7 @@ def test_held_out_errors_within_the_tie_keep_the_simpler_candidate(monkeypatch):
                            (1.0 - 2 * HELD_OUT_TIE, "goniochromatic-diffuse")):
         cands = [auto.Candidate(m, f, held_out_delta_e=h)
                  for (m, f), h in zip(fits.items(), (1.0, second))]
-        monkeypatch.setattr(auto, "_fit_groups", lambda g, w, j, cs=cands: cs)
+        monkeypatch.setattr(auto, "_judge", lambda c, w, j, pr, cs=cands: cs)
         best, _ = auto.fit_auto(data, FitOptions(), fit, candidates=tuple(fits))
         assert best.model == chosen, second
 

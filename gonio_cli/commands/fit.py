@@ -180,12 +180,15 @@ def verdict_line(output: Path, result, judgement: dict, intervals: dict | None =
 
 
 def auto_line(auto: dict) -> str:
-    """The candidates of --model auto by held-out colour error."""
+    """The candidates of --model auto by held-out colour error (those that could not win
+    are not held out, and show their error on all the data)."""
     parts = []
     for c in sorted(auto["candidates"], key=lambda c: (c["held_out_delta_e2000_mean"] is None,
                                                        c["held_out_delta_e2000_mean"] or 0)):
-        v = c["held_out_delta_e2000_mean"]
-        parts.append(f"{c['model']} {v:.2f}" if v is not None else f"{c['model']} failed")
+        v, own = c["held_out_delta_e2000_mean"], c.get("delta_e2000_mean")
+        parts.append(f"{c['model']} {v:.2f}" if v is not None else
+                     f"{c['model']} not held out (all the data: {own:.2f})"
+                     if c.get("not_held_out") and own is not None else f"{c['model']} failed")
     return f"auto: held-out CIEDE2000 mean: {', '.join(parts)}; chose {auto['chosen']}"
 
 
