@@ -291,3 +291,26 @@ def test_plot_draws_the_in_plane_subset_and_says_what_it_leaves_out():
     assert rows.tolist() == [True, True, False] and "1 out of plane not shown" in note
     m.phi_o_deg = None
     assert in_plane_rows(m)[1] == ""
+
+
+@pytest.mark.parametrize("smooth", [False, True])
+def test_a_measured_material_renders_its_in_plane_rows_and_says_what_it_leaves_out(smooth):
+    from gonio_cli import log
+    from gonio_cli.render.measured import MeasuredMaterial
+    from gonio_cli.render.measured_smooth import SmoothMeasured
+
+    rho, c = ink_spectra("red")
+    out = OUT[2] != 0                                # the paper's plane, then OUT's others
+    ti, to, po = (np.concatenate([a, b[out]])
+                  for a, b in zip(PLANE + (np.zeros(PLANE[0].size),), OUT))
+    m = synthetic_measurement("goniochromatic", {"alpha": 0.19, "rho": rho, "c": c},
+                              ti, to, noise=0.0, phi_o_deg=po)
+    in_plane = int(np.count_nonzero(m.phi_o_deg == 0))
+    assert 0 < in_plane < m.n_configurations
+    warnings: list[str] = []
+    with log.collecting(warnings):
+        material = (SmoothMeasured if smooth else MeasuredMaterial)(m, "wrap")
+    assert material.measurement.n_configurations == in_plane
+    assert len(warnings) == 1
+    assert (f"wrap: rendered from its {in_plane} configurations in the plane of incidence; "
+            f"the {m.n_configurations - in_plane} out of the plane are not used") in warnings[0]

@@ -37,7 +37,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..schemas import Measurement
-from .measured_smooth import SmoothMeasured
+from .measured_smooth import SmoothMeasured, plane_of_incidence
 
 #: Two θi closer than this (degrees) are the same row of the measurement (CSV noise).
 THETA_ROW_TOL_DEG = 1e-6
@@ -67,7 +67,7 @@ class MeasuredMaterial:
     """
 
     def __init__(self, measurement: Measurement, name: str = ""):
-        measurement = measurement.in_plane()  # an in-plane interpolant: φo = 0 rows only
+        measurement = plane_of_incidence(measurement, name)
         self.measurement = measurement
         self.name = name
         self.wavelength_nm = measurement.wavelength_nm

@@ -43,6 +43,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import log
 from ..schemas import Measurement
 
 #: Step (degrees) of the (θh, σ) lookup grid: 181² nodes over [0°, 90°]². Between nodes
@@ -168,6 +169,20 @@ def _hull_clamp(points: np.ndarray, hull_pts: np.ndarray) -> tuple[np.ndarray, n
     return out, inside
 
 
+def plane_of_incidence(measurement: Measurement, name: str = "") -> Measurement:
+    """The rows an in-plane interpolant reads (:meth:`Measurement.in_plane`, φo = 0); a
+    measurement with configurations out of the plane gets a warning that names how many
+    are left out."""
+    kept = measurement.in_plane()
+    left = measurement.n_configurations - kept.n_configurations
+    if left:
+        log.warn(f"{name or 'the measured material'}: rendered from its "
+                 f"{kept.n_configurations} configurations in the plane of incidence; the "
+                 f"{left} out of the plane are not used (the measured interpolants are "
+                 f"in-plane; fit a model to use them all)")
+    return kept
+
+
 class SmoothMeasured:
     """A :class:`~gonio_cli.schemas.Measurement` as a smooth renderable BRDF (module
     docstring): ``evaluate_directions`` as :class:`.measured.MeasuredMaterial`'s.
@@ -183,7 +198,7 @@ class SmoothMeasured:
         from scipy.interpolate import RBFInterpolator
         from scipy.ndimage import binary_erosion, spline_filter1d
 
-        measurement = measurement.in_plane()  # an in-plane interpolant: φo = 0 rows only
+        measurement = plane_of_incidence(measurement, name)
         self.measurement = measurement
         self.name = name
         self.wavelength_nm = measurement.wavelength_nm
