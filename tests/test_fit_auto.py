@@ -151,17 +151,23 @@ def test_a_candidate_that_misses_the_mirror_peaks_wins_only_if_every_one_does(mo
         assert best.model == chosen, peaks
 
 
-def test_auto_records_whether_each_candidate_matches_the_mirror_peaks():
-    # the RGL-like grid has mirror configurations: every candidate says; the MA-T12 has
-    # none: None
+def _diffuse_on_rgl_grid():
+    """eq. 5 plus a Lambertian term (green ink, 1 % noise) at an RGL-like grid with
+    mirror configurations, θi 20/40/60°, prepared with compressive residuals."""
     from recovery import rgl_like_geometry
 
     rho, c = ink_spectra("green")
     p = {"alpha": 0.15, "rho": rho, "c": c, "rho_d": 0.05 + 0.1 * rho}
     ti, to = rgl_like_geometry()
     keep = np.isin(ti, (20.0, 40.0, 60.0))
-    data = prepare(synthetic_measurement("goniochromatic-diffuse", p, ti[keep], to[keep],
+    return prepare(synthetic_measurement("goniochromatic-diffuse", p, ti[keep], to[keep],
                                          noise=0.01, seed=2), residuals="compressive")
+
+
+def test_auto_records_whether_each_candidate_matches_the_mirror_peaks():
+    # the RGL-like grid has mirror configurations: every candidate says; the MA-T12 has
+    # none: None
+    data = _diffuse_on_rgl_grid()
     _, cands = fit_auto(data, FitOptions(), fit,
                         candidates=("goniochromatic-diffuse", "torrance-sparrow"))
     assert all(isinstance(c.peaks_match, bool) for c in cands)
@@ -176,14 +182,7 @@ def test_candidates_that_cannot_win_are_not_held_out_and_the_choice_is_the_same(
     # Torrance-Sparrow miss all the data by more than the diffuse model misses the
     # configurations it did not see, so their folds are left out, and the choice, and every
     # held-out error that is computed, are those of judging every candidate
-    from recovery import rgl_like_geometry
-
-    rho, c = ink_spectra("green")
-    p = {"alpha": 0.15, "rho": rho, "c": c, "rho_d": 0.05 + 0.1 * rho}
-    ti, to = rgl_like_geometry()
-    keep = np.isin(ti, (20.0, 40.0, 60.0))
-    data = prepare(synthetic_measurement("goniochromatic-diffuse", p, ti[keep], to[keep],
-                                         noise=0.01, seed=2), residuals="compressive")
+    data = _diffuse_on_rgl_grid()
     models = ("goniochromatic", "goniochromatic-diffuse", "torrance-sparrow")
     best_all, every = fit_auto(data, FitOptions(), fit, candidates=models, prune=False)
     best, pruned = fit_auto(data, FitOptions(), fit, candidates=models, jobs=2)

@@ -22,7 +22,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import FitError, InputError
 from ..geometry import Cosines, measurement_cosines
 from ..schemas import Measurement
 
@@ -31,6 +31,22 @@ from ..schemas import Measurement
 #: seed 000 eq. 3 defines α in (0, 1].
 ALPHA_MIN = 1e-3
 ALPHA_MAX = 1.0
+
+
+def check_alpha(alpha: float | None) -> None:
+    """``--alpha`` (None: searched) inside [:data:`ALPHA_MIN`, :data:`ALPHA_MAX`], or one
+    line that says so."""
+    if alpha is not None and not (ALPHA_MIN <= alpha <= ALPHA_MAX):
+        raise InputError(f"--alpha {alpha:g} is outside [{ALPHA_MIN:g}, {ALPHA_MAX:g}]",
+                         fix="GGX alpha of seed 000 eq. 3 lies in (0, 1]")
+
+
+def check_signal(signal: np.ndarray) -> None:
+    """At least one wavelength with a usable reading (``signal`` (L,) bool), or a
+    :class:`~gonio_cli.errors.FitError`."""
+    if not np.any(signal):
+        raise FitError("no wavelength has a positive reading of positive weight",
+                       fix="check the measurement (all values zero or negative?)")
 
 #: Points of the coarse scan over log α (every 15 % in α across [ALPHA_MIN, ALPHA_MAX]);
 #: the profile cost is smooth, so the minimum is bracketed between two neighbours.

@@ -33,10 +33,10 @@ import numpy as np
 from ..brdf import (LOG_MAX, goniochromatic, goniochromatic_exponent_arg, log_ggx_d,
                     log_goniochromatic_d4)
 from ..brdf_jacobians import dlog_ggx_d_dlog_alpha
-from ..errors import FitError, InputError
+from ..errors import FitError
 from ..names import STEP2_NAMES, pick
 from .alpha import choose_optimizer, minimize_log_alpha, scan_log_alpha
-from .common import (ALPHA_MAX, ALPHA_MIN, FitData, LinearProfile, WARM_ALPHA_FACTOR,
+from .common import (check_alpha, ALPHA_MAX, ALPHA_MIN, FitData, LinearProfile, WARM_ALPHA_FACTOR,
                      WARM_ALPHA_POINTS)
 from .results import FitOptions, FitReport, ModelFit, Stopwatch, error_figures, nm_list
 from .separable import C_LIMIT, profile_c
@@ -254,9 +254,7 @@ def fit(data: FitData, options: FitOptions) -> ModelFit:
     if options.step2 not in STEP2_MODES:
         pick(STEP2_MODES, options.step2, "--step2")
     optimizer, _ = choose_optimizer("goniochromatic", OPTIMIZERS, options.optimizer)
-    if options.alpha is not None and not (ALPHA_MIN <= options.alpha <= ALPHA_MAX):
-        raise InputError(f"--alpha {options.alpha:g} is outside [{ALPHA_MIN:g}, {ALPHA_MAX:g}]",
-                       fix="GGX alpha of seed 000 eq. 3 lies in (0, 1]")
+    check_alpha(options.alpha)
     if options.alpha is None:
         check_identifiable(data)
     reports: dict[str, FitReport] = {}

@@ -38,10 +38,9 @@ import numpy as np
 from ..brdf import (UNDERCOAT_INDEX, coat_transmission, evaluate, ggx_lobe,
                     goniochromatic_d4, goniochromatic_exponent_arg, opposition_surge,
                     torrance_sparrow)
-from ..errors import InputError
 from ..geometry import refracted_cosines
 from .alpha import choose_optimizer, minimize_log_alpha
-from .common import ALPHA_MAX, ALPHA_MIN, BestPoint, FitData
+from .common import check_alpha, ALPHA_MAX, ALPHA_MIN, BestPoint, FitData
 from .results import FitOptions, FitReport, ModelFit, Stopwatch, error_figures, nm_list
 from .separable import C_LIMIT, nnls2, profile_c_columns
 from .separable import CScan
@@ -345,9 +344,7 @@ def fit_layered(data: FitData, options: FitOptions, coat: bool,
              "goniochromatic-coat" if coat else "goniochromatic-diffuse")
     kind = "under" if undercoat else "over" if coat else "none"
     coat = coat or undercoat
-    if options.alpha is not None and not (ALPHA_MIN <= options.alpha <= ALPHA_MAX):
-        raise InputError(f"--alpha {options.alpha:g} is outside [{ALPHA_MIN:g}, {ALPHA_MAX:g}]",
-                         fix="GGX alpha of seed 000 eq. 3 lies in (0, 1]")
+    check_alpha(options.alpha)
     optimizer, search_alpha = choose_optimizer(model, OPTIMIZERS, options.optimizer)
     sw = Stopwatch()
     memo = options.stages if options.stages is not None else {}

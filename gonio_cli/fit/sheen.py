@@ -24,9 +24,8 @@ import numpy as np
 
 from ..brdf import COS_EPS, evaluate, torrance_sparrow
 from ..brdf_surfaces import FIBRE_F0, charlie_sheen
-from ..errors import FitError, InputError
 from .alpha import choose_optimizer
-from .common import ALPHA_MAX, ALPHA_MIN, BestPoint, FitData
+from .common import check_alpha, check_signal, ALPHA_MAX, ALPHA_MIN, BestPoint, FitData
 from .results import FitOptions, FitReport, ModelFit, Stopwatch, error_figures, nm_list
 from .separable import nnls2
 from .warm import WARM_STEP, WARM_XTOL, near
@@ -136,15 +135,11 @@ def fit(data: FitData, options: FitOptions) -> ModelFit:
     """Fit ``sheen`` to prepared data (module doc). ``options.alpha`` fixes the specular
     lobe's α (the search is then over r alone). Returns a :class:`~.results.ModelFit` with
     one report, ``refined``; a wavelength without signal is named, its spectra 0."""
-    if options.alpha is not None and not (ALPHA_MIN <= options.alpha <= ALPHA_MAX):
-        raise InputError(f"--alpha {options.alpha:g} is outside [{ALPHA_MIN:g}, {ALPHA_MAX:g}]",
-                         fix="GGX alpha of seed 000 eq. 3 lies in (0, 1]")
+    check_alpha(options.alpha)
     optimizer, _ = choose_optimizer(MODEL, OPTIMIZERS, options.optimizer)
     sw = Stopwatch()
     problem = SheenProblem(data)
-    if not problem.signal.any():
-        raise FitError("no wavelength has a positive reading of positive weight",
-                       fix="check the measurement (all values zero or negative?)")
+    check_signal(problem.signal)
     warm = near(options, "r_sheen", "alpha")
     if options.alpha is not None:
         fixed = np.log(options.alpha)

@@ -30,9 +30,8 @@ import numpy as np
 
 from ..brdf import evaluate, ggx_lobe
 from ..brdf_surfaces import table_weights
-from ..errors import FitError, InputError
 from .alpha import choose_optimizer, minimize_log_alpha
-from .common import ALPHA_MAX, ALPHA_MIN, FitData
+from .common import check_alpha, check_signal, ALPHA_MAX, ALPHA_MIN, FitData
 from .results import FitOptions, FitReport, ModelFit, Stopwatch, error_figures, nm_list
 from .sheen import linear_weights
 from .warm import log_alpha_window, near
@@ -216,15 +215,11 @@ def _alpha(problem: TableProblem, kappa: float, optimizer: str, search, window=N
 def fit(data: FitData, options: FitOptions) -> ModelFit:
     """Fit ``tabulated-colour`` to prepared data (module doc); ``options.alpha`` fixes α.
     One report, ``refined``, with the smoothness κ and its GCV score in its figures."""
-    if options.alpha is not None and not (ALPHA_MIN <= options.alpha <= ALPHA_MAX):
-        raise InputError(f"--alpha {options.alpha:g} is outside [{ALPHA_MIN:g}, {ALPHA_MAX:g}]",
-                         fix="GGX alpha of seed 000 eq. 3 lies in (0, 1]")
+    check_alpha(options.alpha)
     optimizer, search = choose_optimizer(MODEL, OPTIMIZERS, options.optimizer)
     sw = Stopwatch()
     problem = TableProblem(data)
-    if not problem.signal.any():
-        raise FitError("no wavelength has a positive reading of positive weight",
-                       fix="check the measurement (all values zero or negative?)")
+    check_signal(problem.signal)
     warm = near(options, "alpha")
     memo = options.stages if options.stages is not None else {}
     success, message, n = True, "alpha fixed", 0

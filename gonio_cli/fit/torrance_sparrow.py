@@ -37,9 +37,9 @@ import numpy as np
 
 from ..brdf import schlick_fresnel, torrance_sparrow
 from ..brdf_jacobians import dlog_ggx_d_dlog_alpha, dlog_smith_g1_dlog_alpha
-from ..errors import FitError, InputError
+from ..errors import FitError
 from .alpha import choose_optimizer, minimize_log_alpha, scan_log_alpha
-from .common import ALPHA_MAX, ALPHA_MIN, FitData
+from .common import check_alpha, check_signal, ALPHA_MAX, ALPHA_MIN, FitData
 from .results import FitOptions, FitReport, ModelFit, Stopwatch, error_figures, nm_list
 
 MODEL = "torrance-sparrow"
@@ -302,13 +302,9 @@ def fit(data: FitData, options: FitOptions) -> ModelFit:
         configuration is a mirror one (α is then a pure scale).
     """
     sw = Stopwatch()
-    if options.alpha is not None and not (ALPHA_MIN <= options.alpha <= ALPHA_MAX):
-        raise InputError(f"--alpha {options.alpha:g} is outside [{ALPHA_MIN:g}, {ALPHA_MAX:g}]",
-                         fix="GGX alpha of seed 000 eq. 3 lies in (0, 1]")
+    check_alpha(options.alpha)
     profile = F0Profile(data)
-    if not profile.signal.any():
-        raise FitError("no wavelength has a positive reading of positive weight",
-                       fix="check the measurement (all values zero or negative?)")
+    check_signal(profile.signal)
     if options.alpha is None and np.all(data.mirror_rows()):
         raise FitError("every configuration is a mirror one (theta_o_deg = theta_i_deg), so "
                        "alpha only scales f0 and cannot be fitted",
