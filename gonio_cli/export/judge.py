@@ -94,11 +94,13 @@ def find_measurement(material_path, material_doc: dict):
 
 @dataclass
 class Judgement:
-    """CIEDE2000 (N,) of an export against its material at (θi, θo) (N,) degrees."""
+    """CIEDE2000 (N,) of an export against its material at (θi, θo[, φo]) (N,) degrees
+    (``phi_o_deg`` None: in the plane of incidence)."""
 
     delta_e: np.ndarray
     theta_i_deg: np.ndarray
     theta_o_deg: np.ndarray
+    phi_o_deg: np.ndarray | None = None
 
     @property
     def worst_index(self) -> int:
@@ -109,8 +111,23 @@ class Judgement:
         return {"delta_e2000_mean": float(np.mean(self.delta_e)),
                 "delta_e2000_p95": float(np.percentile(self.delta_e, PERCENTILE)),
                 "delta_e2000_worst": float(self.delta_e[k]),
-                "worst_configuration": {"theta_i_deg": float(self.theta_i_deg[k]),
-                                        "theta_o_deg": float(self.theta_o_deg[k])}}
+                "worst_configuration": self.configuration(k)}
+
+    def configuration(self, k: int) -> dict[str, float]:
+        """Configuration ``k`` by its angles (φo only out of the plane, as ``gonio eval``
+        names one)."""
+        out = {"theta_i_deg": float(self.theta_i_deg[k]),
+               "theta_o_deg": float(self.theta_o_deg[k])}
+        if self.phi_o_deg is not None and self.phi_o_deg[k] != 0.0:
+            out["phi_o_deg"] = float(self.phi_o_deg[k])
+        return out
+
+    def angles(self) -> dict[str, np.ndarray]:
+        """The per-configuration angles of a report (``phi_o_deg`` only when given)."""
+        out = {"theta_i_deg": self.theta_i_deg, "theta_o_deg": self.theta_o_deg}
+        if self.phi_o_deg is not None:
+            out["phi_o_deg"] = self.phi_o_deg
+        return out
 
 
 def delta_e_rgb(rgb_ref, rgb_test) -> np.ndarray:
@@ -125,7 +142,8 @@ def judge(material, exported_rgb: Callable[[Cosines], np.ndarray], theta_i_deg,
     configurations (degrees; ``phi_o_deg`` None: in plane)."""
     cos = measurement_cosines(theta_i_deg, theta_o_deg, phi_o_deg)
     de = delta_e_rgb(np.pi * material_rgb(material)(cos), np.pi * exported_rgb(cos))
-    return Judgement(de, np.asarray(theta_i_deg, float), np.asarray(theta_o_deg, float))
+    return Judgement(de, np.asarray(theta_i_deg, float), np.asarray(theta_o_deg, float),
+                     None if phi_o_deg is None else np.asarray(phi_o_deg, float))
 
 
 def own_fit(material, material_path, material_doc: dict, meas_path, meas) -> dict[str, Any]:
@@ -137,7 +155,7 @@ def own_fit(material, material_path, material_doc: dict, meas_path, meas) -> dic
         model = evaluate_at(material, meas, gains=gains).brdf
         w = rgb_weights(meas.wavelength_nm).T
         j = Judgement(delta_e_rgb(np.pi * meas.brdf @ w, np.pi * model @ w),
-                      meas.theta_i_deg, meas.theta_o_deg)
+                      meas.theta_i_deg, meas.theta_o_deg, meas.phi_o_deg)
         return {"source": f"the material against {os.fspath(meas_path)}, as above",
                 **j.summary()}
     verdict = (material_doc.get("fit") or {}).get("verdict") or {}
@@ -163,19 +181,20 @@ def report(target: str, material, material_path, exported_rgb) -> dict[str, Any]
     return {"target": target, "model": material.model, "configurations": where,
             "colour": COLOUR, **j.summary(),
             "material_fit": own_fit(material, material_path, doc, meas_path, meas),
-            "theta_i_deg": j.theta_i_deg, "theta_o_deg": j.theta_o_deg,
-            "delta_e2000": j.delta_e}
+            **j.angles(), "delta_e2000": j.delta_e}
 
 
 def sentence(name: str, target_label: str, rep: dict[str, Any]) -> str:
     """The one stderr line: ``gonio export: red.glb: glTF keeps mean CIEDE2000 2.1 (worst
-    5.3 at θi 45° θo 10°) against the material (its own fit: 1.2)``."""
+    5.3 at θi 45° θo 10°) against the material (its own fit: 1.2)`` (``φo 30°`` after θo
+    when the worst configuration is out of the plane)."""
     w = rep["worst_configuration"]
+    phi = f" φo {w['phi_o_deg']:g}°" if "phi_o_deg" in w else ""
     own = rep["material_fit"].get("delta_e2000_mean")
     own_text = f"{own:.1f}" if own is not None else "not recorded"
     return (f"gonio export: {name}: {target_label} keeps mean CIEDE2000 "
             f"{rep['delta_e2000_mean']:.1f} (worst {rep['delta_e2000_worst']:.1f} at "
-            f"θi {w['theta_i_deg']:g}° θo {w['theta_o_deg']:g}°) against the material "
+            f"θi {w['theta_i_deg']:g}° θo {w['theta_o_deg']:g}°{phi}) against the material "
             f"(its own fit: {own_text})")
 
 
