@@ -163,3 +163,13 @@ def num(value) -> str:
     else:
         return str(value)
     return text[:-2] if text.endswith(".0") else text
+
+
+def deg(value) -> str:
+    """An angle in degrees as a message shows it, to 0.01°: ``70``, ``1.06``, ``-7.5``.
+
+    The canonical spelling of a configuration out of the plane is exact trigonometry
+    (θo 70.0032°, φo 1.06416° for 1° around a mirror at 70°): a reader wants the angle,
+    not the round-off."""
+    text = f"{round(float(value), 2):g}"
+    return "0" if text == "-0" else text

@@ -28,7 +28,7 @@ import numpy as np
 
 from . import log
 from .brdf import MODELS
-from .errors import InputError
+from .errors import InputError, deg
 from .fit import uncertainty, uncertainty_draws
 from .fit.gains import SweepGains
 from .fit.plot import plot_fit
@@ -198,9 +198,9 @@ def band_text(band: dict[str, Any]) -> str:
     w = band["worst_configuration"]
     return (f"; colour band of the fit's {100 * band['level']:g} % intervals: CIEDE2000 "
             f"p{band['percentile']:g} median {band['median_delta_e2000_p95']:.2f}, worst "
-            f"{band['worst_delta_e2000_p95']:.2f} at theta_i {w['theta_i_deg']:g}, theta_o "
-            f"{w['theta_o_deg']:g}" + (f", phi_o {w['phi_o_deg']:g}" if "phi_o_deg" in w
-                                       else ""))
+            f"{band['worst_delta_e2000_p95']:.2f} at theta_i {deg(w['theta_i_deg'])}, theta_o "
+            f"{deg(w['theta_o_deg'])}" + (f", phi_o {deg(w['phi_o_deg'])}" if "phi_o_deg" in w
+                                          else ""))
 
 
 def model_parameters(material: Material) -> dict[str, Any]:

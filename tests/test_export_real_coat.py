@@ -100,3 +100,11 @@ def test_the_stderr_line_names_an_out_of_plane_worst_configuration():
     assert "(worst 2.0 at θi 10° θo 20°) against" in sentence("x.glb", "glTF", rep)
     rep["worst_configuration"]["phi_o_deg"] = 30.0
     assert "(worst 2.0 at θi 10° θo 20° φo 30°) against" in sentence("x.glb", "glTF", rep)
+
+
+def test_messages_show_an_angle_to_a_hundredth_of_a_degree():
+    from gonio_cli.errors import deg
+
+    # 1° around a mirror at 70°, spelt canonically: θo 70.0032°, φo 1.06416°
+    assert (deg(70.00324), deg(1.06416), deg(-7.5), deg(-0.001), deg(85)) == \
+        ("70", "1.06", "-7.5", "0", "85")

@@ -9,6 +9,7 @@ from typing import Iterator, List, Optional
 import typer
 
 from .. import log
+from ..errors import deg
 from ..names import FIT_MODEL_CHOICES as MODEL_NAMES
 from ..names import (OPTIMIZER_NAMES, OPTIMIZERS_BY_MODEL, RESIDUAL_NAMES, STEP2_NAMES,
                      SWEEP_GAIN_NAMES, metavar)
@@ -158,9 +159,9 @@ def verdict_line(output: Path, result, judgement: dict, intervals: dict | None =
     if "delta_e2000_mean" in judgement:
         wc = judgement["worst_colour_configuration"]
         text.append(f" colour error CIEDE2000 mean {judgement['delta_e2000_mean']:.2f}, worst "
-                    f"{judgement['delta_e2000_worst']:.2f} at theta_i {wc['theta_i_deg']:g}, "
-                    f"theta_o {wc['theta_o_deg']:g}"
-                    + (f", phi_o {wc['phi_o_deg']:g}" if "phi_o_deg" in wc else ""))
+                    f"{judgement['delta_e2000_worst']:.2f} at theta_i {deg(wc['theta_i_deg'])}, "
+                    f"theta_o {deg(wc['theta_o_deg'])}"
+                    + (f", phi_o {deg(wc['phi_o_deg'])}" if "phi_o_deg" in wc else ""))
         decided.append(f"mean <= {mean_max:g}, worst <= {worst_max:g}")
     ratios = judgement.get("mirror_peak_y_ratio")
     if ratios:

@@ -28,7 +28,7 @@ from typing import Any, Callable
 import numpy as np
 
 from ..artifact import atomic_path, read_artifact, sha256_file, write_artifact
-from ..errors import GonioError, InputError
+from ..errors import GonioError, InputError, deg
 from ..evaluate import evaluate_at, gains_for
 from ..fit.verdict import COLOUR_RANGE_NM, covers_colour
 from ..geometry import Cosines, measurement_cosines
@@ -189,13 +189,13 @@ def sentence(name: str, target_label: str, rep: dict[str, Any]) -> str:
     5.3 at θi 45° θo 10°) against the material (its own fit: 1.2)`` (``φo 30°`` after θo
     when the worst configuration is out of the plane)."""
     w = rep["worst_configuration"]
-    phi = f" φo {w['phi_o_deg']:g}°" if "phi_o_deg" in w else ""
+    phi = f" φo {deg(w['phi_o_deg'])}°" if "phi_o_deg" in w else ""
     own = rep["material_fit"].get("delta_e2000_mean")
     own_text = f"{own:.1f}" if own is not None else "not recorded"
     return (f"gonio export: {name}: {target_label} keeps mean CIEDE2000 "
             f"{rep['delta_e2000_mean']:.1f} (worst {rep['delta_e2000_worst']:.1f} at "
-            f"θi {w['theta_i_deg']:g}° θo {w['theta_o_deg']:g}°{phi}) against the material "
-            f"(its own fit: {own_text})")
+            f"θi {deg(w['theta_i_deg'])}° θo {deg(w['theta_o_deg'])}°{phi}) against the "
+            f"material (its own fit: {own_text})")
 
 
 def report_path(path) -> Path:

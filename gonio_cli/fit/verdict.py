@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from .. import spectra
+from ..errors import deg
 from ..geometry import measurement_directions, reciprocal_configuration, reflect
 from .common import FitData, MIRROR_TOL_DEG
 from .uncertainty import LEVEL, half_width_text
@@ -118,10 +119,11 @@ class Reciprocity:
 
     def sentence(self) -> str:
         how = " (interpolated)" if self.interpolated else ""
-        phi = f", phi_o {self.phi_o_deg:g}" if self.phi_o_deg else ""
-        return (f"the data are not reciprocal: theta_i {self.theta_i_deg:g}, theta_o "
-                f"{self.theta_o_deg:g}{phi} and its reverse theta_i "
-                f"{self.reverse_theta_i_deg:g}, theta_o {self.reverse_theta_o_deg:g}{phi}{how} "
+        phi = f", phi_o {deg(self.phi_o_deg)}" if self.phi_o_deg else ""
+        return (f"the data are not reciprocal: theta_i {deg(self.theta_i_deg)}, theta_o "
+                f"{deg(self.theta_o_deg)}{phi} and its reverse theta_i "
+                f"{deg(self.reverse_theta_i_deg)}, theta_o {deg(self.reverse_theta_o_deg)}"
+                f"{phi}{how} "
                 f"differ by CIEDE2000 "
                 f"{self.delta_e:.2f}: no BRDF, being reciprocal, can match both (a "
                 f"calibration or alignment that differs between the sweeps?)")
