@@ -159,7 +159,7 @@ def factor(blocks, d0) -> list:
     k = c.shape[1]
     floor = METRIC_FLOOR * np.mean(np.einsum("lkk->lk", d0), axis=1) + TINY
     g = np.linalg.cholesky(d0 + floor[:, None, None] * np.eye(k))      # M = G Gᵀ
-    vals, vecs = np.linalg.eigh(np.einsum("lki,lkj,ljm->lim", g, c, g))  # Gᵀ C G
+    vals, vecs = np.linalg.eigh(np.swapaxes(g, 1, 2) @ c @ g)          # Gᵀ C G
     vals, vecs = np.maximum(vals[:, ::-1], 0.0), vecs[:, :, ::-1]      # largest first
     share = np.cumsum(vals, axis=1) / np.maximum(np.sum(vals, axis=1, keepdims=True), TINY)
     r = int(np.max(np.sum(share < 1.0 - DROPPED_VARIANCE, axis=1))) + 1
