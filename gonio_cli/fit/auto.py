@@ -309,7 +309,8 @@ def _leader(cands: list[Candidate]) -> Candidate | None:
 def _judge(candidates, work, jobs: int, prune: bool) -> list[Candidate]:
     """Every candidate fitted to all the data and, if it could win (:func:`can_win`,
     with ``prune``), judged on the folds. The leader's folds go first, in parallel; then
-    the folds of the candidates that could beat it, a group (:data:`TOGETHER`) a process."""
+    the folds of the candidates that could beat it, in parallel over groups
+    (:data:`TOGETHER`) and folds."""
     data, options, fit_one, scheme, held_out = work
     groups = _groups(candidates)
 
@@ -335,22 +336,30 @@ def _judge(candidates, work, jobs: int, prune: bool) -> list[Candidate]:
                            f"the configurations it did not see "
                            f"({leader.held_out_delta_e:.2f})")
 
-    def folds_group(group):
-        memo, out = {}, []
+    def group_fold(item):
+        group, fold = item
+        memo = {}
         for m in group:
             memo.update(found[m].stages)
-        opts = replace(options, stages=memo)   # the group's folds share their searches
+        opts = replace(options, stages=memo)   # a group's fits of one fold share searches
+        out = []
         for m in group:
             sw = Stopwatch()
-            out.append((m, [_fold(found[m], data, opts, fit_one, *f) for f in held_out],
-                        sw.lap()))
+            out.append((m, _fold(found[m], data, opts, fit_one, *fold), sw.lap()))
         return out
 
     rest = [tuple(m for m in grp if found[m].fit is not None and found[m] is not leader
                   and not found[m].not_held_out) for grp in groups]
-    for group in _in_processes(folds_group, [g for g in rest if g], jobs):
-        for m, done, seconds in group:
-            _held_out(found[m], done, seconds)
+    # one process item per group and fold (not per group: a lone candidate that could
+    # win would keep one process busy with all its folds while the other waits)
+    items = [(g, f) for g in rest if g for f in held_out]
+    done: dict[str, tuple[list, float]] = {}
+    for part in _in_processes(group_fold, items, jobs):
+        for m, result, seconds in part:
+            results, total = done.get(m, ([], 0.0))
+            done[m] = (results + [result], total + seconds)
+    for m, (results, seconds) in done.items():
+        _held_out(found[m], results, seconds)
     return [found[m] for m in candidates]
 
 
